@@ -1,0 +1,1 @@
+"""Heuristic observation-control rules with SB3's ``predict`` interface."""

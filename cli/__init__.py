@@ -1,0 +1,1 @@
+"""The ``sensorgym`` command: one entry point with subcommands (see :mod:`.main`)."""

@@ -1,0 +1,45 @@
+"""``sensorgym`` command line: one parser, one module per subcommand.
+
+Each subcommand module exposes ``HELP`` (one line), ``add_arguments(parser)`` and
+``run(args) -> int``; modules are imported only when their subcommand runs, so
+``sensorgym --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from importlib.metadata import version
+
+#: subcommand name -> module implementing it
+COMMANDS: dict[str, str] = {
+    "triangulate-demo": "sensorgym.cli.triangulate_demo",
+    "reproduce": "sensorgym.cli.reproduce",
+}
+
+#: what ``scripts/run.sh`` runs when given no arguments
+DEFAULT_JOB: list[str] = ["triangulate-demo"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="sensorgym",
+        description="Sensor-management environments and passive-location trackers.",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {version('sensorgym')}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for name, module_name in COMMANDS.items():
+        module = importlib.import_module(module_name)
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    return int(args._run(args) or 0)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""Simulated worlds and the Gymnasium / PettingZoo environments built on them."""

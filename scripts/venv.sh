@@ -1,0 +1,13 @@
+# Sourced by run.sh and test.sh: create or reuse .venv and install sensorgym into it.
+# torch is pinned to the CPU build that lies on this machine's disk; the project's own
+# dependency stays a range (torch>=2.3), which the pinned build satisfies.
+set -euo pipefail
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${SENSORGYM_VENV:-$ROOT/.venv}"
+PYTHON="${PYTHON:-python3}"
+if [ ! -x "$VENV/bin/python" ]; then
+    "$PYTHON" -m venv "$VENV"
+fi
+"$VENV/bin/python" -m pip install --quiet --upgrade pip
+"$VENV/bin/python" -m pip install --quiet "torch==2.13.0"
+"$VENV/bin/python" -m pip install --quiet -e "$ROOT[test]"

@@ -1,0 +1,1 @@
+"""Stable-baselines3 training on vectorised sensorgym environments."""
