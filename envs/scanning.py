@@ -71,7 +71,9 @@ class ReceiverLayout:
     @property
     def relative(self) -> tuple[FloatArray, FloatArray]:
         """``(P, b)``: (n−1, 3, 3) and (n−1, 3) with ``M_1 = P_k M_k + b_k`` (SPEC §1.1)."""
-        return relative_pose(self.rotations[0], self.positions[0], self.rotations[1:], self.positions[1:])
+        return relative_pose(
+            self.rotations[0], self.positions[0], self.rotations[1:], self.positions[1:]
+        )
 
     def to_local(self, points_world: ArrayLike) -> FloatArray:
         """World points ``(..., n, 3)`` → components in each receiver's own frame."""

@@ -157,7 +157,9 @@ def observe_period(
         idx = np.flatnonzero(seen)
         n_false = rng.poisson(detection.false_rate) if detection.false_rate > 0 else 0
         half = np.deg2rad(0.5 * detection.false_fov_deg)
-        a_false = unit_from_angles(rng.uniform(-half, half, n_false), rng.uniform(-half, half, n_false))
+        a_false = unit_from_angles(
+            rng.uniform(-half, half, n_false), rng.uniform(-half, half, n_false)
+        )
         t_false = t0 + rng.uniform(0.0, period, n_false)
         if isinstance(timings[k], FixedDelay):
             t_false = np.full(n_false, t0 + timings[k].delay)

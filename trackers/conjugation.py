@@ -261,9 +261,9 @@ def _triple_velocity_closed_form(
     norm = d2 * d2 + d3 * d3
     G = np.stack([-(d2 + d3) * a1, d2 * c2, d3 * c3], axis=-1)  # V-numerator coefficients of r
     eye = np.eye(3)
-    L = (
-        np.concatenate([d2[..., None] * eye, d3[..., None] * eye], axis=-1) + G @ K
-    ) / norm[..., None]
+    L = (np.concatenate([d2[..., None] * eye, d3[..., None] * eye], axis=-1) + G @ K) / norm[
+        ..., None
+    ]
     Ainv = np.concatenate([K, L], axis=-2)  # (..., 6, 6) = A⁻¹
     X = np.einsum("...ij,...j->...i", Ainv, b.reshape(*b.shape[:-2], 6))
     # Q = σ_e² A⁻¹ A⁻ᵀ
