@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from sensorgym.trackers.geometry import angles_from_unit, look_at_rotation, relative_pose
 from sensorgym.trackers.validation import finite_array
 
@@ -87,7 +86,7 @@ class ReceiverLayout:
 
     @classmethod
     def looking_at(cls, positions: ArrayLike, aim: ArrayLike) -> ReceiverLayout:
-        """Receivers at ``positions`` (n, 3) whose boresights point at ``aim`` ((3,) or (n, 3)), Y up."""
+        """Receivers at ``positions`` (n, 3) with boresights at ``aim`` ((3,) or (n, 3)), Y up."""
         o = finite_array(positions, "positions", tail=(3,))
         t = np.broadcast_to(finite_array(aim, "aim", tail=(3,)), o.shape)
         return cls(look_at_rotation(o, t), o)
@@ -101,7 +100,7 @@ class ReceiverLayout:
         aim: ArrayLike = (0.0, 0.0, 0.0),
         centre: ArrayLike = (0.0, 0.0, 0.0),
     ) -> ReceiverLayout:
-        """Receivers on a horizontal circle (world ``Y`` up) at the given azimuths, aimed at ``aim``.
+        """Receivers on a horizontal circle (world ``Y`` up) at given azimuths, aimed at ``aim``.
 
         ``radius`` in m; ``angles_deg`` positions on the circle measured from world ``+Z``
         towards ``+X``; ``heights`` (m) added to the centre's ``Y``.

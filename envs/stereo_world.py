@@ -27,7 +27,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
-
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles
 
 from .drones import Trajectories
@@ -60,7 +59,7 @@ class DetectionModel:
     false_rate: float = 0.0
     """Mean number of false fixes per receiver per period (Poisson)."""
     false_fov_deg: float = 30.0
-    """False fixes fall uniformly in a square field of view of this width around the boresight, deg."""
+    """Width of the square field of view around the boresight where false fixes fall, deg."""
     reference_range: float = 50.0
     """Range at which a true fix has power 1 (power ∝ 1/r² beyond), m."""
     false_power_max: float = 0.5

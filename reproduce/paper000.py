@@ -1,4 +1,4 @@
-"""Paper 000, Tables 1–2: alternative (n = 2) vs proposed velocity-aware (n = 3) tracking (SPEC §2.5–2.6).
+"""Paper 000, Tables 1–2: alternative (n = 2) vs proposed (n = 3) tracking (SPEC §2.5–2.6).
 
 Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (SPEC §2.5, gap
 15), and our choices are the fields of :class:`Scenario000`, printed with the tables:
@@ -28,7 +28,6 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
-
 from sensorgym.envs.drones import GroupSpec, random_group
 from sensorgym.envs.stereo_world import FixedDelay, NoiseModel, ReceiverLayout, simulate
 from sensorgym.trackers.association import match_tracks
@@ -245,7 +244,8 @@ def reproduce(runs: int = 1000, seed: int = 0, scenario: Scenario000 = Scenario0
                         ("status", "reason"),
                         _status(
                             heavy,
-                            "no mis-associations in our scenario: the objects' common velocity and ≥2 m spacing let δ gating separate them, so d is the pure Maxwell noise",
+                            "no mis-associations in our scenario: common velocity and ≥ 2 m"
+                            " spacing let δ separate the objects, so d is pure Maxwell noise",
                         ),
                         strict=True,
                     )
@@ -285,7 +285,8 @@ def format_report(result: dict) -> str:
         lines += [
             "",
             title,
-            f"  {'m':>2} {'Δt, s':>9} | {'d_avg/σ_d paper':>16} {'ours':>13} | {'Pr_m paper':>10} {'ours':>6} {'m̂=m':>6}",
+            f"  {'m':>2} {'Δt, s':>9} | {'d_avg/σ_d paper':>16} {'ours':>13}"
+            f" | {'Pr_m paper':>10} {'ours':>6} {'m̂=m':>6}",
         ]
         for x in result["cells"]:
             if x["table"] != table:
@@ -293,13 +294,16 @@ def format_report(result: dict) -> str:
             p, o = x["paper"], x["ours"]
             dl = "/".join(f"{d:g}" for d in x["delays"])
             lines.append(
-                f"  {x['m']:>2} {dl:>9} | {p['d_avg']:>7.2f}/{p['d_std']:<8.2f} {o['d_avg']:>6.3f}/{o['d_std']:<6.3f} | {p['pr_m']:>10.2f} {o['pr_m']:>6.3f} {o['m_hat_exact']:>6.3f}"
+                f"  {x['m']:>2} {dl:>9} | {p['d_avg']:>7.2f}/{p['d_std']:<8.2f}"
+                f" {o['d_avg']:>6.3f}/{o['d_std']:<6.3f} | {p['pr_m']:>10.2f}"
+                f" {o['pr_m']:>6.3f} {o['m_hat_exact']:>6.3f}"
             )
     lines += ["", "Targets (SPEC §8):"]
     for ch in result["checks"]:
         tail = f" — {ch['reason']}" if ch["reason"] else ""
         lines.append(
-            f"  {ch['id']:<5} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, ours {ch['ours']}{tail}"
+            f"  {ch['id']:<5} {ch['status']:<8} {ch['what']}:"
+            f" paper {ch['paper']}, ours {ch['ours']}{tail}"
         )
     return "\n".join(lines)
 

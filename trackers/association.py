@@ -1,4 +1,4 @@
-"""Grouping, gating, beam and final selection shared by every stereo tracker (SPEC §2.3–2.4, §5.3–5.4).
+"""Grouping, gating, beam and final selection shared by every stereo tracker (SPEC §2.3–5.4).
 
 Papers 000 and 003 detect objects the same way: candidates (pairs or triples of direction
 vectors, one per receiver) are formed each period; groups of candidates across periods are
@@ -91,7 +91,7 @@ def prune(score: FloatArray, beam: int | None) -> IntArray:
 
 
 def shared_vectors(members: IntArray) -> IntArray:
-    """``(G, G)`` number of direction vectors two groups share (members ``(G, N, S)``, −1 = none)."""
+    """``(G, G)`` number of vectors two groups share (members ``(G, N, S)``, −1 = none)."""
     members = np.asarray(members)
     if members.ndim != 3:
         raise ValueError(f"members: expected shape (G, N, S), got {members.shape}")

@@ -40,7 +40,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class AlgebraicParams:
-    """Gate γ of the multi-object algebraic index (8) and solver options (SPEC §5.3, §11.1 item 6)."""
+    """Gate γ of the multi-object algebraic index (8), solver options (SPEC §5.3, §11.1 item 6)."""
 
     position_sigma: float = 0.3
     """Std of each coordinate of a subgroup's position estimate, m."""
@@ -73,9 +73,51 @@ class AlgebraicParams:
 
 
 def _solve(
-    a1: FloatArray, ak: FloatArray, P: FloatArray, b: FloatArray, dt: FloatArray,
-    w: FloatArray | None, order: int, cond_max: float,
+    a1: FloatArray,
+    ak: FloatArray,
+    P: FloatArray,
+    b: FloatArray,
+    dt: FloatArray,
+    w: FloatArray | None,
+    order: int,
+    cond_max: float,
 ) -> ConjugationSolution:
+    # equal or zero delays (close receivers, one raster pixel) make the velocity system
+    # singular: the core's closed form then yields non-finite intermediates and hands the
+    # element to its pseudo-inverse fallback, so those warnings carry no information
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return _solve_core(a1, ak, P, b, dt, w, order, cond_max)
+
+
+def _solve_core(
+    a1: FloatArray,
+    ak: FloatArray,
+    P: FloatArray,
+    b: FloatArray,
+    dt: FloatArray,
+    w: FloatArray | None,
+    order: int,
+    cond_max: float,
+) -> ConjugationSolution:
+    if a1.ndim == 1:
+        # adapter: the core's pseudo-inverse fallback needs a batch axis (0-d results are
+        # immutable), so one problem is solved as a batch of one
+        sol = solve_conjugation(
+            a1[None],
+            ak[None],
+            P[None],
+            b[None],
+            dt[None],
+            order=order,
+            weights=None if w is None else w[None],
+            cond_max=cond_max,
+        )
+        return ConjugationSolution(
+            *(
+                None if v is None else v[0]
+                for v in (getattr(sol, f) for f in sol.__dataclass_fields__)
+            )
+        )
     return solve_conjugation(a1, ak, P, b, dt, order=order, weights=w, cond_max=cond_max)
 
 
@@ -106,10 +148,12 @@ def algebraic_single(
 
 
 def _subgroup_index(
-    a1: FloatArray, t1: FloatArray, sols: tuple[ConjugationSolution, ConjugationSolution],
+    a1: FloatArray,
+    t1: FloatArray,
+    sols: tuple[ConjugationSolution, ConjugationSolution],
     t_end: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """(8): ``I = ‖M^э_1 − M^э_2‖``, ``M^э_k = r̂_{1k} a_1 + V̂_k (T − t_1)``; returns I and the mean state."""
+    """(8): ``I = ‖M^э_1 − M^э_2‖``, ``M^э_k = r̂_{1k} a_1 + V̂_k (T − t_1)``; I, mean state."""
     h = (t_end - t1)[:, None]
     ext = [s.ranges[:, :1] * a1 + s.velocity * h for s in sols]
     index = np.linalg.norm(ext[0] - ext[1], axis=-1)
@@ -122,7 +166,8 @@ def _detection(members: NDArray, index: FloatArray, pos, vel, t1, keep, chosen) 
     sel = np.flatnonzero(keep)[chosen]
     N = members.shape[1]
     return assoc.Detection(
-        members[sel], index[sel],
+        members[sel],
+        index[sel],
         np.repeat(pos[sel][:, None], N, axis=1) if N == 1 else _per_period(pos[sel], N),
         np.repeat(vel[sel][:, None], N, axis=1) if N == 1 else _per_period(vel[sel], N),
         np.repeat(t1[sel][:, None], N, axis=1) if N == 1 else _per_period(t1[sel], N),
@@ -146,7 +191,9 @@ def algebraic_multi(
 ) -> assoc.Detection:
     """Several objects, one period, n = 4 receivers: subgroups {1,2,3}, {1,2,4} and index (8)."""
     if len(fixes) != 4:
-        raise ValueError(f"fixes: the multi-object algebraic scheme needs 4 receivers, got {len(fixes)}")
+        raise ValueError(
+            f"fixes: the multi-object algebraic scheme needs 4 receivers, got {len(fixes)}"
+        )
     P = finite_array(P, "P", tail=(3, 3, 3))
     b = finite_array(b, "b", tail=(3, 3))
     C = assoc.combinations([f.times.shape[0] for f in fixes])
@@ -158,16 +205,22 @@ def algebraic_multi(
         ks = (1, other)
         sols.append(
             _solve(
-                a[0], np.stack([a[k] for k in ks], axis=1), P[[k - 1 for k in ks]],
-                b[[k - 1 for k in ks]], np.stack([t[k] - t[0] for k in ks], axis=1),
+                a[0],
+                np.stack([a[k] for k in ks], axis=1),
+                P[[k - 1 for k in ks]],
+                b[[k - 1 for k in ks]],
+                np.stack([t[k] - t[0] for k in ks], axis=1),
                 np.stack([w[0]] + [w[k] for k in ks], axis=1) if params.weighted else None,
-                1, params.cond_max,
+                1,
+                params.cond_max,
             )
         )
     index, pos, vel = _subgroup_index(a[0], t[0], (sols[0], sols[1]), t_end)
     # I_j ≤ γ (003 §5.3), ranges in front of the receivers
-    keep = (index <= params.gamma) & np.all(sols[0].ranges > 0, axis=-1) & np.all(
-        sols[1].ranges > 0, axis=-1
+    keep = (
+        (index <= params.gamma)
+        & np.all(sols[0].ranges > 0, axis=-1)
+        & np.all(sols[1].ranges > 0, axis=-1)
     )
     members = C[:, None, :]
     chosen = assoc.select(members[keep], index[keep], 0)
@@ -191,14 +244,34 @@ def economical(
     P2 = finite_array(P2, "P2", tail=(3, 3))
     b2 = finite_array(b2, "b2", tail=(3,))
     (f11, f21), (f12, f22) = periods
-    C = assoc.combinations([f11.times.shape[0], f21.times.shape[0], f12.times.shape[0], f22.times.shape[0]])
+    C = assoc.combinations(
+        [f11.times.shape[0], f21.times.shape[0], f12.times.shape[0], f22.times.shape[0]]
+    )
     a11, a21, a12, a22 = (f.directions[C[:, k]] for k, f in enumerate((f11, f21, f12, f22)))
     t11, t21, t12, t22 = (f.times[C[:, k]] for k, f in enumerate((f11, f21, f12, f22)))
     PP = np.stack([P2, P2])
     bb = np.stack([b2, b2])
     # subgroup 1: {a_1(1); a_2(1), a_2(2)}, subgroup 2: {a_1(2); a_2(2), a_2(1)}
-    s1 = _solve(a11, np.stack([a21, a22], 1), PP, bb, np.stack([t21 - t11, t22 - t11], 1), None, 1, params.cond_max)
-    s2 = _solve(a12, np.stack([a22, a21], 1), PP, bb, np.stack([t22 - t12, t21 - t12], 1), None, 1, params.cond_max)
+    s1 = _solve(
+        a11,
+        np.stack([a21, a22], 1),
+        PP,
+        bb,
+        np.stack([t21 - t11, t22 - t11], 1),
+        None,
+        1,
+        params.cond_max,
+    )
+    s2 = _solve(
+        a12,
+        np.stack([a22, a21], 1),
+        PP,
+        bb,
+        np.stack([t22 - t12, t21 - t12], 1),
+        None,
+        1,
+        params.cond_max,
+    )
     h1, h2 = (t_end - t11)[:, None], (t_end - t12)[:, None]
     # (8)-type index at the end of the second period
     e1 = s1.ranges[:, :1] * a11 + s1.velocity * h1

@@ -1,4 +1,4 @@
-"""Paper 003, algorithmic approach: velocity-aware group track initiation with two receivers (SPEC §5.4).
+"""Paper 003, algorithmic approach: velocity-aware group track initiation, n = 2 (SPEC §5.4).
 
 Period 1 (and every birth): each pair ``(a_1k, a_2j)`` is conjugated by least squares (003 eq.
 6); ``J_1 = ‖M̂_1k − P_2 M̂_2j − b_2‖ ≤ α_1`` opens a group with index ``I = c_1 J_1``.
@@ -35,7 +35,8 @@ Decisions for the gaps (SPEC §11.5):
 
 Normalisers and gates default to the noise level (SPEC §11.1 item 6): ``c_1 = 1/σ_e``,
 ``c_2 = 1/(2√2 σ_p)``, ``c_3 = τ/(2√2 σ_p)`` put every term in units of its standard deviation,
-and ``α_i = gate · (number of terms)``.
+and ``α_i = gate · (number of terms)``; a group's first continuation normalises ``J_2`` by
+:attr:`AlgorithmicParams.c2_first`, which allows for the range change it contains.
 """
 
 from __future__ import annotations
@@ -98,6 +99,16 @@ class AlgorithmicParams:
         return 1.0 / self.sigma_e, 1.0 / s, self.period / s
 
     @property
+    def c2_first(self) -> float:
+        """c_2 of a group's first continuation, 1/m: there ``J_2`` also carries the range change
+        over one period (step 2.1 keeps the old range), up to ``2 v_max τ``, so its normaliser
+        is ``1/(2√2 σ_p + 2 v_max τ / gate)`` — the largest range change costs at most one gate."""
+        return 1.0 / (
+            2.0 * np.sqrt(2.0) * self.sigma_position
+            + 2.0 * self.max_speed * self.period / self.gate
+        )
+
+    @property
     def alpha1(self) -> float:
         """α_1, m: ``gate σ_e + v_max Δt_max`` (noise plus the miss opened by unmodelled motion)."""
         return self.gate * self.sigma_e + self.max_speed * self.max_delay
@@ -145,7 +156,13 @@ class _Groups:
 
 
 def _births(
-    f1: assoc.Fixes, f2: assoc.Fixes, pairs: IntArray, P2, b2, i: int, N: int,
+    f1: assoc.Fixes,
+    f2: assoc.Fixes,
+    pairs: IntArray,
+    P2,
+    b2,
+    i: int,
+    N: int,
     prm: AlgorithmicParams,
 ) -> _Groups:
     """Operations 1.1–1.3 for the given pairs in period ``i`` (earlier periods count as misses)."""
@@ -167,15 +184,33 @@ def _births(
     nan3 = np.full((G, 3), np.nan)
     zeros = np.zeros(G, dtype=np.int64)
     return _Groups(
-        score=prm.c[0] * J1 + i * prm.miss_cost, members=members, M1=M1,
-        M2=sol_r[:, 1:] * a2[ok], R1=sol_r[:, 0], R2=sol_r[:, 1], V1=nan3, V2=nan3.copy(),
-        T1=t1, T2=t2, n_v=zeros, misses=zeros.copy(), confirmed=zeros + 1, hist_M=hist_M,
-        hist_V=np.full((G, N, 3), np.nan), hist_T=hist_T,
+        score=prm.c[0] * J1 + i * prm.miss_cost,
+        members=members,
+        M1=M1,
+        M2=sol_r[:, 1:] * a2[ok],
+        R1=sol_r[:, 0],
+        R2=sol_r[:, 1],
+        V1=nan3,
+        V2=nan3.copy(),
+        T1=t1,
+        T2=t2,
+        n_v=zeros,
+        misses=zeros.copy(),
+        confirmed=zeros + 1,
+        hist_M=hist_M,
+        hist_V=np.full((G, N, 3), np.nan),
+        hist_T=hist_T,
     )
 
 
 def _continue(
-    g: _Groups, f1: assoc.Fixes, f2: assoc.Fixes, pairs: IntArray, P2, b2, i: int,
+    g: _Groups,
+    f1: assoc.Fixes,
+    f2: assoc.Fixes,
+    pairs: IntArray,
+    P2,
+    b2,
+    i: int,
     prm: AlgorithmicParams,
 ) -> tuple[_Groups, IntArray]:
     """Steps 2.1–2.5 / 3.1–3.5 for every (group, pair); returns the continued groups and the
@@ -212,8 +247,10 @@ def _continue(
     J2 = np.linalg.norm(M1s - E1, axis=-1) + np.linalg.norm(M2r - E2, axis=-1)
     # 3.4: J_3 = ‖ΔV_1‖ + ‖ΔV_2‖ for groups that already carry a velocity
     with np.errstate(invalid="ignore"):
-        J3 = np.linalg.norm(V1r - g.V1[:, None], axis=-1) + np.linalg.norm(V2r - g.V2[:, None], axis=-1)
-        J = c1 * J1 + c2 * J2 + np.where(first[:, None], 0.0, c3 * J3)
+        J3 = np.linalg.norm(V1r - g.V1[:, None], axis=-1) + np.linalg.norm(
+            V2r - g.V2[:, None], axis=-1
+        )
+        J = c1 * J1 + np.where(first[:, None], prm.c2_first * J2, c2 * J2 + c3 * J3)
     alpha = np.where(first, prm.alpha[0], prm.alpha[1])[:, None]
     speed_ok = np.linalg.norm(V1r, axis=-1) <= prm.max_speed
     valid = np.all(sol.ranges > 0, axis=-1) & ~sol.used_pinv & speed_ok & (J <= alpha)
@@ -233,9 +270,21 @@ def _continue(
     T = t2[0, ci]
     hist_M[:, i], hist_V[:, i], hist_T[:, i] = M1s[gi, ci], V1, T
     out = _Groups(
-        score=score, members=members, M1=M1s[gi, ci], M2=M2r[gi, ci], R1=sol.ranges[gi, ci, 0],
-        R2=sol.ranges[gi, ci, 1], V1=V1, V2=V2, T1=T, T2=T, n_v=n_v + 1,
-        misses=np.zeros_like(n_v), confirmed=new.confirmed + 1, hist_M=hist_M, hist_V=hist_V,
+        score=score,
+        members=members,
+        M1=M1s[gi, ci],
+        M2=M2r[gi, ci],
+        R1=sol.ranges[gi, ci, 0],
+        R2=sol.ranges[gi, ci, 1],
+        V1=V1,
+        V2=V2,
+        T1=T,
+        T2=T,
+        n_v=n_v + 1,
+        misses=np.zeros_like(n_v),
+        confirmed=new.confirmed + 1,
+        hist_M=hist_M,
+        hist_V=hist_V,
         hist_T=hist_T,
     )
     return out, gi, ci
@@ -279,8 +328,13 @@ def detect_algorithmic(
             keep = m.misses < params.max_misses
             m = m.take(np.flatnonzero(keep))
             parts.append(
-                _Groups(**{**{f: getattr(m, f) for f in _Groups.__dataclass_fields__},
-                           "score": m.score + params.miss_cost, "misses": m.misses + 1})
+                _Groups(
+                    **{
+                        **{f: getattr(m, f) for f in _Groups.__dataclass_fields__},
+                        "score": m.score + params.miss_cost,
+                        "misses": m.misses + 1,
+                    }
+                )
             )
         # births: pairs not absorbed by any continuation (step 4), period-1 operations (step 1)
         if pairs.shape[0]:
@@ -291,11 +345,26 @@ def detect_algorithmic(
         groups = groups.take(assoc.prune(groups.score, params.beam))
     if groups is None or groups.score.shape[0] == 0:
         e = np.zeros(0)
-        return assoc.Detection(np.zeros((0, N, 2), dtype=np.int64), e, np.zeros((0, N, 3)),
-                               np.zeros((0, N, 3)), np.zeros((0, N)))
+        return assoc.Detection(
+            np.zeros((0, N, 2), dtype=np.int64),
+            e,
+            np.zeros((0, N, 3)),
+            np.zeros((0, N, 3)),
+            np.zeros((0, N)),
+        )
     # step 5: greedy selection, at most π shared vectors, confirmed groups only
-    chosen = assoc.select(groups.members, groups.score, params.max_shared,
-                          eligible=groups.confirmed >= params.min_confirmed)
+    chosen = assoc.select(
+        groups.members,
+        groups.score,
+        params.max_shared,
+        eligible=groups.confirmed >= params.min_confirmed,
+    )
     sel = groups.take(chosen)
-    return assoc.Detection(sel.members, sel.score, sel.hist_M, sel.hist_V, sel.hist_T,
-                           groups_kept=int(groups.score.shape[0]))
+    return assoc.Detection(
+        sel.members,
+        sel.score,
+        sel.hist_M,
+        sel.hist_V,
+        sel.hist_T,
+        groups_kept=int(groups.score.shape[0]),
+    )

@@ -1,4 +1,4 @@
-"""Paper 000: detection and tracking of several objects by 2 or 3 scanning receivers (SPEC §2.3–2.4).
+"""Paper 000: detection and tracking of several objects by 2 or 3 receivers (SPEC §2.3–2.4).
 
 *Alternative algorithm* (n = 2, the "existing approach", SPEC §2.3): every pair of direction
 vectors ``(a_1(i, j1), a_2(i, j2))`` of a period is conjugated by least squares (000 eq. 7–8);
@@ -48,7 +48,7 @@ class AlternativeParams:
     """Largest delay Δt between the two receivers' fixes of one object, s."""
     gate_probability: float = 0.999
     """Probability that a true candidate passes each noise gate."""
-    bias_drift: float = 0.5
+    bias_drift: float = 1.0
     """Fraction of the largest dynamic error ``max_speed · max_delay`` by which that error may
     change between periods (the line of sight turns), added to δ."""
     max_shared: int = 0

@@ -1,0 +1,148 @@
+"""Paper 003 algebraic (stereo_algebraic003) and algorithmic (stereo_detector003) detectors."""
+
+import numpy as np
+import pytest
+from sensorgym.envs.drones import Trajectories
+from sensorgym.envs.scanning import RasterScan
+from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate
+from sensorgym.reproduce.paper003 import Scenario003, algebraic_accuracy, algorithmic_cell
+from sensorgym.trackers.stereo_algebraic003 import (
+    AlgebraicParams,
+    algebraic_multi,
+    algebraic_single,
+    economical,
+)
+from sensorgym.trackers.stereo_detector003 import AlgorithmicParams, detect_algorithmic
+
+AIM = (0.0, 25.0, 0.0)
+SCAN = RasterScan(30.0, 30.0, 100, 100, 20.0)
+
+
+def _frame1(layout, p):
+    return (p - layout.positions[0]) @ layout.rotations[0]
+
+
+def _labels(det, truth, s):
+    N, S = det.members.shape[1:]
+    return np.array(
+        [[truth[i].source[k][det.members[s, i, k]] for k in range(S)] for i in range(N)]
+    )
+
+
+def test_algebraic_single_noise_free_recovers_position_and_velocity():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0, 180.0], aim=AIM)
+    traj = Trajectories.linear([[1.0, 26.0, -1.0]], [[0.1, 0.02, -0.08]])
+    per, _ = simulate(np.random.default_rng(0), traj, layout, (SCAN,) * 3, 1, 20.0)
+    P, b = layout.relative
+    sol = algebraic_single(per[0], P, b, order=1)
+    t1 = per[0][0].times[0]
+    np.testing.assert_allclose(sol.position, _frame1(layout, traj.position(t1))[0], atol=1e-6)
+    np.testing.assert_allclose(sol.velocity, layout.rotations[0].T @ traj.velocity[0], atol=1e-6)
+    # weights do not change a square (n = 3) system
+    w = algebraic_single(per[0], P, b, order=1, weighted=True)
+    np.testing.assert_allclose(w.position, sol.position, atol=1e-6)
+    # ignoring the motion leaves a dynamic error
+    assert np.linalg.norm(algebraic_single(per[0], P, b, order=0).position - sol.position) > 1e-3
+
+
+def test_algebraic_multi_n4_separates_objects():
+    layout = ReceiverLayout.on_circle(
+        50.0, [0.0, 90.0, 180.0, 270.0], heights=[0, 3, 0, 6], aim=AIM
+    )
+    traj = Trajectories.linear(
+        [[0.0, 25.0, 0.0], [4.0, 27.0, -3.0], [-3.0, 23.0, 4.0]],
+        [[0.1, 0.0, 0.05], [-0.05, 0.02, 0.1], [0.08, -0.03, 0.0]],
+    )
+    per, truth = simulate(
+        np.random.default_rng(1), traj, layout, (SCAN,) * 4, 1, 20.0, NoiseModel(angle_sigma=1e-5)
+    )
+    P, b = layout.relative
+    det = algebraic_multi(
+        per[0], P, b, 20.0, AlgebraicParams(position_sigma=0.05, velocity_sigma=0.005)
+    )
+    assert det.m_hat == 3
+    for s in range(3):
+        lab = _labels(det, truth, s)
+        assert np.all(lab == lab[0, 0])
+
+
+def test_economical_two_periods_two_receivers():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=AIM)
+    traj = Trajectories.linear(
+        [[0.0, 25.0, -5.0], [4.0, 27.0, -2.0]], [[0.1, 0.05, 0.3], [-0.2, 0.0, 0.25]]
+    )
+    per, truth = simulate(np.random.default_rng(2), traj, layout, (SCAN,) * 2, 2, 20.0)
+    P, b = layout.relative
+    det = economical(
+        per, P[0], b[0], 40.0, AlgebraicParams(position_sigma=0.01, velocity_sigma=0.001)
+    )
+    assert det.m_hat == 2
+    for s in range(2):
+        lab = _labels(det, truth, s)
+        assert np.all(lab == lab[0, 0])
+        j = lab[0, 0]
+        np.testing.assert_allclose(
+            det.positions[s, 0], _frame1(layout, traj.position(det.times[s, 0]))[j], atol=1e-5
+        )
+
+
+def test_algorithmic_noise_free_detects_every_object_exactly():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=(0.0, 10.0, 0.0))
+    traj = Trajectories.linear(
+        [[0.0, 10.0, 0.0], [4.0, 12.0, -3.0], [-3.0, 8.0, 4.0]],
+        [[1.0, 0.0, 0.5], [-0.5, 0.2, 1.0], [0.8, -0.3, 0.0]],
+    )
+    scan = RasterScan(30.0, 30.0, 100, 100, 1.0)
+    per, truth = simulate(np.random.default_rng(3), traj, layout, (scan,) * 2, 6, 1.0)
+    P, b = layout.relative
+    det = detect_algorithmic(
+        per, P[0], b[0], AlgorithmicParams(sigma_e=0.01, sigma_position=0.05, max_delay=1.0)
+    )
+    assert det.m_hat == 3
+    for s in range(3):
+        lab = _labels(det, truth, s)
+        assert np.all(lab == lab[0, 0])
+        j = lab[0, 0]
+        t = det.times[s, -1]
+        np.testing.assert_allclose(
+            det.positions[s, -1], _frame1(layout, traj.position(np.full(3, t))[j]), atol=0.05
+        )
+
+
+def test_algorithmic_survives_a_missed_period():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=(0.0, 10.0, 0.0))
+    traj = Trajectories.linear([[0.0, 10.0, 0.0]], [[1.0, 0.0, 0.5]])
+    scan = RasterScan(30.0, 30.0, 100, 100, 1.0)
+    per, _ = simulate(np.random.default_rng(4), traj, layout, (scan,) * 2, 5, 1.0)
+    empty = type(per[2][0])(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+    per[2] = (empty, per[2][1])
+    P, b = layout.relative
+    det = detect_algorithmic(
+        per, P[0], b[0], AlgorithmicParams(sigma_e=0.01, sigma_position=0.05, max_delay=1.0)
+    )
+    assert det.m_hat == 1
+    assert det.members[0, 2].tolist() == [-1, -1] and np.all(det.members[0, [0, 1, 3, 4]] == 0)
+
+
+def test_noise_derived_parameters():
+    p = AlgorithmicParams(sigma_e=0.05, sigma_position=1.0, period=1.0, gate=4.0)
+    assert p.c[0] == pytest.approx(20.0) and p.alpha == (8.0, 12.0)
+    with pytest.raises(ValueError):
+        AlgorithmicParams(beam=0)
+
+
+@pytest.mark.slow
+def test_rt10_rt11_velocity_term_and_close_layout():
+    sc = Scenario003()
+    v2 = algebraic_accuracy(np.random.default_rng(5), sc, 2, 150)
+    v1 = algebraic_accuracy(np.random.default_rng(6), sc, 1, 50)
+    assert v2["error_3_params"] > 2.5 * v2["error_6_params"]
+    assert v1["error_6_params"] > 5 * v2["error_6_params"]
+
+
+@pytest.mark.slow
+def test_rt12_detection_probability_falls_with_m():
+    sc = Scenario003()
+    p2 = algorithmic_cell(np.random.default_rng(7), sc, 2, 5, 150, False)["p_m"]
+    p5 = algorithmic_cell(np.random.default_rng(8), sc, 5, 5, 150, False)["p_m"]
+    assert p2 >= 0.95 and p5 < p2
