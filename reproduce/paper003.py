@@ -14,10 +14,11 @@ Scenario choices where the paper is silent (printed with the tables):
 * variant 1 ("unfavourable"): receivers at x = 0, 7.5, 15 m with 1–3 m offsets on the other
   axes and boresights turned by tenths of a degree, one object flying toward them from 100 m
   to 50 m in one period of 20 s;
-* algorithmic: the variant-1 pair (7.5 m apart) or a pair on a 50 m arc (0°, 90°); m objects
-  ≥ 3 m apart in a ±5 m cube around a point 100 m out, each flying toward the receivers at
-  1–5 m/s within 10° of the line; an object is detected when one selected group holds exactly
-  its vectors in all N periods (gap 35); P(m) = all m detected.
+* algorithmic: the variant-1 pair (7.5 m apart) with m objects ≥ 3 m apart in a ±5 m cube
+  around a point 100 m out, each flying toward the receivers at 1–5 m/s within 10° of the
+  line; or a pair on the 50 m circle (0°, 90°) with objects around its centre, 10 m up,
+  flying in random directions at 0.5–2 m/s; an object is detected when one selected group
+  holds exactly its vectors in all N periods (gap 35); P(m) = all m detected.
 """
 
 from __future__ import annotations
@@ -62,6 +63,9 @@ class Scenario003:
     """Distance of the algorithmic objects' area, m."""
     algorithmic_speed: tuple[float, float] = (1.0, 5.0)
     """Speed range of the algorithmic objects, m/s."""
+    arc_speed: tuple[float, float] = (0.5, 2.0)
+    """Speed range on the arc (random 3-D direction), m/s: slower, as the objects fly across
+    the receivers' 30° sectors at 50 m instead of toward them."""
     spread: float = 5.0
     """Algorithmic objects start in a cube of this half-width, m."""
     min_separation: float = 3.0
@@ -151,9 +155,11 @@ def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, 
     }
 
 
-def algorithmic_params(sc: Scenario003, baseline: float, max_delay: float) -> AlgorithmicParams:
+def algorithmic_params(
+    sc: Scenario003, baseline: float, max_delay: float, r: float
+) -> AlgorithmicParams:
     """Noise-derived normalisers: a pair ``baseline`` apart, objects ``algorithmic_range`` out."""
-    r, s = sc.algorithmic_range, sc.angle_sigma
+    s = sc.angle_sigma
     return AlgorithmicParams(
         sigma_e=r * s,
         # range error of a stereo pair: r² √2 σ_ang / baseline (disparity of two noisy angles)
@@ -182,14 +188,17 @@ def algorithmic_cell(
     P, b = layout.relative
     # close receivers see an object at nearly the same pixel (delay of a few lines); receivers
     # on an arc see it anywhere in their rasters (delay up to the period)
-    params = algorithmic_params(sc, baseline, sc.algorithmic_period if spread_pair else 0.02)
+    if spread_pair:
+        params = algorithmic_params(sc, baseline, sc.algorithmic_period, sc.circle_radius)
+    else:
+        params = algorithmic_params(sc, baseline, 0.02, sc.algorithmic_range)
     scan = RasterScan(30.0, 30.0, 100, 100, sc.algorithmic_period)
     noise = NoiseModel(angle_sigma=sc.angle_sigma)
     spec = GroupSpec(
         centre=centre,
         spread=sc.spread,
         min_separation=sc.min_separation,
-        speed=sc.algorithmic_speed,
+        speed=sc.arc_speed if spread_pair else sc.algorithmic_speed,
         heading=heading,
         heading_spread_deg=10.0 if heading else 0.0,
     )

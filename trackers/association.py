@@ -126,19 +126,19 @@ def select(
         eligible = np.ones(score.shape, dtype=bool)
     idx = np.flatnonzero(eligible & np.isfinite(score))
     idx = idx[np.argsort(score[idx], kind="stable")]
-    if idx.size == 0:
-        return np.zeros(0, dtype=np.int64)
-    shared = shared_vectors(members[idx])
+    flat = members[idx].reshape(idx.size, members.shape[1] * members.shape[2])
     accepted: list[int] = []
     blocked = np.zeros(idx.size, dtype=bool)
-    for pos in range(idx.size):
-        if blocked[pos]:
-            continue
-        accepted.append(pos)
-        # a group conflicts with the accepted one when it shares more than π vectors
-        blocked |= shared[pos] > max_shared
-        if max_objects is not None and len(accepted) >= max_objects:
+    while max_objects is None or len(accepted) < max_objects:
+        free = np.flatnonzero(~blocked)
+        if free.size == 0:
             break
+        pos = int(free[0])
+        accepted.append(pos)
+        blocked[pos] = True
+        # a group conflicts with the accepted one when it shares more than π vectors
+        shared = np.sum((flat == flat[pos]) & (flat >= 0), axis=1)
+        blocked |= shared > max_shared
     return idx[np.asarray(accepted, dtype=np.int64)]
 
 
