@@ -82,7 +82,9 @@ def receivers_around(
         raise ValueError("ranges: must be positive")
     origins = T[..., None, :] - r[..., None] * d
     aim = T[..., None, :] + finite_array(boresight_offset, "boresight_offset", tail=(3,))
-    return StereoScene(origins, look_at_rotation(origins, aim), np.broadcast_to(T, origins.shape[:-2] + (3,)))
+    return StereoScene(
+        origins, look_at_rotation(origins, aim), np.broadcast_to(T, (*origins.shape[:-2], 3))
+    )
 
 
 def pair_scene(
@@ -103,7 +105,9 @@ def pair_scene(
     d1 = np.broadcast_to(e, (*g.shape, 3))
     d2 = np.cos(g)[..., None] * e + np.sin(g)[..., None] * x
     zero = np.zeros_like(g)
-    r = np.stack(np.broadcast_arrays(np.asarray(r1, float) + zero, np.asarray(r2, float) + zero), -1)
+    r = np.stack(
+        np.broadcast_arrays(np.asarray(r1, float) + zero, np.asarray(r2, float) + zero), -1
+    )
     target = np.broadcast_to(np.array([0.0, 50.0, 0.0]), (*g.shape, 3))
     return receivers_around(target, np.stack([d1, d2], -2), r, boresight_offset)
 

@@ -261,9 +261,9 @@ def _triple_velocity_closed_form(
     norm = d2 * d2 + d3 * d3
     G = np.stack([-(d2 + d3) * a1, d2 * c2, d3 * c3], axis=-1)  # V-numerator coefficients of r
     eye = np.eye(3)
-    L = (
-        np.concatenate([d2[..., None] * eye, d3[..., None] * eye], axis=-1) + G @ K
-    ) / norm[..., None]
+    L = (np.concatenate([d2[..., None] * eye, d3[..., None] * eye], axis=-1) + G @ K) / norm[
+        ..., None
+    ]
     Ainv = np.concatenate([K, L], axis=-2)  # (..., 6, 6) = A⁻¹
     X = np.einsum("...ij,...j->...i", Ainv, b.reshape(*b.shape[:-2], 6))
     # Q = σ_e² A⁻¹ A⁻ᵀ
@@ -290,6 +290,12 @@ def _finalise(
     kappa: FloatArray,
     used_pinv: BoolArray,
 ) -> ConjugationSolution:
+    # every field carries the full batch shape, even where it depends on a broadcast input only
+    shape = np.broadcast_shapes(X.shape[:-1], J.shape, cov.shape[:-2], kappa.shape, used_pinv.shape)
+    X = np.broadcast_to(X, (*shape, X.shape[-1]))
+    J, kappa, used_pinv = (np.broadcast_to(x, shape) for x in (J, kappa, used_pinv))
+    cov = np.broadcast_to(cov, (*shape, *cov.shape[-2:]))
+    a1 = np.broadcast_to(a1, (*shape, 3))
     ranges = X[..., :n]
     return ConjugationSolution(
         ranges=ranges,
@@ -405,6 +411,20 @@ def _generic_fallback(
     return _solve_svd(A, B, pick(row_w, 1), sigma_e, cond_max)
 
 
+def _patch(
+    used: BoolArray, fast: tuple[FloatArray, ...], fallback: tuple[FloatArray, ...]
+) -> tuple[FloatArray, ...]:
+    """Copies of the closed-form outputs with the fallback's values where ``used``."""
+    flat = used.reshape(-1)
+    out = []
+    for f, g in zip(fast, fallback, strict=True):
+        shape = np.shape(f)
+        f = np.array(f, copy=True).reshape(flat.size, *shape[used.ndim :])
+        f[flat] = g
+        out.append(f.reshape(shape))
+    return tuple(out)
+
+
 def _solve_pair_checked(
     a1: FloatArray,
     c2: FloatArray,
@@ -414,8 +434,10 @@ def _solve_pair_checked(
     cond_max: float,
 ) -> ConjugationSolution:
     scale = 1.0 if w is None else w[..., 0] * w[..., 1]
-    ranges, cov, kappa, _ = _pair_closed_form(a1, c2, b2, scale, sigma_e)
+    with np.errstate(divide="ignore", invalid="ignore"):  # degenerate elements go to the fallback
+        ranges, cov, kappa, _ = _pair_closed_form(a1, c2, b2, scale, sigma_e)
     shape = ranges.shape[:-1]
+    cov, kappa = np.broadcast_to(cov, (*shape, 2, 2)), np.broadcast_to(kappa, shape)
     a1 = np.broadcast_to(a1, (*shape, 3))
     c2 = np.broadcast_to(c2, (*shape, 3))
     b2 = np.broadcast_to(b2, (*shape, 3))
@@ -429,18 +451,20 @@ def _solve_pair_checked(
         X, Jf, covf, kf, uf = _generic_fallback(
             used, a1, c2[..., None, :], b2[..., None, :], None, 0, row_w, sigma_e, cond_max
         )
-        ranges = ranges.copy()
-        ranges[used], J[used], cov[used], kappa[used] = X, Jf, covf, kf
-        used = used.copy()
-        used[used] = uf
+        ranges, J, cov, kappa, pinv = _patch(
+            used, (ranges, J, cov, kappa, used), (X, Jf, covf, kf, uf)
+        )
+        used = pinv.astype(bool)
     return _finalise(a1, 2, 0, ranges, J, cov, kappa, used)
 
 
 def _solve_triple_velocity_checked(
     a1: FloatArray, c: FloatArray, b: FloatArray, dt: FloatArray, sigma_e: float, cond_max: float
 ) -> ConjugationSolution:
-    X, cov, kappa, _ = _triple_velocity_closed_form(a1, c, b, dt, sigma_e)
+    with np.errstate(divide="ignore", invalid="ignore"):  # degenerate elements go to the fallback
+        X, cov, kappa, _ = _triple_velocity_closed_form(a1, c, b, dt, sigma_e)
     shape = X.shape[:-1]
+    cov, kappa = np.broadcast_to(cov, (*shape, 6, 6)), np.broadcast_to(kappa, shape)
     used = ~(kappa <= cond_max)
     # square system: J = 0 up to rounding; computed honestly from the residual
     a1b = np.broadcast_to(a1, (*shape, 3))
@@ -456,10 +480,8 @@ def _solve_triple_velocity_checked(
     J = np.sum(E * E, axis=(-2, -1))
     if np.any(used):
         Xf, Jf, covf, kf, uf = _generic_fallback(used, a1b, cb, bb, dtb, 1, None, sigma_e, cond_max)
-        X, J, cov, kappa = X.copy(), J.copy(), cov.copy(), kappa.copy()
-        X[used], J[used], cov[used], kappa[used] = Xf, Jf, covf, kf
-        used = used.copy()
-        used[used] = uf
+        X, J, cov, kappa, pinv = _patch(used, (X, J, cov, kappa, used), (Xf, Jf, covf, kf, uf))
+        used = pinv.astype(bool)
     return _finalise(a1b, 3, 1, X, J, cov, kappa, used)
 
 

@@ -70,7 +70,9 @@ def angles_from_unit(a: ArrayLike) -> tuple[FloatArray, FloatArray]:
     return np.arctan2(a[..., 0], a[..., 2]), np.arcsin(np.clip(a[..., 1], -1.0, 1.0))
 
 
-def unit_from_pixel(x: ArrayLike, y: ArrayLike, f: ArrayLike, inverted: ArrayLike = True) -> FloatArray:
+def unit_from_pixel(
+    x: ArrayLike, y: ArrayLike, f: ArrayLike, inverted: ArrayLike = True
+) -> FloatArray:
     """Unit direction vector from optical pixel coordinates (SPEC §1.3).
 
     ``x, y`` are measured from the principal point, in the same unit as the focal length
@@ -89,7 +91,9 @@ def unit_from_pixel(x: ArrayLike, y: ArrayLike, f: ArrayLike, inverted: ArrayLik
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
-def pixel_from_unit(a: ArrayLike, f: ArrayLike, inverted: ArrayLike = True) -> tuple[FloatArray, FloatArray]:
+def pixel_from_unit(
+    a: ArrayLike, f: ArrayLike, inverted: ArrayLike = True
+) -> tuple[FloatArray, FloatArray]:
     """Inverse of :func:`unit_from_pixel`: pixel coordinates ``(x, y)`` of direction ``a``.
 
     Raises ``ValueError`` for directions at or behind the image plane (``a_z <= 0``).
@@ -132,7 +136,9 @@ def zup_from_yup(v: ArrayLike) -> FloatArray:
     return finite_array(v, "v", tail=(3,)) @ R_YUP_FROM_ZUP
 
 
-def look_at_rotation(position: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0)) -> FloatArray:
+def look_at_rotation(
+    position: ArrayLike, target: ArrayLike, up: ArrayLike = (0.0, 1.0, 0.0)
+) -> FloatArray:
     """Local→world rotation ``R`` of a receiver at ``position`` whose boresight ``Z`` points at ``target``.
 
     The receiver's ``Y`` axis is the component of ``up`` orthogonal to the boresight and

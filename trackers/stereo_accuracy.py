@@ -133,9 +133,7 @@ def pair_range_sigma_angle_noise(
     return s * np.sqrt(r2**2 + (r1 * np.cos(g)) ** 2) / np.sin(g)
 
 
-def position_information(
-    los: ArrayLike, ranges: ArrayLike, sigma_ang: ArrayLike
-) -> FloatArray:
+def position_information(los: ArrayLike, ranges: ArrayLike, sigma_ang: ArrayLike) -> FloatArray:
     """Fisher information of the 3-D position, ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ_k² r_k²)``, 1/m².
 
     ``los (..., n, 3)`` unit lines of sight ``u_k`` (any one common frame), ``ranges (..., n)``

@@ -42,5 +42,7 @@ def unit_vectors(value: ArrayLike, name: str, *, atol: float = 1e-6) -> NDArray[
         raise ValueError(f"{name}: contains a zero-length direction vector")
     if np.any(np.abs(norm - 1.0) > atol):
         worst = float(np.max(np.abs(norm - 1.0)))
-        raise ValueError(f"{name}: direction vectors must have unit length (max |‖a‖-1| = {worst:.3g})")
+        raise ValueError(
+            f"{name}: direction vectors must have unit length (max |‖a‖-1| = {worst:.3g})"
+        )
     return arr
