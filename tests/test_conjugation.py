@@ -328,3 +328,20 @@ def test_batch_mixing_degenerate_and_regular_problems(rng):
     for i in range(6):
         one = solve_conjugation(*(x[i] for x in inputs), order=1)
         np.testing.assert_allclose(batch.ranges[i], one.ranges, rtol=1e-12)
+
+
+def test_large_batch_chunked_path_equals_single_solves():
+    """Batches above the chunk size take the chunked closed form; results are unchanged."""
+    rng = np.random.default_rng(5)
+    scene, a, dt, _, _ = random_moving_scene(rng, 3, 40_000, order=1)
+    dt = dt.copy()
+    dt[123] = [0.2, 0.2]  # one degenerate element inside a later chunk
+    inputs = _inputs(scene, a, dt)
+    big = solve_conjugation(*inputs, order=1)
+    assert big.ranges.shape == (40_000, 3) and big.covariance.shape == (40_000, 6, 6)
+    for i in [0, 123, 32_767, 32_768, 39_999]:
+        one = solve_conjugation(*(x[i] for x in inputs), order=1)
+        np.testing.assert_allclose(big.ranges[i], one.ranges, rtol=1e-12)
+        np.testing.assert_allclose(big.velocity[i], one.velocity, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(big.covariance[i], one.covariance, rtol=1e-12, atol=1e-15)
+        assert big.used_pinv[i] == one.used_pinv == (i == 123)
