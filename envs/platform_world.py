@@ -39,7 +39,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 from sensorgym.trackers.bearings_models import (
     STATE_DIM,
     bearing,
@@ -143,7 +142,9 @@ class PlatformWorldState:
         return np.hypot(*self.relative_position.T)
 
 
-def clip_action(action: ArrayLike, state: PlatformWorldState, params: PlatformWorldParams) -> FloatArray:
+def clip_action(
+    action: ArrayLike, state: PlatformWorldState, params: PlatformWorldParams
+) -> FloatArray:
     """Action ``(B, 2)`` clipped to the turn-rate, speed-change and speed limits.
 
     Column 1 of the result is the speed change actually applied (after the speed limits).
@@ -221,7 +222,7 @@ def rollout(
     params: PlatformWorldParams,
     rng: np.random.Generator | None = None,
 ) -> PlatformTrajectory:
-    """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)`` for all scenarios); record ``K`` states."""
+    """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)``, shared); record ``K`` states."""
     acts = finite_array(actions, "actions", tail=(2,))
     states = [state]
     for k in range(acts.shape[0]):

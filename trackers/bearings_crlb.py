@@ -160,7 +160,7 @@ def posterior_information(
 
 
 def crlb(J: ArrayLike, *, rcond: float = 1e-12) -> FloatArray:
-    """Bound ``P = J⁻¹`` ``(..., 4, 4)``; unobservable directions give ``inf`` (documented fallback).
+    """Bound ``P = J⁻¹`` ``(..., 4, 4)``; unobservable directions give ``inf`` (documented).
 
     Information is first scaled to unit diagonal; eigenvalues below ``rcond`` times the largest
     count as zero, and every bound element touching such a direction is set to ``inf``.
@@ -202,7 +202,9 @@ def velocity_rms_bound(P: ArrayLike) -> FloatArray:
     return np.sqrt(P[..., 2, 2] + P[..., 3, 3])
 
 
-def range_bound(P: ArrayLike, target_position: ArrayLike, platform_position: ArrayLike) -> FloatArray:
+def range_bound(
+    P: ArrayLike, target_position: ArrayLike, platform_position: ArrayLike
+) -> FloatArray:
     """Range standard-deviation bound ``σ_r = √(g P_pos gᵀ)``, ``g = (Δx, Δy)/r`` (m)."""
     P = np.asarray(P, dtype=np.float64)
     d = finite_array(target_position, "target_position", tail=(2,)) - finite_array(
@@ -219,5 +221,7 @@ def relative_range_bound(
     P: ArrayLike, target_position: ArrayLike, platform_position: ArrayLike
 ) -> FloatArray:
     """Relative range bound ``σ_r / r`` (dimensionless)."""
-    d = np.asarray(target_position, dtype=np.float64) - np.asarray(platform_position, dtype=np.float64)
+    d = np.asarray(target_position, dtype=np.float64) - np.asarray(
+        platform_position, dtype=np.float64
+    )
     return range_bound(P, target_position, platform_position) / np.hypot(d[..., 0], d[..., 1])

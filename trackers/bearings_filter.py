@@ -19,8 +19,8 @@ Target state and conventions: :mod:`sensorgym.trackers.bearings_models`.
   the bank does not need the range prior to be narrow.
 
 The prior is built from the first bearing (:func:`bearing_prior`, Ristic §6.3.1): position
-``p + r (sin z, cos z)``, velocity ``s (sin c, cos c)`` with independent Gaussian range r, bearing
-z, speed s and course c, linearised.
+``p + r (sin z, cos z)``, velocity ``s (sin c, cos c)`` with independent range r, bearing z,
+speed s and course c, summarised by their exact first two moments.
 """
 
 from __future__ import annotations
@@ -49,6 +49,46 @@ def _sym(A: FloatArray) -> FloatArray:
     return 0.5 * (A + np.swapaxes(A, -1, -2))
 
 
+def polar_moments(
+    magnitude_mean: ArrayLike,
+    magnitude_sigma: ArrayLike,
+    angle_mean: ArrayLike,
+    angle_sigma: ArrayLike,
+    angle_distribution: Literal["gaussian", "uniform"] = "gaussian",
+) -> tuple[FloatArray, FloatArray]:
+    """Exact mean ``(..., 2)`` and covariance ``(..., 2, 2)`` of ``m (sin a, cos a)``.
+
+    ``m ~ N(m̄, σ_m²)`` independent of the angle ``a`` (from North clockwise), which is Gaussian
+    ``N(ā, σ_a²)`` or uniform on ``ā ± √3 σ_a`` (same σ). With ``δ = a − ā``, ``u = (sin ā, cos ā)``
+    and ``t = (cos ā, −sin ā)``::
+
+        E = m̄ E[cos δ] u,   Cov = (m̄² + σ_m²)(E[cos²δ] u uᵀ + E[sin²δ] t tᵀ) − E Eᵀ
+
+    Gaussian: ``E[cos δ] = e^{−σ²/2}``, ``E[cos²δ] = (1 + e^{−2σ²})/2``; uniform half-width ``h``:
+    ``E[cos δ] = sin h / h``, ``E[cos²δ] = 1/2 + sin 2h / (4h)``. Exact moments keep wide course
+    priors consistent where first-order linearisation is badly overconfident.
+    """
+    m, sm = np.asarray(magnitude_mean, float), np.asarray(magnitude_sigma, float)
+    a, sa = np.asarray(angle_mean, float), np.asarray(angle_sigma, float)
+    if angle_distribution == "gaussian":
+        c1 = np.exp(-0.5 * sa**2)
+        c2 = 0.5 * (1.0 + np.exp(-2.0 * sa**2))
+    elif angle_distribution == "uniform":
+        h = np.sqrt(3.0) * sa
+        c1 = np.sinc(h / np.pi)
+        c2 = 0.5 + 0.5 * np.sinc(2.0 * h / np.pi)
+    else:
+        raise ValueError(f"angle_distribution: 'gaussian' or 'uniform', got {angle_distribution!r}")
+    u = np.stack([np.sin(a), np.cos(a)], -1)
+    t = np.stack([np.cos(a), -np.sin(a)], -1)
+    mean = (m * c1)[..., None] * u
+    second = (m**2 + sm**2)[..., None, None] * (
+        c2[..., None, None] * u[..., :, None] * u[..., None, :]
+        + (1.0 - c2)[..., None, None] * t[..., :, None] * t[..., None, :]
+    )
+    return mean, second - mean[..., :, None] * mean[..., None, :]
+
+
 def bearing_prior(
     z: ArrayLike,
     sigma: float,
@@ -61,11 +101,15 @@ def bearing_prior(
     speed_sigma: ArrayLike,
     course_mean: ArrayLike,
     course_sigma: ArrayLike,
+    course_distribution: Literal["gaussian", "uniform"] = "gaussian",
 ) -> BearingsGaussian:
     """Gaussian prior from the first bearing ``z`` (rad) and range/speed/course priors.
 
-    ``x = (p + r (sin z, cos z), s (sin c, cos c))``; covariance by first-order propagation of
-    ``diag(σ_r², σ², σ_s², σ_c²)``. All arguments broadcast over leading batch axes.
+    Position ``p + r (sin β, cos β)`` with ``r ~ N(r̄, σ_r²)``, ``β ~ N(z, σ²)``; velocity
+    ``s (sin c, cos c)`` with ``s ~ N(s̄, σ_s²)`` and the course Gaussian or uniform (Ristic §6.3.1
+    uses ``c̄ = z + π`` with σ_c = π/√12, i.e. uniform over the half plane heading towards the
+    platform). Mean and covariance are the exact moments (:func:`polar_moments`). All
+    arguments broadcast over leading batch axes.
     """
     z = finite_array(z, "z")
     p = finite_array(platform_position, "platform_position", tail=(2,))
@@ -78,19 +122,12 @@ def bearing_prior(
         raise ValueError("speed_mean must be >= 0; speed_sigma, course_sigma positive")
     shape = np.broadcast_shapes(z.shape, p.shape[:-1], r.shape, s.shape, c.shape)
     z, r, sr, s, ss, c, sc = (np.broadcast_to(a, shape) for a in (z, r, sr, s, ss, c, sc))
-    uz = np.stack([np.sin(z), np.cos(z)], -1)
-    uc = np.stack([np.sin(c), np.cos(c)], -1)
-    tz = np.stack([np.cos(z), -np.sin(z)], -1)  # ∂u/∂z
-    tc = np.stack([np.cos(c), -np.sin(c)], -1)
-    x = np.concatenate([p + r[..., None] * uz, s[..., None] * uc], axis=-1)
+    pos, Ppos = polar_moments(r, sr, z, np.full(shape, sigma))
+    vel, Pvel = polar_moments(s, ss, c, sc, course_distribution)
+    x = np.concatenate([p + pos, vel], axis=-1)
     P = np.zeros((*shape, STATE_DIM, STATE_DIM))
-    # P_pos = σ_r² u uᵀ + r² σ² t tᵀ ; P_vel = σ_s² u_c u_cᵀ + s² σ_c² t_c t_cᵀ
-    P[..., :2, :2] = (sr**2)[..., None, None] * uz[..., :, None] * uz[..., None, :] + (
-        (r * sigma) ** 2
-    )[..., None, None] * tz[..., :, None] * tz[..., None, :]
-    P[..., 2:, 2:] = (ss**2)[..., None, None] * uc[..., :, None] * uc[..., None, :] + (
-        (s * sc) ** 2
-    )[..., None, None] * tc[..., :, None] * tc[..., None, :]
+    P[..., :2, :2] = Ppos
+    P[..., 2:, 2:] = Pvel
     return BearingsGaussian(x, P, t)
 
 
@@ -140,7 +177,7 @@ def _checked(
 ) -> tuple[FloatArray, FloatArray]:
     z = np.broadcast_to(finite_array(z, "z"), state.x.shape[:-1])
     p = np.broadcast_to(
-        finite_array(platform_position, "platform_position", tail=(2,)), state.x.shape[:-1] + (2,)
+        finite_array(platform_position, "platform_position", tail=(2,)), (*state.x.shape[:-1], 2)
     )
     if not np.isfinite(sigma) or sigma <= 0.0:
         raise ValueError(f"sigma: must be positive, got {sigma}")
@@ -178,7 +215,9 @@ class RangeBankState:
     def __post_init__(self) -> None:
         lw = np.asarray(self.log_weights, dtype=np.float64)
         if lw.shape != self.members.x.shape[:-1]:
-            raise ValueError(f"log_weights: shape {lw.shape} != members {self.members.x.shape[:-1]}")
+            raise ValueError(
+                f"log_weights: shape {lw.shape} != members {self.members.x.shape[:-1]}"
+            )
         if np.any(np.isnan(lw)):
             raise ValueError("log_weights: contains NaN")
         object.__setattr__(self, "log_weights", lw)
@@ -217,6 +256,7 @@ def range_bank_prior(
     course_sigma: ArrayLike,
     range_mean: ArrayLike | None = None,
     range_sigma: ArrayLike | None = None,
+    course_distribution: Literal["gaussian", "uniform"] = "gaussian",
 ) -> RangeBankState:
     """Bank of ``n_members`` priors at geometric ranges in ``[range_min, range_max]`` (m).
 
@@ -234,7 +274,7 @@ def range_bank_prior(
     r = rmin[..., None] * rho[..., None] ** i  # (..., N)
     C = 2.0 * (rho - 1.0) / (np.sqrt(12.0) * (rho + 1.0))
     sr = C[..., None] * r
-    ex = (...,) + (None,)
+    ex = (..., None)
     members = bearing_prior(
         np.asarray(z, dtype=np.float64)[ex],
         sigma,
@@ -246,6 +286,7 @@ def range_bank_prior(
         speed_sigma=np.asarray(speed_sigma, dtype=np.float64)[ex],
         course_mean=np.asarray(course_mean, dtype=np.float64)[ex],
         course_sigma=np.asarray(course_sigma, dtype=np.float64)[ex],
+        course_distribution=course_distribution,
     )
     if range_mean is None or range_sigma is None:
         lw = np.zeros(members.x.shape[:-1])
@@ -302,8 +343,8 @@ def run_filter(
 
     ``prior`` refers to ``times[0]`` and already holds the first bearing ``z[:, 0]`` (as built by
     :func:`bearing_prior` / :func:`range_bank_prior`), so updates start at ``k = 1`` and the
-    output at ``k = 0`` is the prior; ``z`` ``(B, K)``, ``platform_positions`` ``(B, K, 2)``. A :class:`RangeBankState` prior runs the bank and
-    returns its moment-matched output.
+    output at ``k = 0`` is the prior; ``z`` ``(B, K)``, ``platform_positions`` ``(B, K, 2)``.
+    A :class:`RangeBankState` prior runs the bank and returns its moment-matched output.
     """
     z = finite_array(z, "z")
     times = finite_array(times, "times")

@@ -86,7 +86,9 @@ def ml_estimate(
         raise ValueError(f"sigma: must be positive, got {sigma}")
     B = z.shape[0]
     if x_init is None:
-        x_init = prior.x if prior is not None else pseudolinear_estimate(z, times, p, sigma, t_ref).x
+        x_init = (
+            prior.x if prior is not None else pseudolinear_estimate(z, times, p, sigma, t_ref).x
+        )
     x_init = np.broadcast_to(finite_array(x_init, "x_init", tail=(STATE_DIM,)), (B, STATE_DIM))
     Phi = cv_transition(times - float(t_ref))
     prior_info = None

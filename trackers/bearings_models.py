@@ -120,7 +120,9 @@ def bearing_jacobian(target_state: ArrayLike, platform_position: ArrayLike) -> F
     return np.stack([dy / r2, -dx / r2, zero, zero], axis=-1)
 
 
-def bearing_residual(z: ArrayLike, target_state: ArrayLike, platform_position: ArrayLike) -> FloatArray:
+def bearing_residual(
+    z: ArrayLike, target_state: ArrayLike, platform_position: ArrayLike
+) -> FloatArray:
     """Wrapped innovation ``ν = wrap(z − β(x))`` (rad)."""
     x = finite_array(target_state, "target_state", tail=(STATE_DIM,))
     z = finite_array(z, "z")

@@ -62,7 +62,7 @@ def pseudolinear_estimate(
         Ns = N / (scale[..., :, None] * scale[..., None, :])
         if np.any(np.linalg.cond(Ns) > 1e12):
             raise ValueError("z: pseudo-linear system is rank deficient (no platform manoeuvre?)")
-        x = np.linalg.solve(N, np.einsum("...ik,...k->...i", AtW, b))
+        x = np.linalg.solve(N, np.einsum("...ik,...k->...i", AtW, b)[..., None])[..., 0]
         if it == iterations:
             break
         # w_k = 1/(σ² r̂_k²), ranges from the current iterate
