@@ -208,7 +208,7 @@ def ideal_result(scn: Paper002Scenario) -> dict:
         out["start_range_m"] = float(np.hypot(*(fix.position - M[:, 0]).T)[0])
     out["true_start_range_m"] = float(np.hypot(*(run.target[0, run.base_index[0], :2] - M[0, 0])))
     # course read straight off the fictitious track (no moving-platform correction)
-    F1, dF = fictitious_relative_track(zb[:, :3], scn.assumed_distance)
+    _, dF = fictitious_relative_track(zb[:, :3], scn.assumed_distance)
     U_f = dF / (tb[1] - tb[0]) + (M[:, 1] - M[:, 0]) / (tb[1] - tb[0])
     true_v = run.target[0, 0, 2:]
     out["course_error_uncorrected_deg"] = float(

@@ -205,7 +205,10 @@ def fictitious_bearing_fix(
     b = _dot(M[..., 3:, :] - MkM, n)
     den = np.sum(a * a, axis=-1)
     if np.any(den < 1e-12 * np.maximum(np.sum(Fk * Fk, axis=(-1, -2)), 1e-300)):
-        raise ValueError("z: a post-turn bearing coincides with its imaginary bearing")
+        raise ValueError(
+            "z: the post-turn bearings coincide with their imaginary bearings; the range is "
+            "unobservable (turn and speed up, SPEC §7 OC-5)"
+        )
     lam = np.sum(a * b, axis=-1) / den
     if np.any(np.abs(lam) < 1e-9):
         raise ValueError(
