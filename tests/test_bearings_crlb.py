@@ -13,11 +13,12 @@ from sensorgym.trackers.bearings_crlb import (
     observability,
     position_rms_bound,
     posterior_information,
+    predict_information,
     range_bound,
     relative_range_bound,
     transport_information,
 )
-from sensorgym.trackers.bearings_models import bearing, cv_transition
+from sensorgym.trackers.bearings_models import bearing, cv_transition, cwna_covariance
 
 SIGMA = np.deg2rad(1.0)
 
@@ -86,6 +87,19 @@ def test_pcrlb_without_process_noise_equals_batch_bound():
         Jb = batch_information(xk, t[k], t[: k + 1], p[: k + 1], SIGMA)
         Jb += transport_information(J0, t[k])
         np.testing.assert_allclose(Jk[k], Jb, rtol=1e-8, atol=1e-16)
+
+
+def test_predicted_information_matches_covariance_prediction():
+    t, p, x0 = _geometry(manoeuvre=True)
+    J = batch_information(x0, 0.0, t, p, SIGMA)
+    P = np.linalg.inv(J)
+    F = cv_transition(45.0)
+    P_pred = F @ P @ F.T + cwna_covariance(45.0, 1e-4)
+    np.testing.assert_allclose(crlb(predict_information(J, 45.0, 1e-4)), P_pred, rtol=1e-6)
+    # no information at all stays no information (finite arithmetic, infinite bound)
+    assert np.all(np.isinf(crlb(predict_information(np.zeros((4, 4)), 60.0, 1e-4))))
+    with pytest.raises(ValueError, match="dt"):
+        predict_information(J, -1.0, 0.0)
 
 
 def test_process_noise_loosens_the_bound():

@@ -126,6 +126,21 @@ def batch_information(
     return _sym(J)
 
 
+def predict_information(J: ArrayLike, dt: float, q_tilde: float) -> FloatArray:
+    """Information about the state ``dt ≥ 0`` seconds later under CWNA process noise ``q̃``.
+
+    ``(Q + F J⁻¹ Fᵀ)⁻¹ = (I + J̄ Q)⁻¹ J̄`` with ``J̄ = F⁻ᵀ J F⁻¹``; works for singular ``J`` (no
+    information yet) and ``q̃ = 0`` (pure transport). Use it with :func:`crlb` and the helpers
+    below for the bound at any time between (or after) bearings.
+    """
+    if not np.isfinite(dt) or dt < 0.0:
+        raise ValueError(f"dt: must be finite and >= 0, got {dt}")
+    Jbar = transport_information(J, dt)
+    Q = cwna_covariance(dt, q_tilde)
+    # (Q + F J⁻¹ Fᵀ)⁻¹ = (I + J̄ Q)⁻¹ J̄
+    return _sym(np.linalg.solve(np.eye(STATE_DIM) + Jbar @ Q, Jbar))
+
+
 def posterior_information(
     J0: ArrayLike, times: ArrayLike, measurement_information: ArrayLike, q_tilde: float
 ) -> FloatArray:
@@ -148,13 +163,8 @@ def posterior_information(
     out = np.empty((*batch, K, STATE_DIM, STATE_DIM))
     J = J + Im[..., 0, :, :]
     out[..., 0, :, :] = J
-    eye = np.eye(STATE_DIM)
     for k in range(1, K):
-        T = times[k] - times[k - 1]
-        Jbar = transport_information(J, T)
-        Q = cwna_covariance(T, q_tilde)
-        # (Q + F J⁻¹ Fᵀ)⁻¹ = (I + J̄ Q)⁻¹ J̄
-        J = _sym(np.linalg.solve(eye + Jbar @ Q, Jbar)) + Im[..., k, :, :]
+        J = predict_information(J, times[k] - times[k - 1], q_tilde) + Im[..., k, :, :]
         out[..., k, :, :] = J
     return out
 
