@@ -21,8 +21,9 @@ noise (Tichavský, Muravchik & Nehorai 1998, eq. 21 specialised)::
 
     J_{k+1} = (Q + F J_k⁻¹ Fᵀ)⁻¹ + E[I(x_{k+1})]
 
-computed as ``(I + J̄ Q)⁻¹ J̄`` with ``J̄ = F⁻ᵀ J_k F⁻¹``, which needs no inverse of a possibly
-singular ``J_k`` or ``Q`` (it reduces to pure transport when ``q̃ = 0``). The expectation is over
+computed as ``(I + J̄ Q)⁻¹ J̄`` with ``J̄ = F⁻ᵀ J_k F⁻¹`` (:func:`predict_information`, also the
+bound at any time between bearings), which needs no inverse of a possibly singular ``J_k``
+or ``Q`` (it reduces to pure transport when ``q̃ = 0``). The expectation is over
 the true trajectories: pass the per-trajectory information averaged over Monte Carlo runs,
 or that of one deterministic trajectory.
 
