@@ -142,6 +142,9 @@ def test_reproduction_rt8_and_rt9_reduced():
     rows = noisy["rows"]
     pre = rows["preliminary (base 4)"]["median_position"]
     assert rows["ML on base bearings 1-6"]["median_position"] < pre
+    assert rows["no smoothing (raw, base 4)"]["median_position"] > 1.5 * pre  # "large errors"
+    sweep = list(noisy["speed_sweep_median_position_m"].values())
+    assert sweep[0] > sweep[1] > sweep[2]  # OC-5: longer baseline, smaller errors
     assert (
         rows["ML on raw bearings (9 min)"]["median_position"]
         < rows["ML on raw bearings (6 min)"]["median_position"]
