@@ -89,8 +89,9 @@ class PlatformWorldParams:
 class PlatformWorldState:
     """Batched world state; leading axis ``B`` = scenario."""
 
-    t: float
-    """Time (s), common to all scenarios."""
+    t: FloatArray
+    """Time ``(B,)`` (s) of each scenario (a scalar is broadcast). The dynamics are
+    time-invariant, so scenarios may run on their own clocks (vector-env autoreset)."""
     platform_position: FloatArray
     """Platform position ``(B, 2)`` East, North (m)."""
     heading: FloatArray
@@ -115,7 +116,10 @@ class PlatformWorldState:
             )
         if np.any(s < 0.0):
             raise ValueError("speed: must be >= 0")
-        object.__setattr__(self, "t", float(self.t))
+        t = finite_array(self.t, "t")
+        if t.ndim > 1 or (t.ndim == 1 and t.shape != (B,)):
+            raise ValueError(f"t: expected a scalar or shape ({B},), got {t.shape}")
+        object.__setattr__(self, "t", np.broadcast_to(t, (B,)).copy())
         object.__setattr__(self, "platform_position", p)
         object.__setattr__(self, "heading", wrap_angle(h))
         object.__setattr__(self, "speed", s)
@@ -189,6 +193,20 @@ def step(
     )
 
 
+def where(mask: ArrayLike, new: PlatformWorldState, old: PlatformWorldState) -> PlatformWorldState:
+    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old`` (autoreset)."""
+    m = np.asarray(mask, dtype=bool)
+    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
+        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
+    return PlatformWorldState(
+        t=np.where(m, new.t, old.t),
+        platform_position=np.where(m[:, None], new.platform_position, old.platform_position),
+        heading=np.where(m, new.heading, old.heading),
+        speed=np.where(m, new.speed, old.speed),
+        target=np.where(m[:, None], new.target, old.target),
+    )
+
+
 def true_bearings(state: PlatformWorldState) -> FloatArray:
     """Noise-free absolute bearings ``(B,)`` (rad, from North clockwise)."""
     return bearing(state.target[:, :2], state.platform_position)
@@ -222,13 +240,18 @@ def rollout(
     params: PlatformWorldParams,
     rng: np.random.Generator | None = None,
 ) -> PlatformTrajectory:
-    """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)``, shared); record ``K`` states."""
+    """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)``, shared); record ``K`` states.
+
+    All scenarios must share one clock (``state.t`` constant over the batch).
+    """
     acts = finite_array(actions, "actions", tail=(2,))
+    if np.ptp(state.t) > 0.0:
+        raise ValueError("state: rollout needs all scenarios on one clock (equal t)")
     states = [state]
     for k in range(acts.shape[0]):
         states.append(step(states[-1], acts[k], params, rng))
     return PlatformTrajectory(
-        t=np.array([s.t for s in states]),
+        t=np.array([s.t[0] for s in states]),
         platform_position=np.stack([s.platform_position for s in states], axis=1),
         platform_velocity=np.stack([s.platform_velocity for s in states], axis=1),
         target=np.stack([s.target for s in states], axis=1),

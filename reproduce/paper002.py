@@ -158,7 +158,7 @@ def simulate(
         beta = true_bearings(state)
         if rng is not None:
             beta = wrap_angle(beta + scn.sigma * rng.standard_normal(n_runs))
-        times.append(state.t)
+        times.append(state.t[0])
         zs.append(beta)
         plat.append(state.platform_position)
         targ.append(state.target)

@@ -112,6 +112,10 @@ def test_no_turn_makes_range_unobservable():
         fictitious_bearing_fix(t[:4], M_straight[:4], z_straight[:4], 50e3)
     with pytest.raises(ValueError, match="equal"):
         fictitious_bearing_fix(t[[0, 1, 3, 4]], M[:4], z[:4], 50e3)
+    bent = M.copy()
+    bent[2] += [30.0, 0.0]
+    with pytest.raises(ValueError, match="uniformly"):
+        fictitious_bearing_fix(t[:4], bent[:4], z[:4], 50e3)
 
 
 @pytest.mark.parametrize("degree", [1, 2])

@@ -14,6 +14,7 @@ from sensorgym.envs.platform_world import (
     rollout,
     step,
     true_bearings,
+    where,
 )
 from sensorgym.trackers.bearings_models import cwna_covariance
 
@@ -107,6 +108,20 @@ def test_batched_rollout_equals_looped():
         one = rollout(sb, actions[:, b : b + 1], params0)
         np.testing.assert_allclose(one.platform_position[0], batched.platform_position[b])
         np.testing.assert_allclose(one.target[0], batched.target[b])
+
+
+def test_where_resets_selected_scenarios_on_their_own_clock():
+    params = PlatformWorldParams(dt=10.0)
+    old = step(_state(3), [[0.0, 0.0]] * 3, params)
+    fresh = _state(3, heading=1.0, speed=3.0)
+    mixed = where([True, False, True], fresh, old)
+    np.testing.assert_array_equal(mixed.t, [0.0, 10.0, 0.0])
+    np.testing.assert_array_equal(mixed.speed, [3.0, 10.0, 3.0])
+    np.testing.assert_array_equal(mixed.platform_position[1], old.platform_position[1])
+    nxt = step(mixed, [[0.0, 0.0]] * 3, params)
+    np.testing.assert_array_equal(nxt.t, [10.0, 20.0, 10.0])
+    with pytest.raises(ValueError, match="one clock"):
+        rollout(mixed, np.zeros((2, 2)), params)
 
 
 def test_invalid_inputs_raise():

@@ -194,6 +194,11 @@ def fictitious_bearing_fix(
     delta = times[1] - times[0]
     if delta <= 0.0 or abs((times[2] - times[1]) - delta) > equal_tolerance * delta:
         raise ValueError("times: bearings 1-3 must be taken at equal positive intervals")
+    # the construction is exact only for a uniformly moving platform: M₃ − 2M₂ + M₁ = 0
+    second = np.linalg.norm(M[..., 2, :] - 2.0 * M[..., 1, :] + M[..., 0, :], axis=-1)
+    span = np.linalg.norm(M[..., 2, :] - M[..., 0, :], axis=-1)
+    if np.any(second > 1e-6 * span + 1e-6):
+        raise ValueError("platform_positions: the platform must move uniformly over bearings 1-3")
     F1, dF = fictitious_relative_track(z[..., :3], D)
     W = dF / delta
     vp0 = (M[..., 1, :] - M[..., 0, :]) / delta
