@@ -31,6 +31,8 @@ Step
 propagated with the exact discretisation ``x' = F x + w``, ``w ~ N(0, Q)`` of the CWNA model
 (:mod:`sensorgym.trackers.bearings_models`); ``rng`` is needed only when ``q̃ > 0``.
 Bearings are drawn separately by :func:`measure_bearings` with an explicit generator.
+:func:`where` swaps freshly reset scenarios into a batch (each scenario keeps its own clock);
+:func:`rollout` records an open-loop trajectory for estimators and bounds.
 """
 
 from __future__ import annotations

@@ -14,9 +14,10 @@ Target state and conventions: :mod:`sensorgym.trackers.bearings_models`.
   ``N`` Cartesian filters initialised at geometrically spaced ranges ``r_i = r_min ρ^{i−½}``,
   ``ρ = (r_max/r_min)^{1/N}``, each with range σ ``C r_i``, ``C = 2(ρ−1)/(√12 (ρ+1))``, so
   each member's linearisation stays valid; member weights follow the bearing likelihood
-  ``w_i ∝ w_i N(ν_i; 0, S_i)`` and the output is the moment-matched mixture. Cartesian
-  filters with one wide range prior diverge in ~10–15 % of runs on the textbook scenario;
-  the bank does not need the range prior to be narrow.
+  ``w_i ∝ w_i N(ν_i; 0, S_i)`` and the output is the moment-matched mixture. On the textbook
+  scenario (``sensorgym reproduce bot-benchmark``, 1000 runs) a single Cartesian EKF with the
+  wide prior diverges in 5–7 % of runs (10–15 % in the literature, criterion-dependent) and
+  the CKF in 1–1.5 %; the 8-member bank in 0–0.2 %, with consistent NEES.
 
 The prior is built from the first bearing (:func:`bearing_prior`, Ristic §6.3.1): position
 ``p + r (sin z, cos z)``, velocity ``s (sin c, cos c)`` with independent range r, bearing z,
