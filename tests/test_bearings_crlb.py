@@ -134,6 +134,20 @@ def test_bounds_are_batched_over_candidates():
     assert np.all(np.isfinite(x_next))
 
 
+def test_pcrlb_batched_over_candidate_trajectories_equals_looped():
+    J0 = np.diag([1e-6, 1e-6, 1e-2, 1e-2])
+    Ims, ts = [], None
+    for man in (False, True, True):
+        t, p, x0 = _geometry(manoeuvre=man)
+        p = p + (0.0 if not Ims else 200.0 * len(Ims))
+        traj = np.einsum("kij,j->ki", cv_transition(t), x0)
+        Ims.append(bearing_information(traj, p, SIGMA))
+        ts = t
+    batched = posterior_information(J0, ts, np.stack(Ims), 1e-4)
+    for i, Im in enumerate(Ims):
+        np.testing.assert_allclose(batched[i], posterior_information(J0, ts, Im, 1e-4), rtol=1e-12)
+
+
 def test_textbook_pcrlb_shape():
     # Ristic ch. 6 geometry: the bound stays near the 2 km prior until the manoeuvre, then drops
     from sensorgym.reproduce.bot_benchmark import pcrlb_position, simulate
