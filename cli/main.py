@@ -1,8 +1,8 @@
 """``sensorgym`` command line: one parser, one module per subcommand.
 
 Each subcommand module exposes ``HELP`` (one line), ``add_arguments(parser)`` and
-``run(args) -> int``; modules are imported only when their subcommand runs, so
-``sensorgym --help`` stays fast.
+``run(args) -> int``. Every module is imported to build the parser, so subcommand modules
+keep their module-level imports light and import heavy libraries inside ``run``.
 """
 
 from __future__ import annotations

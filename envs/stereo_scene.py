@@ -83,7 +83,7 @@ def receivers_around(
     origins = T[..., None, :] - r[..., None] * d
     aim = T[..., None, :] + finite_array(boresight_offset, "boresight_offset", tail=(3,))
     return StereoScene(
-        origins, look_at_rotation(origins, aim), np.broadcast_to(T, origins.shape[:-2] + (3,))
+        origins, look_at_rotation(origins, aim), np.broadcast_to(T, (*origins.shape[:-2], 3))
     )
 
 

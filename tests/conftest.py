@@ -1,0 +1,38 @@
+"""Shared fixtures: seeded generators and random receiver geometries."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorgym.envs.stereo_scene import StereoScene
+from sensorgym.trackers.geometry import look_at_rotation
+
+
+@pytest.fixture
+def rng() -> np.random.Generator:
+    return np.random.default_rng(20261122)
+
+
+def random_moving_scene(
+    rng: np.random.Generator, n: int, batch: int, order: int
+) -> tuple[StereoScene, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Receivers scattered around a moving target; returns measurements at distinct fix times.
+
+    Returns ``(scene_at_t1, a (batch, n, 3) own-frame directions at each receiver's fix time,
+    dt (batch, n-1), V_world, Vdot_world)``.
+    """
+    T = rng.normal(size=(batch, 3)) * 20.0 + np.array([0.0, 40.0, 120.0])
+    V = rng.normal(size=(batch, 3)) * 8.0
+    Vd = rng.normal(size=(batch, 3)) * (2.0 if order == 2 else 0.0)
+    if order == 0:
+        V = np.zeros_like(V)
+    o = rng.normal(size=(batch, n, 3)) * 70.0
+    R = look_at_rotation(o, T[:, None, :] + rng.normal(size=(batch, n, 3)) * 3.0)
+    t = np.concatenate([np.zeros((batch, 1)), rng.uniform(0.05, 0.6, size=(batch, n - 1))], 1)
+    # the target at each receiver's fix time: M(t_k) = T + V t_k + V̇ t_k²/2
+    Mk = T[:, None, :] + V[:, None, :] * t[..., None] + 0.5 * Vd[:, None, :] * t[..., None] ** 2
+    u = Mk - o
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    a = np.einsum("bkji,bkj->bki", R, u)
+    return StereoScene(o, R, T), a, t[:, 1:], V, Vd

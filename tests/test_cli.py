@@ -1,0 +1,64 @@
+"""The ``sensorgym`` command: subcommands run and print real numbers."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from sensorgym.cli.main import COMMANDS, DEFAULT_JOB, build_parser, main
+from sensorgym.cli.reproduce import available
+
+
+def test_every_subcommand_has_help(capsys):
+    parser = build_parser()
+    for name in COMMANDS:
+        with pytest.raises(SystemExit) as exc:
+            parser.parse_args([name, "--help"])
+        assert exc.value.code == 0
+        assert "usage: sensorgym" in capsys.readouterr().out
+    assert DEFAULT_JOB[0] in COMMANDS
+
+
+def test_version(capsys):
+    with pytest.raises(SystemExit):
+        main(["--version"])
+    assert capsys.readouterr().out.startswith("sensorgym ")
+
+
+def test_triangulate_demo_matches_closed_forms(tmp_path, capsys):
+    out = tmp_path / "rows.json"
+    assert (
+        main(
+            [
+                "triangulate-demo",
+                "--runs",
+                "4000",
+                "--gammas",
+                "30",
+                "90",
+                "150",
+                "--json",
+                str(out),
+            ]
+        )
+        == 0
+    )
+    printed = capsys.readouterr().out
+    assert "iid formula" in printed and "30" in printed
+    rows = json.loads(out.read_text())
+    assert [r["gamma_deg"] for r in rows] == [30, 90, 150]
+    for r in rows:
+        assert r["iid_monte_carlo"] == pytest.approx(r["iid_predicted"], rel=0.06)
+        assert r["angle_monte_carlo"] == pytest.approx(r["angle_predicted"], rel=0.06)
+        assert r["position_ml_rms"] == pytest.approx(r["position_crlb_rms"], rel=0.06)
+    # orthogonal lines of sight are the most accurate geometry under both models
+    assert rows[1]["iid_predicted"] < rows[0]["iid_predicted"]
+    assert rows[1]["angle_predicted"] < rows[2]["angle_predicted"]
+
+
+def test_reproductions_are_discovered_with_their_interface():
+    for name, module_name in available().items():
+        module = __import__(module_name, fromlist=["run"])
+        assert isinstance(module.HELP, str) and module.HELP, name
+        assert callable(module.add_arguments) and callable(module.run), name

@@ -1,0 +1,56 @@
+"""The wheel holds only ``sensorgym/…``: no top-level ``envs``, ``train``, … and no file left out."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import zipfile
+from importlib.metadata import version
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+MAPPED = {"envs", "agents", "trackers", "train", "cli", "reproduce"}
+
+
+def test_version_from_metadata():
+    assert version("sensorgym")
+
+
+def test_package_dirs_in_pyproject_cover_every_folder():
+    import tomllib
+
+    cfg = tomllib.loads((ROOT / "pyproject.toml").read_text())["tool"]["setuptools"]
+    assert {k.split(".", 1)[1] for k in cfg["package-dir"]} == MAPPED
+    # nested folders with Python files would need their own entry
+    nested = {
+        p.parent.relative_to(ROOT).as_posix()
+        for d in MAPPED
+        for p in (ROOT / d).rglob("*.py")
+        if p.parent != ROOT / d and "__pycache__" not in p.parts
+    }
+    listed = {
+        cfg["package-dir"].get(pkg, pkg.replace("sensorgym.", "").replace(".", "/"))
+        for pkg in cfg["packages"]
+    }
+    assert nested <= listed, f"sub-packages missing from pyproject packages: {nested - listed}"
+
+
+@pytest.mark.slow
+def test_wheel_contains_only_sensorgym(tmp_path):
+    subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(ROOT)],
+        check=True,
+    )
+    (wheel,) = tmp_path.glob("sensorgym-*.whl")
+    names = zipfile.ZipFile(wheel).namelist()
+    tops = {n.split("/", 1)[0] for n in names}
+    assert tops == {"sensorgym", f"sensorgym-{version('sensorgym')}.dist-info"}
+    assert "sensorgym/__init__.py" not in names  # implicit namespace package
+    for d in MAPPED:
+        for p in (ROOT / d).rglob("*.py"):
+            if "__pycache__" in p.parts:
+                continue
+            rel = p.relative_to(ROOT / d).as_posix()
+            assert f"sensorgym/{d}/{rel}" in names, f"{d}/{rel} missing from the wheel"
