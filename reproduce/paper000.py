@@ -24,10 +24,12 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.drones import GroupSpec, random_group
 from sensorgym.envs.stereo_world import FixedDelay, NoiseModel, ReceiverLayout, simulate
 from sensorgym.trackers.association import match_tracks
@@ -131,12 +133,28 @@ def _status(ok: bool, why: str) -> tuple[str, str]:
     return ("matched", "") if ok else ("missed", why)
 
 
-def reproduce(runs: int = 1000, seed: int = 0, scenario: Scenario000 = Scenario000()) -> dict:
-    """Run every cell of Tables 1–2 and evaluate RT-2..RT-5 (SPEC §8). Pure; no printing."""
+def _cell_job(job: tuple) -> dict:
+    ss, scenario, alg, m, delays, runs = job
+    return run_cell(np.random.default_rng(ss), scenario, alg, m, delays, runs)
+
+
+def reproduce(
+    runs: int = 1000, seed: int = 0, scenario: Scenario000 = Scenario000(), jobs: int = 1
+) -> dict:
+    """Run every cell of Tables 1–2 and evaluate RT-2..RT-5 (SPEC §8). Pure; no printing.
+
+    Each cell draws from its own child of ``SeedSequence(seed)``, so results do not depend on
+    ``jobs`` (worker processes).
+    """
     seeds = np.random.SeedSequence(seed).spawn(len(CELLS))
+    work = [(ss, scenario, c[1], c[2], c[3], runs) for c, ss in zip(CELLS, seeds, strict=True)]
+    if jobs > 1:
+        with ProcessPoolExecutor(jobs) as pool:
+            results = list(pool.map(_cell_job, work))
+    else:
+        results = [_cell_job(w) for w in work]
     cells = []
-    for (table, alg, m, delays, pd, ps, pp), ss in zip(CELLS, seeds, strict=True):
-        ours = run_cell(np.random.default_rng(ss), scenario, alg, m, delays, runs)
+    for (table, alg, m, delays, pd, ps, pp), ours in zip(CELLS, results, strict=True):
         cells.append(
             {
                 "table": table,
@@ -266,6 +284,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--runs", type=int, default=1000, help="Monte Carlo runs per cell (default 1000)"
     )
     parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     parser.add_argument(
         "--out", type=Path, default=Path("results/paper000"), help="output directory"
     )
@@ -310,7 +329,7 @@ def format_report(result: dict) -> str:
 
 def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
-    result = reproduce(runs=args.runs, seed=args.seed)
+    result = reproduce(runs=args.runs, seed=args.seed, jobs=args.jobs)
     result["seconds"] = time.perf_counter() - t0
     print(format_report(result))
     print(f"\n{result['seconds']:.1f} s")

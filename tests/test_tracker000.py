@@ -118,3 +118,12 @@ def test_at10_alternative_ratio_and_detection_trend():
     ]
     assert 2.2 <= o[1]["d_avg"] / o[0]["d_avg"] <= 2.8
     assert o[1]["pr_m"] < o[0]["pr_m"]
+
+
+def test_reproduction_does_not_depend_on_worker_count():
+    from sensorgym.reproduce.paper000 import reproduce
+
+    one = reproduce(runs=4, seed=1, jobs=1)
+    two = reproduce(runs=4, seed=1, jobs=2)
+    assert one["cells"] == two["cells"]
+    assert {c["id"] for c in one["checks"]} == {"RT-2", "RT-3", "RT-4", "RT-5"}

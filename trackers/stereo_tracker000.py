@@ -218,11 +218,12 @@ def track_alternative(
         raise ValueError("periods: the alternative algorithm needs at least 2 periods")
     P2 = finite_array(P2, "P2", tail=(3, 3))
     b2 = finite_array(b2, "b2", tail=(3,))
+    eps_J, delta = params.eps_J, params.delta
     cands = []
     for i, fixes in enumerate(periods):
         _check_period(fixes, 2, i)
         Pi, bi = assoc.per_period(P2, i, 2), assoc.per_period(b2, i, 1)
-        cands.append(alternative_candidates(fixes[0], fixes[1], Pi, bi, params.eps_J))
+        cands.append(alternative_candidates(fixes[0], fixes[1], Pi, bi, eps_J))
     c1, c2 = cands[0], cands[1]
     # periods 1 and 2: every pair of candidates opens a group, J_s = 0 (000 temporal step 1)
     pair = assoc.combinations([c1.time.shape[0], c2.time.shape[0]])
@@ -253,7 +254,7 @@ def track_alternative(
         dt = c.time[None, :] - t_latest[:, None]
         pred = M[:, None, :] + V[:, None, :] * dt[..., None]
         dJ = np.linalg.norm(c.position[None, :, :] - pred, axis=-1)
-        g, j, score = assoc.extend(score, dJ, params.delta, params.beam)
+        g, j, score = assoc.extend(score, dJ, delta, params.beam)
         members = members[g]
         members[:, i] = c.members[j]
         sums = sums[g] + _sums(c.position[j], c.time[j])
@@ -308,13 +309,14 @@ def track_proposed(
         x[keep] for x in (members, score, pos_hist, vel_hist, t_hist)
     )
     M, V, t_s = pos_hist[:, 0], vel_hist[:, 0], t_hist[:, 0]
+    delta = params.delta
     for i in range(1, N):
         c = cands[i]
         # M̂^Э = M̂_s + V̂_s (t(i, j) − t_s);  ΔJ = ‖M(i, j) − M̂^Э‖ ≤ δ  (000 proposed steps 2–3)
         dt = c.time[None, :] - t_s[:, None]
         pred = M[:, None, :] + V[:, None, :] * dt[..., None]
         dJ = np.linalg.norm(c.position[None, :, :] - pred, axis=-1)
-        g, j, score = assoc.extend(score, dJ, params.delta, params.beam)
+        g, j, score = assoc.extend(score, dJ, delta, params.beam)
         members = members[g]
         members[:, i] = c.members[j]
         # the group keeps the latest spatial estimates, not a fit
