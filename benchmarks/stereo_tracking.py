@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.drones import GroupSpec, random_group
 from sensorgym.envs.scanning import FixedDelay, RasterScan
 from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate

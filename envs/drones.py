@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]

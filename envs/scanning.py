@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from sensorgym.trackers.geometry import angles_from_unit, look_at_rotation, relative_pose
 from sensorgym.trackers.validation import finite_array
 

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles
 
 from .drones import Trajectories

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from sensorgym.trackers import association as assoc
 
 

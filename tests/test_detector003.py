@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from sensorgym.envs.drones import Trajectories
 from sensorgym.envs.scanning import RasterScan
 from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from sensorgym.envs.drones import GroupSpec, Trajectories, random_group
 from sensorgym.envs.scanning import FixedDelay, RasterScan, ReceiverLayout
 from sensorgym.envs.stereo_world import DetectionModel, NoiseModel, observe_period, simulate

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from sensorgym.envs.drones import Trajectories
 from sensorgym.envs.stereo_world import FixedDelay, NoiseModel, ReceiverLayout, simulate
 from sensorgym.reproduce.paper000 import Scenario000, run_cell
