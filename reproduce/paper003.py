@@ -97,7 +97,8 @@ def _frame1(layout: ReceiverLayout, p: np.ndarray) -> np.ndarray:
 
 
 def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, runs: int) -> dict:
-    """Mean position error of the 6-parameter (with velocity) and 3-parameter solves, one period."""
+    """Mean and median position error of the 6-parameter (with velocity) and 3-parameter
+    solves in one period, and of the economical variant (n = 2, N = 2)."""
     scan = RasterScan.paper003()
     noise = NoiseModel(angle_sigma=sc.angle_sigma)
     if variant == 2:
@@ -153,6 +154,9 @@ def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, 
         "error_6_params": float(np.mean(err6)),
         "error_3_params": float(np.mean(err3)),
         "error_economical": float(np.mean(err_eco)) if err_eco else float("nan"),
+        "median_6_params": float(np.median(err6)),
+        "median_3_params": float(np.median(err3)),
+        "median_economical": float(np.median(err_eco)) if err_eco else float("nan"),
         "runs_used": len(err6),
     }
 
@@ -290,11 +294,12 @@ def reproduce(
     ratio = v2["error_3_params"] / v2["error_6_params"]
     check(
         "RT-10",
-        "variant 2: error ratio 3-param / 6-param ≈ 10",
+        "variant 2: error ratio 3-param / 6-param ≈ 10 (within ×2)",
         "≈ 10",
         f"{ratio:.1f}",
-        4.0 <= ratio <= 25.0,
-        "velocity term changes the error by less than the paper's factor",
+        5.0 <= ratio <= 20.0,
+        "the mean 6-parameter error carries a tail of runs whose three fix times are nearly"
+        " equal (same raster lines), where the velocity is poorly determined",
     )
     check(
         "RT-10",
@@ -312,6 +317,16 @@ def reproduce(
         1.5 <= v2["error_3_params"] <= 6.0,
         "dynamic error depends on the chosen delays and speed",
     )
+    eco = v2["error_economical"]
+    check(
+        "RT-10",
+        "variant 2, economical n=2, N=2: error within ×2 of 0.3 m",
+        "≈ 0.3",
+        f"{eco:.2f}",
+        0.15 <= eco <= 0.6,
+        "receiver 2's two vectors of one object are nearly parallel (the object moves a few"
+        " metres in 20 s at 50 m), so the velocity of each subgroup is poorly determined",
+    )
     check(
         "RT-11",
         "variant 1 (close receivers): 6-param error ≫ variant 2",
@@ -328,7 +343,7 @@ def reproduce(
                 f"{paper:.2f}",
                 f"{cell['p_m']:.3f}",
                 abs(cell["p_m"] - paper) <= 0.05,
-                "exact-vector criterion: one lost gate or swapped vector fails the run",
+                "a group switching objects in one period fails the exact-vector criterion",
             )
     pm5 = [c["p_m"] for c in table[5]]
     check(
@@ -348,7 +363,9 @@ def reproduce(
             f"{b['p_m']:.2f}/{a['p_m']:.2f}" for a, b in zip(table[10], table[5], strict=True)
         ),
         rises,
-        "more periods give more chances to lose a true group at a gate",
+        "swaps: with a 7.5 m baseline the range error (≈1 m) is 20× the transverse one, and"
+        " the isotropic indices J_2, J_3 make a switch between objects a few metres apart"
+        " cheap; more periods give more chances to switch",
     )
     close_err = np.nanmean([c["position_error"] for c in table[5]])
     check(
@@ -395,8 +412,10 @@ def format_report(res: dict) -> str:
     for name in ("variant2", "variant1"):
         v = res[name]
         lines.append(
-            f"  {name}: 6 params {v['error_6_params']:.3f}   3 params {v['error_3_params']:.3f}"
-            f"   economical n=2,N=2 {v['error_economical']:.3f}   ({v['runs_used']} runs)"
+            f"  {name} (mean / median): 6 params {v['error_6_params']:.3f} /"
+            f" {v['median_6_params']:.3f}   3 params {v['error_3_params']:.3f} /"
+            f" {v['median_3_params']:.3f}   economical n=2,N=2 {v['error_economical']:.3f} /"
+            f" {v['median_economical']:.3f}   ({v['runs_used']} runs)"
         )
     lines += [
         "",
