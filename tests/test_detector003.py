@@ -5,7 +5,7 @@ import pytest
 
 from sensorgym.envs.drones import Trajectories
 from sensorgym.envs.scanning import RasterScan
-from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate
+from sensorgym.envs.stereo_world import DetectionModel, NoiseModel, ReceiverLayout, simulate
 from sensorgym.reproduce.paper003 import Scenario003, algebraic_accuracy, algorithmic_cell
 from sensorgym.trackers.stereo_algebraic003 import (
     AlgebraicParams,
@@ -147,3 +147,48 @@ def test_rt12_detection_probability_falls_with_m():
     p2 = algorithmic_cell(np.random.default_rng(7), sc, 2, 5, 150, False)["p_m"]
     p5 = algorithmic_cell(np.random.default_rng(8), sc, 5, 5, 150, False)["p_m"]
     assert p2 >= 0.95 and p5 < p2
+
+
+def test_algorithmic_rejects_false_fixes():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=(0.0, 10.0, 0.0))
+    traj = Trajectories.linear(
+        [[0.0, 10.0, 0.0], [4.0, 12.0, -3.0], [-3.0, 8.0, 4.0]],
+        [[1.0, 0.0, 0.5], [-0.5, 0.2, 1.0], [0.8, -0.3, 0.0]],
+    )
+    scan = RasterScan(30.0, 30.0, 100, 100, 1.0)
+    sigma = np.deg2rad(0.03)
+    P, b = layout.relative
+    params = AlgorithmicParams(sigma_e=50 * sigma, sigma_position=0.1, max_delay=1.0)
+    for seed in range(5):
+        per, truth = simulate(
+            np.random.default_rng(seed),
+            traj,
+            layout,
+            (scan,) * 2,
+            6,
+            1.0,
+            NoiseModel(angle_sigma=sigma),
+            DetectionModel(false_rate=3.0),
+        )
+        det = detect_algorithmic(per, P[0], b[0], params)
+        assert det.m_hat == 3
+        for s in range(3):
+            lab = _labels(det, truth, s)
+            assert lab[0, 0] >= 0 and np.all(lab == lab[0, 0])
+
+
+def test_per_period_poses_equal_static_poses():
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=(0.0, 10.0, 0.0))
+    traj = Trajectories.linear(
+        [[0.0, 10.0, 0.0], [4.0, 12.0, -3.0]], [[1.0, 0.0, 0.5], [-0.5, 0.2, 1.0]]
+    )
+    scan = RasterScan(30.0, 30.0, 100, 100, 1.0)
+    per, _ = simulate(
+        np.random.default_rng(9), traj, layout, (scan,) * 2, 4, 1.0, NoiseModel(angle_sigma=1e-4)
+    )
+    P, b = layout.relative
+    params = AlgorithmicParams(sigma_e=0.01, sigma_position=0.05, max_delay=1.0)
+    static = detect_algorithmic(per, P[0], b[0], params)
+    moving = detect_algorithmic(per, np.repeat(P[:1], 4, 0), np.repeat(b[:1], 4, 0), params)
+    np.testing.assert_array_equal(static.members, moving.members)
+    np.testing.assert_allclose(static.positions, moving.positions)

@@ -204,6 +204,13 @@ class Detection:
         return self.positions[rows, last], self.velocities[rows, last], self.times[rows, last]
 
 
-def per_period(value: FloatArray, i: int, tail: int) -> FloatArray:
-    """Receiver poses may be static (``tail`` dims + 1) or given per period (one more axis)."""
-    return value[i] if value.ndim == tail + 2 else value
+def per_period(value: FloatArray, i: int, static_ndim: int) -> FloatArray:
+    """Period ``i``'s receiver pose: ``value`` is static (``static_ndim`` dims) or has one more,
+    leading axis over periods (receivers moved or re-pointed between periods)."""
+    if value.ndim == static_ndim + 1:
+        return value[i]
+    if value.ndim != static_ndim:
+        raise ValueError(
+            f"pose: expected {static_ndim} dims or a leading period axis, got {value.shape}"
+        )
+    return value
