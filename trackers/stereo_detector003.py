@@ -212,9 +212,9 @@ def _continue(
     b2,
     i: int,
     prm: AlgorithmicParams,
-) -> tuple[_Groups, IntArray]:
-    """Steps 2.1–2.5 / 3.1–3.5 for every (group, pair); returns the continued groups and the
-    pairs they absorbed."""
+) -> tuple[_Groups, IntArray, IntArray]:
+    """Steps 2.1–2.5 / 3.1–3.5 for every (group, pair) at once; returns the continued groups,
+    their parent rows and the pairs they absorbed."""
     c1, c2, c3 = prm.c
     a1 = f1.directions[pairs[:, 0]][None]  # (1, C, 3)
     a2 = f2.directions[pairs[:, 1]][None]
