@@ -82,6 +82,9 @@ class GroupSpec:
     """Each object's direction deviates from the group's direction by up to this cone angle, deg."""
     shared_velocity: bool = False
     """True: all objects share one velocity ("close trajectories"); False: each draws its own."""
+    speed_jitter: float = 0.0
+    """If > 0 (and not shared_velocity): one group speed is drawn and each object's speed is it
+    times ``1 + U(−speed_jitter, speed_jitter)`` (close but distinct trajectories)."""
 
     def __post_init__(self) -> None:
         if len(self.centre) != 3 or not np.all(np.isfinite(self.centre)):
@@ -90,6 +93,8 @@ class GroupSpec:
             raise ValueError("spread/min_separation: must be non-negative")
         if not 0.0 <= self.speed[0] <= self.speed[1]:
             raise ValueError("speed: expected 0 <= low <= high")
+        if not 0.0 <= self.speed_jitter < 1.0:
+            raise ValueError("speed_jitter: must lie in [0, 1)")
         if self.heading is not None and not np.linalg.norm(self.heading) > 0.0:
             raise ValueError("heading: must be a non-zero vector or None")
 
@@ -130,6 +135,10 @@ def random_group(rng: np.random.Generator, m: int, spec: GroupSpec) -> Trajector
         axis = np.asarray(spec.heading, dtype=np.float64)[None] / np.linalg.norm(spec.heading)
     n_draw = 1 if spec.shared_velocity else m
     direction = _cone(rng, np.repeat(axis, n_draw, axis=0), np.deg2rad(spec.heading_spread_deg))
-    speed = rng.uniform(spec.speed[0], spec.speed[1], n_draw)[:, None]
+    if spec.speed_jitter > 0.0 and not spec.shared_velocity:
+        base = rng.uniform(spec.speed[0], spec.speed[1])
+        speed = base * (1.0 + rng.uniform(-spec.speed_jitter, spec.speed_jitter, n_draw))[:, None]
+    else:
+        speed = rng.uniform(spec.speed[0], spec.speed[1], n_draw)[:, None]
     velocity = np.broadcast_to(speed * direction, (m, 3)).copy()
     return Trajectories.linear(start, velocity)
