@@ -75,3 +75,15 @@ def test_bad_shapes_raise():
         assoc.extend(np.zeros(2), np.zeros(3))
     with pytest.raises(ValueError, match="members"):
         assoc.select(np.zeros((2, 3)), np.zeros(2))
+
+
+def test_detection_latest_picks_each_groups_last_estimate():
+    pos = np.arange(2 * 3 * 3, dtype=float).reshape(2, 3, 3)
+    times = np.array([[0.0, 1.0, np.nan], [0.0, 1.0, 2.0]])
+    det = assoc.Detection(
+        np.zeros((2, 3, 2), dtype=np.int64), np.array([1.0, 2.0]), pos, pos, times
+    )
+    p, _, t = det.latest()
+    assert det.m_hat == 2
+    np.testing.assert_array_equal(t, [1.0, 2.0])
+    np.testing.assert_array_equal(p, [pos[0, 1], pos[1, 2]])

@@ -163,3 +163,15 @@ def test_random_group_separation_and_validation():
         observe_period(np.random.default_rng(0), traj, LAYOUT, (FixedDelay(),), 0, 1.0)
     with pytest.raises(ValueError, match="delay"):
         FixedDelay(-1.0)
+
+
+def test_accelerating_paths_and_local_frames():
+    traj = Trajectories(np.zeros((1, 3)), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 2.0, 0.0]]))
+    np.testing.assert_allclose(traj.position(2.0), [[2.0, 4.0, 0.0]])
+    np.testing.assert_allclose(traj.velocity_at(2.0), [[1.0, 4.0, 0.0]])
+    p = np.array([1.0, 26.0, -2.0])
+    local = LAYOUT.to_local(np.broadcast_to(p, (3, 3)))
+    P, b = LAYOUT.relative
+    # M_1 = P_k M_k + b_k (SPEC §1.1)
+    for k in (1, 2):
+        np.testing.assert_allclose(local[0], P[k - 1] @ local[k] + b[k - 1], atol=1e-12)
