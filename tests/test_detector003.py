@@ -192,3 +192,15 @@ def test_per_period_poses_equal_static_poses():
     moving = detect_algorithmic(per, np.repeat(P[:1], 4, 0), np.repeat(b[:1], 4, 0), params)
     np.testing.assert_array_equal(static.members, moving.members)
     np.testing.assert_allclose(static.positions, moving.positions)
+
+
+def test_whitened_index_weights_only_the_transverse_part():
+    from sensorgym.trackers.stereo_detector003 import _norm
+
+    u = np.array([[0.0, 0.0, 1.0]])
+    d = np.array([[3.0, 0.0, 4.0]])
+    assert _norm(d, u, 1.0)[0] == pytest.approx(5.0)
+    assert _norm(d, u, 2.0)[0] == pytest.approx(np.hypot(4.0, 6.0))
+    p = AlgorithmicParams(sigma_position=1.0, sigma_transverse=0.05)
+    assert p.transverse_gain == pytest.approx(20.0)
+    assert AlgorithmicParams().transverse_gain == 1.0

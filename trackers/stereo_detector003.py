@@ -79,6 +79,11 @@ class AlgorithmicParams:
     """Consecutive missed periods after which a group is dropped."""
     min_confirmed: int = 2
     """Periods with a member a group needs to be selected."""
+    sigma_transverse: float | None = None
+    """Extension, not in 003: std of a position estimate across the line of sight, m. If given,
+    J_2 and J_3 weight the components across each receiver's line of sight by
+    ``σ_p/σ_transverse`` (a whitened norm: for close receivers the range error is far larger
+    than the transverse one). None keeps the paper's isotropic norms."""
     miss_cost_override: float | None = None
     """Index added per missed period if given, else :attr:`alpha`."""
 
@@ -89,6 +94,8 @@ class AlgorithmicParams:
             raise ValueError("max_speed >= 0, max_delay >= 0 and gate > 0 required")
         if self.beam is not None and self.beam < 1:
             raise ValueError("beam: must be >= 1 or None")
+        if self.sigma_transverse is not None and not self.sigma_transverse > 0:
+            raise ValueError("sigma_transverse: must be positive or None")
         if self.max_shared < 0 or self.max_misses < 0 or self.min_confirmed < 1:
             raise ValueError("max_shared >= 0, max_misses >= 0, min_confirmed >= 1 required")
 
@@ -97,6 +104,13 @@ class AlgorithmicParams:
         """``(c_1, c_2, c_3)``: 1/m, 1/m, s/m (module docstring)."""
         s = 2.0 * np.sqrt(2.0) * self.sigma_position
         return 1.0 / self.sigma_e, 1.0 / s, self.period / s
+
+    @property
+    def transverse_gain(self) -> float:
+        """``σ_p / σ_transverse`` (1 for the paper's isotropic index)."""
+        if self.sigma_transverse is None:
+            return 1.0
+        return max(self.sigma_position / self.sigma_transverse, 1.0)
 
     @property
     def c2_first(self) -> float:
@@ -203,6 +217,16 @@ def _births(
     )
 
 
+def _norm(d: FloatArray, u: FloatArray, k: float) -> FloatArray:
+    """``‖d‖`` (003), or with ``k > 1`` ``√((d·u)² + k²‖d − (d·u)u‖²)``: the components across
+    the line of sight ``u`` weighted by ``k = σ_p/σ_t`` (:attr:`AlgorithmicParams.transverse_gain`)."""
+    if k == 1.0:
+        return np.linalg.norm(d, axis=-1)
+    along = np.sum(d * u, axis=-1)
+    across2 = np.maximum(np.sum(d * d, axis=-1) - along**2, 0.0)
+    return np.sqrt(along**2 + k * k * across2)
+
+
 def _continue(
     g: _Groups,
     f1: assoc.Fixes,
@@ -244,12 +268,11 @@ def _continue(
     V2p = np.where(first[:, None, None], V2h, g.V2[:, None])
     E1 = g.M1[:, None] + tau1s[..., None] * V1p
     E2 = g.M2[:, None] + tau2[..., None] * V2p
-    J2 = np.linalg.norm(M1s - E1, axis=-1) + np.linalg.norm(M2r - E2, axis=-1)
+    k = prm.transverse_gain
+    J2 = _norm(M1s - E1, a_star, k) + _norm(M2r - E2, a2, k)
     # 3.4: J_3 = ‖ΔV_1‖ + ‖ΔV_2‖ for groups that already carry a velocity
     with np.errstate(invalid="ignore"):
-        J3 = np.linalg.norm(V1r - g.V1[:, None], axis=-1) + np.linalg.norm(
-            V2r - g.V2[:, None], axis=-1
-        )
+        J3 = _norm(V1r - g.V1[:, None], a_star, k) + _norm(V2r - g.V2[:, None], a2, k)
         J = c1 * J1 + np.where(first[:, None], prm.c2_first * J2, c2 * J2 + c3 * J3)
     alpha = np.where(first, prm.alpha[0], prm.alpha[1])[:, None]
     speed_ok = np.linalg.norm(V1r, axis=-1) <= prm.max_speed
