@@ -37,6 +37,11 @@ Normalisers and gates default to the noise level (SPEC §11.1 item 6): ``c_1 = 1
 ``c_2 = 1/(2√2 σ_p)``, ``c_3 = τ/(2√2 σ_p)`` put every term in units of its standard deviation,
 and ``α_i = gate · (number of terms)``; a group's first continuation normalises ``J_2`` by
 :attr:`AlgorithmicParams.c2_first`, which allows for the range change it contains.
+
+Extension (off by default): 003's ``J_2``, ``J_3`` are isotropic norms, but a stereo position is
+far less accurate along the line of sight than across it (≈ 20× for a 7.5 m baseline at
+100 m). Giving ``sigma_transverse`` weights the across-LOS components by ``σ_p/σ_t``, which
+stops cheap switches between objects a few metres apart (docs/reproduction/paper003.md).
 """
 
 from __future__ import annotations
