@@ -162,24 +162,12 @@ def _subgroup_index(
     return index, pos, vel
 
 
-def _detection(members: NDArray, index: FloatArray, pos, vel, t1, keep, chosen) -> assoc.Detection:
+def _detection(members: NDArray, index: FloatArray, pos, vel, t, keep, chosen) -> assoc.Detection:
+    """Selected groups; ``pos, vel (C, N, 3)`` and ``t (C, N)`` are per-period estimates."""
     sel = np.flatnonzero(keep)[chosen]
-    N = members.shape[1]
     return assoc.Detection(
-        members[sel],
-        index[sel],
-        np.repeat(pos[sel][:, None], N, axis=1) if N == 1 else _per_period(pos[sel], N),
-        np.repeat(vel[sel][:, None], N, axis=1) if N == 1 else _per_period(vel[sel], N),
-        np.repeat(t1[sel][:, None], N, axis=1) if N == 1 else _per_period(t1[sel], N),
-        groups_kept=int(keep.sum()),
+        members[sel], index[sel], pos[sel], vel[sel], t[sel], groups_kept=int(keep.sum())
     )
-
-
-def _per_period(x: FloatArray, N: int) -> FloatArray:
-    """Estimates referred to the first period only; later periods NaN."""
-    out = np.full((x.shape[0], N, *x.shape[1:]), np.nan)
-    out[:, 0] = x
-    return out
 
 
 def algebraic_multi(
@@ -224,7 +212,7 @@ def algebraic_multi(
     )
     members = C[:, None, :]
     chosen = assoc.select(members[keep], index[keep], 0)
-    return _detection(members, index, pos, vel, t[0], keep, chosen)
+    return _detection(members, index, pos[:, None], vel[:, None], t[0][:, None], keep, chosen)
 
 
 def economical(
@@ -236,8 +224,8 @@ def economical(
 ) -> assoc.Detection:
     """Economical algebraic variant: n = 2 receivers over N = 2 periods (003 §5.3).
 
-    Positions/velocities are referred to ``t_1`` of the first period (mean of the two subgroup
-    estimates moved there); ``t_end`` is the end of the second period.
+    Period ``i``'s position/velocity is subgroup ``i``'s estimate at receiver 1's fix time
+    ``t_1(i)``; ``t_end`` is the end of the second period.
     """
     if len(periods) != 2 or any(len(p) != 2 for p in periods):
         raise ValueError("periods: the economical variant takes 2 periods of 2 receivers")
@@ -277,10 +265,12 @@ def economical(
     e1 = s1.ranges[:, :1] * a11 + s1.velocity * h1
     e2 = s2.ranges[:, :1] * a12 + s2.velocity * h2
     index = np.linalg.norm(e1 - e2, axis=-1)
-    # both estimates referred to t_1(1): M(t_11) = M̂_2 − V̂ (t_12 − t_11)
-    pos = 0.5 * (s1.position + s2.position - s2.velocity * (t12 - t11)[:, None])
-    vel = 0.5 * (s1.velocity + s2.velocity)
+    # period i's estimate is subgroup i's, at its reference time t_1(i): the position is
+    # well determined there, the velocity (from one receiver's two vectors) much less
+    pos = np.stack([s1.position, s2.position], axis=1)
+    vel = np.stack([s1.velocity, s2.velocity], axis=1)
+    t = np.stack([t11, t12], axis=1)
     keep = (index <= params.gamma) & np.all(s1.ranges > 0, -1) & np.all(s2.ranges > 0, -1)
     members = np.stack([C[:, :2], C[:, 2:]], axis=1)
     chosen = assoc.select(members[keep], index[keep], 0)
-    return _detection(members, index, pos, vel, t11, keep, chosen)
+    return _detection(members, index, pos, vel, t, keep, chosen)
