@@ -17,7 +17,7 @@ Noise models (SPEC §2.5, §11.1 item 4), selectable and combinable:
   direction vector (003 variant 2: 0.03°).
 
 Detection: probability ``p_detect`` per object and receiver; Poisson false fixes (uniform in
-the receiver's field of view, uniform time in the period, power uniform in
+the receiver's field of view, formed when the scan passes them, power uniform in
 ``[0, false_power_max]``). Received power of a true fix: ``min(1, (r_ref / r)²)``.
 """
 
@@ -157,12 +157,13 @@ def observe_period(
         idx = np.flatnonzero(seen)
         n_false = rng.poisson(detection.false_rate) if detection.false_rate > 0 else 0
         half = np.deg2rad(0.5 * detection.false_fov_deg)
-        a_false = unit_from_angles(
-            rng.uniform(-half, half, n_false), rng.uniform(-half, half, n_false)
-        )
-        t_false = t0 + rng.uniform(0.0, period, n_false)
+        az_f, el_f = rng.uniform(-half, half, n_false), rng.uniform(-half, half, n_false)
+        a_false = unit_from_angles(az_f, el_f)
+        # a false fix is formed when the scan passes its direction
         if isinstance(timings[k], FixedDelay):
             t_false = np.full(n_false, t0 + timings[k].delay)
+        else:
+            t_false = t0 + timings[k].visit_time(az_f, el_f)[0]
         w_false = rng.uniform(0.0, detection.false_power_max, n_false)
         dirs = np.concatenate([a[idx], a_false.reshape(-1, 3)])
         times = np.concatenate([t[idx], t_false])

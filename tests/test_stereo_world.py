@@ -175,3 +175,18 @@ def test_accelerating_paths_and_local_frames():
     # M_1 = P_k M_k + b_k (SPEC §1.1)
     for k in (1, 2):
         np.testing.assert_allclose(local[0], P[k - 1] @ local[k] + b[k - 1], atol=1e-12)
+
+
+def test_false_fixes_are_timed_by_the_raster():
+    traj = _still([[0.0, 25.0, 0.0]])
+    scan = RasterScan(period=1.0)
+    det = DetectionModel(false_rate=5.0, false_fov_deg=20.0)
+    fixes, _ = observe_period(
+        np.random.default_rng(11), traj, LAYOUT, (scan,) * 3, 2, 1.0, detection=det
+    )
+    for f in fixes:
+        az, el = angles_from_unit(f.directions)
+        t, inside = scan.visit_time(az, el)
+        assert np.all(inside)
+        np.testing.assert_allclose(f.times, 2.0 + t, atol=1e-12)
+        assert np.all(np.diff(f.times) >= 0.0)
