@@ -204,3 +204,42 @@ def test_whitened_index_weights_only_the_transverse_part():
     p = AlgorithmicParams(sigma_position=1.0, sigma_transverse=0.05)
     assert p.transverse_gain == pytest.approx(20.0)
     assert AlgorithmicParams().transverse_gain == 1.0
+
+
+def test_batched_continuation_equals_group_by_group():
+    from dataclasses import replace
+
+    from sensorgym.trackers.association import combinations
+    from sensorgym.trackers.stereo_detector003 import _births, _continue
+
+    layout = ReceiverLayout.on_circle(50.0, [0.0, 90.0], aim=(0.0, 10.0, 0.0))
+    traj = Trajectories.linear(
+        [[0.0, 10.0, 0.0], [4.0, 12.0, -3.0], [-3.0, 8.0, 4.0]],
+        [[1.0, 0.0, 0.5], [-0.5, 0.2, 1.0], [0.8, -0.3, 0.0]],
+    )
+    scan = RasterScan(30.0, 30.0, 100, 100, 1.0)
+    per, _ = simulate(
+        np.random.default_rng(12), traj, layout, (scan,) * 2, 2, 1.0, NoiseModel(angle_sigma=1e-3)
+    )
+    P, b = layout.relative
+    prm = replace(
+        AlgorithmicParams(sigma_e=0.5, sigma_position=2.0, max_delay=1.0, gate=50.0), beam=None
+    )
+    pairs0 = combinations([per[0][0].count, per[0][1].count])
+    groups = _births(per[0][0], per[0][1], pairs0, P[0], b[0], 0, 2, prm)
+    pairs1 = combinations([per[1][0].count, per[1][1].count])
+    batch, gi, ci = _continue(groups, per[1][0], per[1][1], pairs1, P[0], b[0], 1, prm)
+    assert len(gi) > 3
+    rows = {}
+    for g in range(groups.score.shape[0]):
+        one, _, cj = _continue(
+            groups.take(np.array([g])), per[1][0], per[1][1], pairs1, P[0], b[0], 1, prm
+        )
+        for r, c in enumerate(cj):
+            rows[(g, int(c))] = (one.score[r], one.M1[r], one.V1[r])
+    assert len(rows) == len(gi)
+    for r, (g, c) in enumerate(zip(gi, ci, strict=True)):
+        s, M, V = rows[(int(g), int(c))]
+        assert batch.score[r] == pytest.approx(s, rel=1e-12)
+        np.testing.assert_allclose(batch.M1[r], M, rtol=1e-12)
+        np.testing.assert_allclose(batch.V1[r], V, rtol=1e-12)
