@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.platform_world import PlatformWorldParams, PlatformWorldState, step
 from sensorgym.trackers.bearings_crlb import (
     add_bearing_information,
