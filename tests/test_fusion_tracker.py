@@ -141,3 +141,13 @@ def test_several_weak_channels_keep_lock_that_no_single_channel_holds() -> None:
     # measured (seed 77): fused 0.058, single channels 0.77–0.93
     assert fused_lost < 0.12, fused_lost
     assert min(single_lost) > 0.6, single_lost
+
+
+def test_reproduction_runs_and_reports_its_targets() -> None:
+    from sensorgym.reproduce.paper004 import format_report, reproduce
+
+    result = reproduce(runs=40, frames=150, seed=3)
+    status = {(c["id"], c["what"]): c["status"] for c in result["checks"]}
+    assert all(v == "matched" for (i, _), v in status.items() if i in ("RT-14", "RT-15"))
+    assert result["formulas"]["rt14"]["ours_P"][2] == pytest.approx(0.7497, abs=1e-4)
+    assert "Fig. 2" in format_report(result)
