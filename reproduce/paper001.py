@@ -331,7 +331,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=200, help="noise realisations (default 200)")
+    parser.add_argument("--runs", type=int, default=500, help="noise realisations (default 500)")
     parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     parser.add_argument(
         "--loss-frame", type=int, default=400, help="frame of the last measurement (default 400)"
