@@ -98,16 +98,52 @@ def test_batched_equals_one_at_a_time_with_masks(predictor) -> None:
         np.testing.assert_array_equal(batched[1][b], single[1][0])
 
 
-def test_masked_tracks_are_untouched_and_warm_up_holds_last_measurement() -> None:
+def test_loss_before_first_estimate_restarts_warm_up_and_holds_last_measurement() -> None:
     predictor = ABCPredictor(window=4)
     state = predictor.initial_state(2)
     for t in range(3):
         state = predictor.update(state, [0.1 * t, 0.5], [0.2, 0.3], mask=[True, t == 0])
-    assert list(state.count) == [3, 1]
+    assert list(state.count) == [3, 0]
     assert not np.any(state.ready)
     th, ph = predictor.predict(state, 5)
     np.testing.assert_allclose(th, [0.2, 0.5])
     np.testing.assert_allclose(ph, [0.2, 0.3])
+
+
+@pytest.mark.parametrize("predictor", [ABCPredictor(), LineFitPredictor()], ids=["abc", "linefit"])
+def test_coasting_through_a_gap_stays_exact_noise_free(predictor) -> None:
+    # frames 0-199 seen, 200-279 lost (coast), 280-349 seen again: every predicted direction
+    # for the current frame is exact, during and after the gap
+    th, ph = OBLIQUE.angles(np.arange(350))
+    seen = np.ones(350, dtype=bool)
+    seen[200:280] = False
+    state = predictor.initial_state(1)
+    worst = 0.0
+    for t in range(350):
+        # lost frames get garbage angles, which must be ignored
+        a, e = (th[t], ph[t]) if seen[t] else (1.0, -1.0)
+        state = predictor.update(state, a, e, mask=seen[t])
+        if t >= 60:
+            pa, pe = predictor.predict(state, np.array([0.0, 25.0]))
+            ta, te = OBLIQUE.angles(np.array([t, t + 25.0]))
+            worst = max(worst, np.max(np.abs(pa[0] - ta)), np.max(np.abs(pe[0] - te)))
+    assert np.degrees(worst) < 1e-9
+
+
+def test_kalman_coasts_on_its_time_update() -> None:
+    rng = np.random.default_rng(9)
+    th, ph = PAPER.angles(np.arange(80))
+    mth, mph = measure_angles(rng, th[None], ph[None], SIGMA)
+    predictor = AngleKalmanPredictor()
+    state = run(predictor, mth, mph)
+    before = predictor.predict(state, np.array([7.0]))
+    variance_before = state.covariance[0, :, 0, 0]
+    for _ in range(7):
+        state = predictor.update(state, 0.0, 0.0, mask=False)
+    after = predictor.predict(state, np.array([0.0]))
+    np.testing.assert_allclose(after, before, atol=1e-15)
+    # the angle variance grows while coasting
+    assert np.all(state.covariance[0, :, 0, 0] > 2.0 * variance_before)
 
 
 def test_invalid_input_is_rejected() -> None:

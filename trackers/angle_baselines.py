@@ -50,7 +50,7 @@ class WindowState:
     elevation_window: FloatArray
     """Measured elevations ϕ, ``(B, N + 1)`` (rad)."""
     count: NDArray[np.int64]
-    """Number of measurements received, ``(B,)``."""
+    """Frames in the window since the last (re)start of the warm-up, ``(B,)``."""
 
     def __post_init__(self) -> None:
         if self.azimuth_window.shape != self.elevation_window.shape or (
@@ -90,14 +90,21 @@ class LineFitPredictor:
         elevation: ArrayLike,
         mask: ArrayLike | None = None,
     ) -> WindowState:
-        """Append one frame of measured angles ``(B,)`` where ``mask`` (default: everywhere)."""
+        """Advance one frame: append the measured angles ``(B,)`` where ``mask`` (default:
+        everywhere). Elsewhere the image is lost: a full window coasts (the fitted line's
+        1-frame-ahead angles are appended), a window still filling restarts its warm-up."""
         if state.azimuth_window.shape[1] != self.window + 1:
             raise ValueError("state: window length does not match this predictor's N")
         az, el, m = measurement_arrays(azimuth, elevation, state.count.shape[0], mask)
+        if np.all(m):
+            coast_az, coast_el = az, el
+        else:
+            coast_az, coast_el = (a[:, 0] for a in self.predict(state, np.array([1.0])))
+        push = m | state.ready
         return WindowState(
-            push_window(state.azimuth_window, az, m),
-            push_window(state.elevation_window, el, m),
-            state.count + m,
+            push_window(state.azimuth_window, np.where(m, az, coast_az), push),
+            push_window(state.elevation_window, np.where(m, el, coast_el), push),
+            np.where(push, state.count + 1, 0),
         )
 
     def fit(self, state: WindowState) -> tuple[FloatArray, FloatArray]:
@@ -124,7 +131,7 @@ class LineFitPredictor:
         return anchor, delta
 
     def predict(self, state: WindowState, steps: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """Predicted θ, ϕ ``(B, *k.shape)`` k frames after the latest sample (rad).
+        """Predicted θ, ϕ ``(B, *k.shape)`` k frames after the current one (rad).
 
         Tracks whose window is not yet full hold their latest measurement.
         """
@@ -203,10 +210,10 @@ class AngleKalmanPredictor:
         elevation: ArrayLike,
         mask: ArrayLike | None = None,
     ) -> KalmanAngleState:
-        """Predict one frame ahead, then correct with the measured angles where ``mask``.
+        """Advance one frame: predict, then correct with the measured angles where ``mask``.
 
-        Tracks where ``mask`` is False are left unchanged (their time does not advance: the
-        caller predicts from the last update with :meth:`predict`).
+        Where ``mask`` is False the image is lost and only the time update runs (the track
+        coasts at its estimated rates); a track with no measurement yet stays empty.
         """
         B = state.count.shape[0]
         az, el, m = measurement_arrays(azimuth, elevation, B, mask)
@@ -214,6 +221,7 @@ class AngleKalmanPredictor:
         F, Q, r = self.transition, self.process_noise, self.measurement_std**2
         # x⁻ = F x,  P⁻ = F P Fᵀ + Q
         x = state.mean @ F.T
+        x[:, 0, 0] = wrap_angle(x[:, 0, 0])
         P = F @ state.covariance @ F.T + Q
         # ν = z − H x⁻ (azimuth residual wrapped),  S = H P⁻ Hᵀ + R,  K = P⁻ Hᵀ S⁻¹
         nu = z - x[..., 0]
@@ -230,14 +238,20 @@ class AngleKalmanPredictor:
         x_new = np.where(first[:, None, None], np.stack([z, np.zeros_like(z)], axis=-1), x_new)
         P0 = np.diag([r, self.initial_rate_std**2])
         P_new = np.where(first[:, None, None, None], P0, P_new)
+        # lost image: time update only; nothing to coast before the first measurement
+        coast = ~m & ~first
         return KalmanAngleState(
-            np.where(m[:, None, None], x_new, state.mean),
-            np.where(m[:, None, None, None], P_new, state.covariance),
+            np.where(m[:, None, None], x_new, np.where(coast[:, None, None], x, state.mean)),
+            np.where(
+                m[:, None, None, None],
+                P_new,
+                np.where(coast[:, None, None, None], P, state.covariance),
+            ),
             state.count + m,
         )
 
     def predict(self, state: KalmanAngleState, steps: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """θ, ϕ ``(B, *k.shape)`` k frames after the last update: ``angle + rate·k`` (rad)."""
+        """θ, ϕ ``(B, *k.shape)`` k frames after the current one: ``angle + rate·k`` (rad)."""
         k = _horizon(steps)
         extra = (None,) * k.ndim
         angle = state.mean[..., 0][(slice(None), *extra)]

@@ -43,6 +43,11 @@ Documented choices for the SPEC gaps (§11.3 items 16–21):
   documented fallback, never NaN.
 * Before the first estimate (fewer than ``N + 1`` samples) :meth:`ABCPredictor.predict` holds
   the latest measurement.
+
+Time: every :meth:`ABCPredictor.update` call is one frame for every track of the batch. A track
+whose image is lost (``mask`` False) coasts along its conditional trajectory, so
+``predict(state, 0)`` is the commanded direction for the current frame and
+``predict(state, k)`` the direction k frames later, whether the track is seen or not.
 """
 
 from __future__ import annotations
@@ -110,11 +115,13 @@ class ABCState:
     """Batched state of the A-B-C predictor; every array has a leading batch axis ``B``."""
 
     azimuth_window: FloatArray
-    """Last ``N + 1`` measured azimuths θ, oldest first, ``(B, N + 1)`` (rad)."""
+    """Last ``N + 1`` azimuths θ (measured, or predicted while coasting), oldest first,
+    ``(B, N + 1)`` (rad)."""
     elevation_window: FloatArray
-    """Last ``N + 1`` measured elevations ϕ, oldest first, ``(B, N + 1)`` (rad)."""
+    """Last ``N + 1`` elevations ϕ (measured, or predicted while coasting), oldest first,
+    ``(B, N + 1)`` (rad)."""
     count: NDArray[np.int64]
-    """Number of measurements received, ``(B,)``."""
+    """Frames in the window since the last (re)start of the warm-up, ``(B,)``."""
     slope_angle: FloatArray
     """Smoothed direction ``α̂ = atan(Δ_Y/Δ_X)`` of the horizontal projection, ``(B,)`` (rad)."""
     delta: FloatArray
@@ -211,17 +218,31 @@ class ABCPredictor:
         elevation: ArrayLike,
         mask: ArrayLike | None = None,
     ) -> ABCState:
-        """Take one frame of measured angles ``(B,)`` (rad); tracks where ``mask`` is False
-        (target image lost) are left unchanged. Implements steps 1–5 of SPEC §3.6."""
+        """Advance every track by one frame (SPEC §3.6 steps 1–7).
+
+        ``azimuth``, ``elevation``: the measured angles ``(B,)`` (rad). Where ``mask`` is False
+        the image is lost this frame and the track *coasts* (step 7): point C moves one frame
+        along the conditional trajectory, ``C ← C + δ̂``, the predicted angles of the new C enter
+        the window in place of a measurement, and the estimates α̂, δ̂ are kept — so when the
+        image returns the window is still uniformly spaced and estimation continues. The
+        angles passed for such tracks are ignored (they must still be finite). A track that
+        loses the image before its first estimate restarts its warm-up.
+        """
         if state.window != self.window + 1:
             raise ValueError("state: window length does not match this predictor's N")
         N, g = self.window, self.gain
         az, el, m = measurement_arrays(azimuth, elevation, state.batch_size, mask)
-        th = push_window(state.azimuth_window, az, m)
-        ph = push_window(state.elevation_window, el, m)
-        count = state.count + m
+        was_ready = state.ready
+        # coasting: C ← C + δ̂ and its angles (θ_пр^{n+1}, ϕ_пр^{n+1})
+        hold = unit_from_zup_angles(state.azimuth_window[:, -1], state.elevation_window[:, -1])
+        coast = state.anchor + state.delta
+        coast_az, coast_el = zup_angles_from_unit(np.where(was_ready[:, None], coast, hold))
+        push = m | was_ready
+        th = push_window(state.azimuth_window, np.where(m, az, coast_az), push)
+        ph = push_window(state.elevation_window, np.where(m, el, coast_el), push)
+        count = np.where(push, state.count + 1, 0)
         ready = count >= N + 1
-        first = count == N + 1
+        first = m & (count == N + 1)
 
         th_A, th_B, th_C = th[:, 0], th[:, N // 2], th[:, N]
         ph_A, ph_C = ph[:, 0], ph[:, N]
@@ -265,17 +286,18 @@ class ABCPredictor:
         delta = np.where(first[:, None], raw, smoothed)
 
         upd = ready & m
+        coasting = ~m & was_ready
         return ABCState(
             azimuth_window=th,
             elevation_window=ph,
             count=count,
             slope_angle=np.where(upd, alpha, state.slope_angle),
             delta=np.where(upd[:, None], delta, state.delta),
-            anchor=np.where(upd[:, None], anchor, state.anchor),
+            anchor=np.where(upd[:, None], anchor, np.where(coasting[:, None], coast, state.anchor)),
         )
 
     def predict(self, state: ABCState, steps: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """Predicted azimuth and elevation ``k`` frames after the last update (SPEC §3.6 step 7).
+        """Predicted azimuth and elevation ``k`` frames after the current one (SPEC §3.6 step 7).
 
         ``steps``: k (any shape, ≥ 0). Returns θ, ϕ of shape ``(B, *k.shape)`` (rad). Tracks
         without a first estimate hold their latest measurement.
