@@ -198,6 +198,8 @@ class ClosedLoopRun:
     """True where the tracker coasted (no channel held the object)."""
     visible_channels: NDArray[np.int64]
     """Number of channels whose true view is not the background."""
+    view_accuracy: FloatArray
+    """Fraction of channels whose MAP view ``argmax P_k(ϑ)`` is the true view."""
 
     def lost(self, limit: float, frames: int) -> NDArray[np.bool_]:
         """``(B,)``: True where ``|λ − a| > limit`` for at least ``frames`` consecutive frames."""
@@ -241,4 +243,7 @@ def simulate_closed_loop(
         hist["variance"].append(state.variance)
         hist["loop_open"].append(state.loop_open)
         hist["visible_channels"].append(np.sum(views[:, idx] > 0, axis=1))
+        hist["view_accuracy"].append(
+            np.mean(np.argmax(state.view_posterior, axis=-1) == views[:, idx], axis=1)
+        )
     return ClosedLoopRun(**{k: np.stack(v) for k, v in hist.items()})
