@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from sensorgym.envs.gimbal_world import StraightTrajectory, measure_angles
@@ -223,3 +225,4 @@ def test_reproduction_runs_and_meets_its_targets() -> None:
         "§3.1": "matched",
     }
     assert "RMS prediction error" in format_report(result)
+    json.dumps(result)  # the JSON written by ``run`` must serialise

@@ -85,6 +85,15 @@ def test_eq12_axis_holding() -> None:
     assert np.all(np.diff(Pc) < 0.0)
 
 
+def test_eq12_matches_monte_carlo_of_the_axis_inside_the_projection() -> None:
+    # independent N(0, σ²) errors in the two planes, object g × v centred on the line of sight
+    rng = np.random.default_rng(12)
+    g, v, sigma = 3.0, 1.5, 1.1
+    err = rng.normal(0.0, sigma, size=(200_000, 2))
+    inside = np.mean((np.abs(err[:, 0]) <= g / 2) & (np.abs(err[:, 1]) <= v / 2))
+    assert abs(inside - float(axis_holding_probability(g, v, sigma))) < 0.004  # ≈ 4σ of MC
+
+
 def test_stationary_variance_is_fixed_point_of_both_forms() -> None:
     rng = np.random.default_rng(4)
     P = rng.uniform(0.0, 1.0, 200)

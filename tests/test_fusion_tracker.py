@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -167,3 +168,4 @@ def test_reproduction_runs_and_reports_its_targets() -> None:
     assert all(v == "matched" for (i, _), v in status.items() if i in ("RT-14", "RT-15"))
     assert result["formulas"]["rt14"]["ours_P"][2] == pytest.approx(0.7497, abs=1e-4)
     assert "Fig. 2" in format_report(result)
+    json.dumps(result)  # the JSON written by ``run`` must serialise
