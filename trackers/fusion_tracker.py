@@ -48,7 +48,13 @@ FloatArray = NDArray[np.float64]
 @dataclass(frozen=True)
 class FusionModel:
     """What the tracker knows about the channels and the motion (shapes: N channels, M views,
-    J pixels per image). Build from a world with e.g. ``ImagingScene.fusion_model()``."""
+    J pixels per image). Build from a world with e.g. ``ImagingScene.fusion_model()``.
+
+    All channels share M and J. A channel with fewer views is padded with unreachable views
+    (zero template, zero transition probability into them): their posterior is zero from the
+    first update on. Images of different sizes are padded with pixels where every template is
+    zero (they add nothing to Π, Π′ or I).
+    """
 
     templates: FloatArray
     """``s_{n,m,j}`` reference images at zero shift, ``(N, M, J)`` (intensity); view 0 must be
