@@ -76,6 +76,43 @@ class StraightTrajectory:
         return zup_angles_from_unit(self.positions(frames))
 
 
+@dataclass(frozen=True)
+class TurningTrajectory(StraightTrajectory):
+    """Horizontal coordinated turn at constant speed and climb angle: a manoeuvring target that
+    breaks the straight-line assumption of paper 001 (its §3.6 step 7 remark).
+
+    The heading of the horizontal projection is ``α(n) = α₀ + ω n``; with
+    ``v_h = V cos β₀``::
+
+        X(n) = X₀ + (v_h/ω)(sin α(n) − sin α₀),  Y(n) = Y₀ − (v_h/ω)(cos α(n) − cos α₀)
+        Z(n) = Z₀ + V sin β₀ n
+
+    ``ω = 0`` is the straight trajectory.
+    """
+
+    turn_rate: float = 0.0
+    """ω: heading change per frame (rad/frame, positive counter-clockwise seen from above)."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not np.isfinite(self.turn_rate):
+            raise ValueError("turn_rate: must be finite")
+
+    def positions(self, frames: ArrayLike) -> FloatArray:
+        n = finite_array(frames, "frames")
+        w = self.turn_rate
+        vh = self.speed * np.cos(self.climb)
+        a0, a = self.heading, self.heading + w * n
+        if abs(w) < 1e-12:
+            dx, dy = vh * np.cos(a0) * n, vh * np.sin(a0) * n
+        else:
+            # ∫ v_h (cos α, sin α) dn with α = α₀ + ω n
+            dx = vh / w * (np.sin(a) - np.sin(a0))
+            dy = -vh / w * (np.cos(a) - np.cos(a0))
+        dz = self.speed * np.sin(self.climb) * n
+        return np.stack([self.x0 + dx, self.y0 + dy, self.z0 + dz], axis=-1)
+
+
 def measure_angles(
     rng: np.random.Generator,
     azimuth: ArrayLike,

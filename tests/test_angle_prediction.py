@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from sensorgym.envs.gimbal_world import StraightTrajectory, measure_angles
+from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, measure_angles
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor, trajectory_direction
 
@@ -29,6 +29,26 @@ def run(predictor, azimuth: np.ndarray, elevation: np.ndarray, mask: np.ndarray 
 def noise_free(traj: StraightTrajectory, frames: int) -> tuple[np.ndarray, np.ndarray]:
     th, ph = traj.angles(np.arange(frames))
     return th[None, :], ph[None, :]
+
+
+def test_turning_trajectory_kinematics() -> None:
+    n = np.arange(0.0, 300.0, 7.0)
+    np.testing.assert_allclose(TurningTrajectory().positions(n), PAPER.positions(n), atol=1e-9)
+    w = np.deg2rad(0.2)
+    traj = TurningTrajectory(turn_rate=w, heading=0.3)
+    h = 1e-4
+    v = (traj.positions(n + h) - traj.positions(n - h)) / (2 * h)
+    heading = 0.3 + w * n
+    vh = traj.speed * np.cos(traj.climb)
+    expected = np.stack(
+        [
+            vh * np.cos(heading),
+            vh * np.sin(heading),
+            np.full_like(n, traj.speed * np.sin(traj.climb)),
+        ],
+        axis=-1,
+    )
+    np.testing.assert_allclose(v, expected, atol=1e-6)
 
 
 def test_trajectory_direction_equals_printed_eq6() -> None:
@@ -218,7 +238,7 @@ def test_rt7_noisy_paper_example_errors_and_ranking() -> None:
 def test_reproduction_runs_and_meets_its_targets() -> None:
     from sensorgym.reproduce.paper001 import format_report, reproduce
 
-    result = reproduce(runs=6, seed=1, loss_frame=120, gate=100)
+    result = reproduce(runs=6, seed=1, loss_frame=120, gate=100, turn_rates_deg=(0.02,))
     assert {c["id"]: c["status"] for c in result["checks"]} == {
         "RT-6": "matched",
         "RT-7": "matched",
