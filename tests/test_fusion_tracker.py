@@ -128,6 +128,9 @@ def test_model_validation() -> None:
         FusionModel(model.templates, model.template_slopes, -model.noise_std, model.transition)
     with pytest.raises(ValueError, match="images"):
         FusionTracker(model).update(FusionTracker(model).initial_state(2), np.zeros((2, 3, 5)))
+    one = FusionTracker(model.select_channels([1]))
+    with pytest.raises(ValueError, match="state"):
+        one.update(FusionTracker(model).initial_state(1), np.zeros((1, 1, SCENE.pixels)))
     with pytest.raises(ValueError, match="images"):
         FusionTracker(model).update(
             FusionTracker(model).initial_state(1), np.full((1, 4, SCENE.pixels), np.nan)

@@ -199,6 +199,8 @@ class FusionTracker:
         y = finite_array(images, "images", tail=mdl.templates.shape[::2])
         if y.shape[0] != B or y.ndim != 3:
             raise ValueError(f"images: expected shape {(B, *mdl.templates.shape[::2])}")
+        if state.view_posterior.shape[1:] != mdl.templates.shape[:2]:
+            raise ValueError("state: view posteriors do not match the model's channels and views")
         s, ds = mdl.templates, mdl.template_slopes
         inv_var = 1.0 / mdl.noise_std**2  # (N,)
         R = mdl.correlation
