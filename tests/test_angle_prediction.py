@@ -235,8 +235,8 @@ def test_rt7_noisy_paper_example_errors_and_ranking() -> None:
     assert kaz[2] > 10 * az[2] and kel[2] > 10 * el[2]
 
 
-def test_reproduction_runs_and_meets_its_targets() -> None:
-    from sensorgym.reproduce.paper001 import format_report, reproduce
+def test_reproduction_runs_and_meets_its_targets(tmp_path) -> None:
+    from sensorgym.reproduce.paper001 import format_report, reproduce, write_figures
 
     result = reproduce(runs=6, seed=1, loss_frame=120, gate=100, turn_rates_deg=(0.02,))
     assert {c["id"]: c["status"] for c in result["checks"]} == {
@@ -246,3 +246,5 @@ def test_reproduction_runs_and_meets_its_targets() -> None:
     }
     assert "RMS prediction error" in format_report(result)
     json.dumps(result)  # the JSON written by ``run`` must serialise
+    written = write_figures(result, tmp_path)
+    assert written and all(p.stat().st_size > 10_000 for p in written)

@@ -163,8 +163,8 @@ def test_several_weak_channels_keep_lock_that_no_single_channel_holds() -> None:
     assert min(single_lost) > 0.6, single_lost
 
 
-def test_reproduction_runs_and_reports_its_targets() -> None:
-    from sensorgym.reproduce.paper004 import format_report, reproduce
+def test_reproduction_runs_and_reports_its_targets(tmp_path) -> None:
+    from sensorgym.reproduce.paper004 import format_report, reproduce, write_figures
 
     result = reproduce(runs=40, frames=150, seed=3)
     status = {(c["id"], c["what"]): c["status"] for c in result["checks"]}
@@ -172,3 +172,5 @@ def test_reproduction_runs_and_reports_its_targets() -> None:
     assert result["formulas"]["rt14"]["ours_P"][2] == pytest.approx(0.7497, abs=1e-4)
     assert "Fig. 2" in format_report(result)
     json.dumps(result)  # the JSON written by ``run`` must serialise
+    written = write_figures(result, tmp_path)
+    assert written and all(p.stat().st_size > 10_000 for p in written)
