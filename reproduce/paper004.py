@@ -110,6 +110,7 @@ def synergy(runs: int, frames: int, seed: int) -> dict:
         "fused (4 weak)": (scene, None, {}),
         "fused, uniform π": (scene, None, {"uniform_transitions": True}),
         "fused, no Gauss factor": (scene, None, {"gaussian_factor": False}),
+        "fused, constant gain (7)": (scene, None, {"stationary_gain": True}),
     }
     for n in range(scene.channels):
         cases[f"channel {n} alone"] = (scene, [n], {})
@@ -119,6 +120,9 @@ def synergy(runs: int, frames: int, seed: int) -> dict:
         model = sc.fusion_model(
             channels=channels, gaussian_factor=opts.get("gaussian_factor", True)
         )
+        if opts.get("stationary_gain"):
+            # ablation: the block diagram's simplified estimator (7)
+            model = replace(model, gain="stationary")
         if opts.get("uniform_transitions"):
             # ablation: no transition prediction in (3), i.e. the printed softmax (8)
             model = replace(model, transition=np.full_like(model.transition, 1.0 / model.views))

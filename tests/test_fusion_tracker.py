@@ -80,6 +80,7 @@ def test_single_visible_channel_is_a_consistent_kalman_loop() -> None:
     for _ in range(500):
         d = 1.0 / (1.0 / (model.correlation**2 * d + D0) + I)
     np.testing.assert_allclose(run.variance[-1], d, rtol=1e-6)
+    np.testing.assert_allclose(model.stationary_gain, d, rtol=1e-9)  # γ of (7)
     err = run.estimate_error[50:]
     ratio = np.var(err) / d
     assert 0.9 < ratio < 1.12, ratio  # measured 1.02; 40 000 correlated samples

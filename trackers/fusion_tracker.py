@@ -27,6 +27,8 @@ Closed loop (Fig. 1): before frame k the axis is pointed at the extrapolated est
   discriminator outputs. For one channel and a certain view the gain ``d_k`` equals the
   paper's ``D_k(ϑ) = D_k / (1 + D_k I)``; for several channels the common gain ``d_k`` counts
   each channel's information once (summing per-channel ``D_k(ϑ^{(n)})`` would over-count it);
+* (7), optional (``gain="stationary"``): the block diagram's simplified estimator with a constant
+  gain, the stationary ``d`` with all channels seeing the object;
 * loop opening (§6.3): when the object posterior ``1 − P_k(background)`` of **every** channel is
   below ``open_threshold`` the loop opens, ``λ̂_k = λ_k^э`` and ``d_k = D_k`` (coasting).
 
@@ -35,11 +37,13 @@ Everything is batched over a leading scenario axis ``B`` and deterministic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .fusion_variance import stationary_relative_variance
 from .validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -73,6 +77,9 @@ class FusionModel:
     """The loop opens when every channel's object posterior is below this value."""
     gaussian_factor: bool = True
     """Include the Gaussian marginalisation factor ``g_m`` in (3)."""
+    gain: Literal["posterior", "stationary"] = "posterior"
+    """``"posterior"``: gain ``d_k`` of (4)–(5). ``"stationary"``: the simplified estimator (7)
+    of the block diagram, with the constant gain :attr:`stationary_gain` (SPEC §11.6 item 39)."""
 
     def __post_init__(self) -> None:
         s = finite_array(self.templates, "templates")
@@ -96,6 +103,8 @@ class FusionModel:
             raise ValueError("prior_std: σ_λ must be positive")
         if not 0.0 <= self.open_threshold < 1.0:
             raise ValueError("open_threshold: must lie in [0, 1)")
+        if self.gain not in ("posterior", "stationary"):
+            raise ValueError(f"gain: expected 'posterior' or 'stationary', got {self.gain!r}")
 
     @property
     def channels(self) -> int:
@@ -120,18 +129,24 @@ class FusionModel:
         """``q_n(ϑ_m) = √(Σ_j s²)/σ_n``: the matched-filter SNR of each view, ``(N, M)``."""
         return np.sqrt(np.sum(self.templates**2, axis=-1)) / self.noise_std[:, None]
 
+    @property
+    def stationary_gain(self) -> float:
+        """γ of (7): the stationary posterior variance with every channel seeing the object in
+        its most informative view, the fixed point of ``d = [(R² d + d₀)⁻¹ + Σ_n max_m I_n]⁻¹``
+        (recurrence (11b) with P = 1, ``z² = σ_λ² Σ_n max_m I_n``), in the unit of λ²."""
+        z2 = self.prior_std**2 * float(np.sum(np.max(self.fisher_information, axis=1)))
+        delta = stationary_relative_variance(1.0, z2, self.correlation, "information")
+        return float(delta) * self.prior_std**2
+
     def select_channels(self, channels: ArrayLike) -> FusionModel:
         """The model restricted to some channels (e.g. one, for single-channel trackers)."""
         idx = np.atleast_1d(np.asarray(channels, dtype=np.int64))
-        return FusionModel(
-            self.templates[idx],
-            self.template_slopes[idx],
-            self.noise_std[idx],
-            self.transition[idx],
-            self.correlation,
-            self.prior_std,
-            self.open_threshold,
-            self.gaussian_factor,
+        return replace(
+            self,
+            templates=self.templates[idx],
+            template_slopes=self.template_slopes[idx],
+            noise_std=self.noise_std[idx],
+            transition=self.transition[idx],
         )
 
 
@@ -226,8 +241,9 @@ class FusionTracker:
         post /= np.sum(post, axis=-1, keepdims=True)
         # (5) d_k = [D_k⁻¹ + Σ_n Σ_m P I]⁻¹
         d = 1.0 / (1.0 / D + np.sum(post * info, axis=(1, 2)))
-        # (4) λ̂_k = λ^э + d_k Σ_n Σ_m P Π′
-        lam = lam_e + d * np.sum(post * dPi, axis=(1, 2))
+        # (4) λ̂_k = λ^э + d_k Σ_n Σ_m P Π′   or   (7) λ̂_k = λ^э + γ Σ_n Σ_m P Π′
+        gain = d if mdl.gain == "posterior" else mdl.stationary_gain
+        lam = lam_e + gain * np.sum(post * dPi, axis=(1, 2))
         # §6.3: the loop opens when no channel holds the object
         open_loop = np.all(1.0 - post[..., 0] < mdl.open_threshold, axis=-1)
         return FusionState(
