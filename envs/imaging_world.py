@@ -50,7 +50,7 @@ class ImagingScene:
 
     The defaults are our "several weak channels" scenario: four channels with views
     {background, positive contrast, negative contrast}, each of matched-filter SNR ``q ≈ 3.3``
-    (``P ≈ 0.78`` at ``F = 0.01``) and invisible (background) 23 % of the time in stationary
+    (``P ≈ 0.82`` at ``F = 0.01``) and invisible (background) 23 % of the time in stationary
     regime, independently; θ₀ = 5 mrad and R_λ = 0.99 as in the paper's Fig. 2.
     """
 
