@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.gimbal_world import StraightTrajectory
 from sensorgym.envs.imaging_world import ImagingScene
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from sensorgym.trackers.geometry import wrap_angle, zup_angles_from_unit
 from sensorgym.trackers.validation import finite_array
 

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import erf
+
 from sensorgym.trackers.fusion_tracker import FusionModel, FusionTracker
 from sensorgym.trackers.validation import finite_array
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.gimbal_world import StraightTrajectory
 
 

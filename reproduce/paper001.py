@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, measure_angles
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor

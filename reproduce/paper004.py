@@ -24,6 +24,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.imaging_world import ImagingScene, simulate_closed_loop
 from sensorgym.trackers.detection_probability import (
     axis_holding_probability,

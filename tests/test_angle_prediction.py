@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+
 from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, measure_angles
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor, trajectory_direction

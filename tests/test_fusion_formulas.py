@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from scipy.special import erf
+
 from sensorgym.trackers.detection_probability import (
     axis_holding_probability,
     combined_detection_parameter,

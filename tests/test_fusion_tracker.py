@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+
 from sensorgym.envs.imaging_world import ImagingScene, simulate_closed_loop
 from sensorgym.trackers.fusion_tracker import FusionModel, FusionTracker
 from sensorgym.trackers.fusion_variance import stationary_relative_variance
