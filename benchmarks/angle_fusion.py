@@ -12,12 +12,9 @@ over the whole batch; a multi-channel env runs one fused-tracker update per fram
 from __future__ import annotations
 
 import argparse
-import json
-import platform
-import time
-from pathlib import Path
 
 import numpy as np
+from timing import RESULTS, best_rate, write_results
 
 from sensorgym.envs.gimbal_world import StraightTrajectory
 from sensorgym.envs.imaging_world import ImagingScene
@@ -33,15 +30,13 @@ def time_angle_predictor(predictor, batch: int, frames: int, repeat: int) -> flo
     th, ph = StraightTrajectory().angles(np.arange(frames))
     az = np.broadcast_to(th[:, None], (frames, batch)).copy()
     el = np.broadcast_to(ph[:, None], (frames, batch)).copy()
-    best = np.inf
-    for _ in range(repeat):
-        state = predictor.initial_state(batch)
-        t0 = time.perf_counter()
+
+    def run(state):
         for t in range(frames):
             state = predictor.update(state, az[t], el[t])
             predictor.predict(state, 1.0)
-        best = min(best, time.perf_counter() - t0)
-    return batch * frames / best
+
+    return best_rate(run, batch * frames, repeat, lambda: predictor.initial_state(batch))
 
 
 def time_fusion(batch: int, frames: int, repeat: int) -> float:
@@ -51,14 +46,12 @@ def time_fusion(batch: int, frames: int, repeat: int) -> float:
     rng = np.random.default_rng(0)
     angle, views = scene.initial_world(rng, batch)
     images = scene.render(rng, angle, np.zeros(batch), views)
-    best = np.inf
-    for _ in range(repeat):
-        state = tracker.initial_state(batch)
-        t0 = time.perf_counter()
+
+    def run(state):
         for _ in range(frames):
             state = tracker.update(state, images)
-        best = min(best, time.perf_counter() - t0)
-    return batch * frames / best
+
+    return best_rate(run, batch * frames, repeat, lambda: tracker.initial_state(batch))
 
 
 def main() -> int:
@@ -83,23 +76,13 @@ def main() -> int:
     print(f"  {'case':<38}" + "".join(f"{'B=' + str(b):>14}" for b in BATCHES))
     for name, r in rows.items():
         print(f"  {name:<38}" + "".join(f"{r[str(b)]:>14,.0f}" for b in BATCHES))
-    out = Path(__file__).parent / "results" / "angle_fusion.json"
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(
-        json.dumps(
-            {
-                "unit": "track-steps per second",
-                "frames": args.frames,
-                "repeat": args.repeat,
-                "python": platform.python_version(),
-                "numpy": np.__version__,
-                "machine": platform.machine(),
-                "results": rows,
-            },
-            indent=2,
-        )
+    write_results(
+        RESULTS / "angle_fusion.json",
+        rows,
+        unit="track-steps per second",
+        frames=args.frames,
+        repeat=args.repeat,
     )
-    print(f"wrote {out}")
     return 0
 
 
