@@ -11,12 +11,11 @@ per step (incremental Fisher update + bound), and every env step runs one filter
 from __future__ import annotations
 
 import argparse
-import json
-import platform
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import RESULTS, best_rate, write_results
+
 from sensorgym.envs.platform_world import PlatformWorldParams, PlatformWorldState, step
 from sensorgym.trackers.bearings_crlb import (
     add_bearing_information,
@@ -40,25 +39,12 @@ SIGMA = np.deg2rad(1.5)
 Q_TILDE = 9e-6
 
 
-def rate(fn, count: int, repeat: int) -> float:
-    """Best-of-``repeat`` items per second."""
-    fn()  # warm-up
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return count / best
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=10_000)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--members", type=int, default=8, help="range-bank size")
-    parser.add_argument(
-        "--out", type=Path, default=Path(__file__).parent / "results" / "bearings.json"
-    )
+    parser.add_argument("--out", type=Path, default=RESULTS / "bearings.json")
     args = parser.parse_args()
     B = args.batch
     rng = np.random.default_rng(0)
@@ -116,24 +102,10 @@ def main() -> None:
     print(f"batch = {B} scenarios; scenario-steps per second (best of {args.repeat})")
     print(f"{'operation':<46}{'steps/s':>14}{'us/step':>10}")
     for name, fn in cases.items():
-        r = rate(fn, B, args.repeat)
+        r = best_rate(lambda _, fn=fn: fn(), B, args.repeat)
         rows.append({"operation": name, "scenario_steps_per_s": r, "us_per_step": 1e6 / r})
         print(f"{name:<46}{r:>14.3e}{1e6 / r:>10.3f}")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(
-        json.dumps(
-            {
-                "batch": B,
-                "repeat": args.repeat,
-                "members": args.members,
-                "machine": platform.platform(),
-                "numpy": np.__version__,
-                "results": rows,
-            },
-            indent=1,
-        )
-    )
-    print(f"wrote {args.out}")
+    write_results(args.out, rows, batch=B, repeat=args.repeat, members=args.members)
 
 
 if __name__ == "__main__":

@@ -8,12 +8,10 @@ and writes ``benchmarks/results/triangulation.json``. Targets (issue 2, 2-core m
 from __future__ import annotations
 
 import argparse
-import json
-import platform
-import time
 from pathlib import Path
 
 import numpy as np
+from timing import RESULTS, best_rate, write_results
 
 from sensorgym.trackers.conjugation import solve_conjugation
 from sensorgym.trackers.geometry import look_at_rotation, relative_pose
@@ -35,24 +33,12 @@ def make_problems(n: int, order: int, batch: int, seed: int = 0) -> tuple:
     return a[:, 0], a[:, 1:], P, b, (t[:, 1:] if order else None)
 
 
-def rate(fn, count: int, repeat: int) -> float:
-    fn()  # warm-up
-    best = np.inf
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return count / best
-
-
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=100_000)
     parser.add_argument("--single", type=int, default=2_000, help="problems timed one at a time")
     parser.add_argument("--repeat", type=int, default=5)
-    parser.add_argument(
-        "--out", type=Path, default=Path(__file__).parent / "results" / "triangulation.json"
-    )
+    parser.add_argument("--out", type=Path, default=RESULTS / "triangulation.json")
     args = parser.parse_args()
 
     cases = [
@@ -66,23 +52,23 @@ def main() -> None:
     for name, n, order, path in cases:
         a1, ak, P, b, dt = make_problems(n, order, args.batch)
 
-        def batched(a1=a1, ak=ak, P=P, b=b, dt=dt, order=order):
+        def batched(_, a1=a1, ak=ak, P=P, b=b, dt=dt, order=order):
             solve_conjugation(a1, ak, P, b, dt, order=order)
 
-        def unchecked(a1=a1, ak=ak, P=P, b=b, dt=dt, order=order):
+        def unchecked(_, a1=a1, ak=ak, P=P, b=b, dt=dt, order=order):
             solve_conjugation(a1, ak, P, b, dt, order=order, check_inputs=False)
 
         k = args.single
 
-        def single(a1=a1, ak=ak, P=P, b=b, dt=dt, order=order, k=k):
+        def single(_, a1=a1, ak=ak, P=P, b=b, dt=dt, order=order, k=k):
             for i in range(k):
                 solve_conjugation(
                     a1[i], ak[i], P[i], b[i], None if dt is None else dt[i], order=order
                 )
 
-        r_batch = rate(batched, args.batch, args.repeat)
-        r_unchecked = rate(unchecked, args.batch, args.repeat)
-        r_single = rate(single, k, max(1, args.repeat // 2))
+        r_batch = best_rate(batched, args.batch, args.repeat)
+        r_unchecked = best_rate(unchecked, args.batch, args.repeat)
+        r_single = best_rate(single, k, max(1, args.repeat // 2))
         target = TARGETS.get(name)
         rows.append(
             {
@@ -113,17 +99,7 @@ def main() -> None:
             f"{r['batched_per_s']:>14,.0f} {r['batched_unchecked_per_s']:>14,.0f} {tgt:>10}  {ok}"
         )
     print("batched: default call with input checks; unchecked: check_inputs=False")
-    load = Path("/proc/loadavg").read_text().split()[0] if Path("/proc/loadavg").exists() else "?"
-    print(f"1-min load average during the run: {load} (2 cores; other work slows every row)")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    meta = {
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "machine": platform.machine(),
-        "load_average_1min": load,
-    }
-    args.out.write_text(json.dumps({"meta": meta, "results": rows}, indent=2) + "\n")
-    print(f"wrote {args.out}")
+    write_results(args.out, rows, batch=args.batch, single=args.single, repeat=args.repeat)
 
 
 if __name__ == "__main__":

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
 from sensorgym.trackers.bearings_models import (
     STATE_DIM,
     bearing,

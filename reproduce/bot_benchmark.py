@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 from scipy.stats import chi2
+
 from sensorgym.envs.platform_world import (
     PlatformTrajectory,
     PlatformWorldParams,

@@ -27,6 +27,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
+
 from sensorgym.envs.platform_world import (
     PlatformWorldParams,
     PlatformWorldState,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from sensorgym.reproduce.bot_benchmark import BotScenario
 from sensorgym.trackers.bearings_crlb import (
     add_bearing_information,

@@ -7,6 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 from scipy.stats import chi2
+
 from sensorgym.reproduce.bot_benchmark import (
     BotScenario,
     bank_prior_for,

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+
 from sensorgym.reproduce.paper002 import Paper002Scenario, ideal_result, noisy_result
 from sensorgym.trackers.bearings_paper002 import (
     block_base_bearings,

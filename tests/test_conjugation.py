@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from sensorgym.envs.stereo_scene import pair_scene, receivers_around
 from sensorgym.trackers.conjugation import (
@@ -345,3 +347,28 @@ def test_large_batch_chunked_path_equals_single_solves():
         np.testing.assert_allclose(big.velocity[i], one.velocity, rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(big.covariance[i], one.covariance, rtol=1e-12, atol=1e-15)
         assert big.used_pinv[i] == one.used_pinv == (i == 123)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.floats(-1.2, 1.2),
+    st.floats(-1.2, 1.2),
+    st.floats(0.2, 2.9),
+    st.floats(5.0, 500.0),
+    st.floats(5.0, 500.0),
+)
+def test_noise_free_pair_recovery_for_any_geometry(az, el, gamma, r1, r2):
+    """Any two non-parallel lines of sight recover both ranges exactly; κ_F = 2/sin γ."""
+    e = np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+    x = np.cross(e, [0.3, 1.0, -0.2])
+    x /= np.linalg.norm(x)
+    d2 = np.cos(gamma) * e + np.sin(gamma) * x
+    scene = receivers_around(
+        np.array([3.0, 40.0, -7.0]), np.stack([e, d2]), np.array([r1, r2]), (1.0, 2.0, 0.5)
+    )
+    a = scene.directions
+    P, b = scene.relative_poses
+    sol = solve_pair(a[0], a[1], P[0], b[0])
+    assert not sol.used_pinv
+    np.testing.assert_allclose(sol.ranges, [r1, r2], rtol=1e-9, atol=1e-9)
+    assert sol.condition == pytest.approx(2.0 / np.sin(gamma), rel=1e-9)
