@@ -13,12 +13,11 @@ Run: ``.venv/bin/python benchmarks/stereo_tracking.py`` (writes
 from __future__ import annotations
 
 import argparse
-import json
-import platform
 import time
 from pathlib import Path
 
 import numpy as np
+from timing import RESULTS, write_results
 
 from sensorgym.envs.drones import GroupSpec, random_group
 from sensorgym.envs.scanning import FixedDelay, RasterScan
@@ -81,9 +80,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument(
-        "--out", type=Path, default=Path(__file__).parent / "results" / "stereo_tracking.json"
-    )
+    parser.add_argument("--out", type=Path, default=RESULTS / "stereo_tracking.json")
     args = parser.parse_args()
     rows = []
     print(f"{'tracker':<12} {'n':>2} {'m':>3} {'period, ms':>11} {'N=5 run, ms':>12}")
@@ -100,18 +97,8 @@ def main() -> int:
         "n3_m5_N5_under_100ms": prop[5] < 0.1,
     }
     print("targets:", targets)
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(
-        json.dumps(
-            {
-                "machine": platform.platform(),
-                "python": platform.python_version(),
-                "repeats": args.repeats,
-                "rows": rows,
-                "targets": targets,
-            },
-            indent=2,
-        )
+    write_results(
+        args.out, {"rows": rows, "targets": targets}, repeats=args.repeats, seed=args.seed
     )
     return 0
 
