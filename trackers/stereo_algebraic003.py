@@ -82,42 +82,8 @@ def _solve(
     order: int,
     cond_max: float,
 ) -> ConjugationSolution:
-    # equal or zero delays (close receivers, one raster pixel) make the velocity system
-    # singular: the core's closed form then yields non-finite intermediates and hands the
-    # element to its pseudo-inverse fallback, so those warnings carry no information
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return _solve_core(a1, ak, P, b, dt, w, order, cond_max)
-
-
-def _solve_core(
-    a1: FloatArray,
-    ak: FloatArray,
-    P: FloatArray,
-    b: FloatArray,
-    dt: FloatArray,
-    w: FloatArray | None,
-    order: int,
-    cond_max: float,
-) -> ConjugationSolution:
-    if a1.ndim == 1:
-        # adapter: the core's pseudo-inverse fallback needs a batch axis (0-d results are
-        # immutable), so one problem is solved as a batch of one
-        sol = solve_conjugation(
-            a1[None],
-            ak[None],
-            P[None],
-            b[None],
-            dt[None],
-            order=order,
-            weights=None if w is None else w[None],
-            cond_max=cond_max,
-        )
-        return ConjugationSolution(
-            *(
-                None if v is None else v[0]
-                for v in (getattr(sol, f) for f in sol.__dataclass_fields__)
-            )
-        )
+    """One batched core call; equal or zero delays (close receivers, one raster line) make the
+    velocity system singular and take the core's pseudo-inverse branch (flagged)."""
     return solve_conjugation(a1, ak, P, b, dt, order=order, weights=w, cond_max=cond_max)
 
 
