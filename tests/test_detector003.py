@@ -243,3 +243,13 @@ def test_batched_continuation_equals_group_by_group():
         assert batch.score[r] == pytest.approx(s, rel=1e-12)
         np.testing.assert_allclose(batch.M1[r], M, rtol=1e-12)
         np.testing.assert_allclose(batch.V1[r], V, rtol=1e-12)
+
+
+def test_reproduction_runs_end_to_end_and_reports_every_target():
+    from sensorgym.reproduce.paper003 import format_report, reproduce
+
+    res = reproduce(runs=3, algorithmic_runs=2, jobs=1)
+    assert {c["id"] for c in res["checks"]} == {"RT-10", "RT-11", "RT-12", "RT-13", "ext"}
+    assert all(c["status"] in ("matched", "missed") for c in res["checks"])
+    assert all(c["reason"] for c in res["checks"] if c["status"] == "missed")
+    assert "Targets (SPEC §8)" in format_report(res)
