@@ -12,6 +12,8 @@ import numpy as np
 
 from sensorgym.envs.gimbal_world import StraightTrajectory
 
+from ._common import save_figure
+
 
 def write_figures(result: dict, out: Path) -> list[Path]:
     """Figures like the paper's 3–9 plus RMS error vs horizon, as PNG files in ``out``."""
@@ -28,11 +30,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     written = []
 
     def save(fig, name: str) -> None:
-        path = out / name
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, out / name))
 
     traj = StraightTrajectory()
     pos = traj.positions(np.arange(loss + gate + 1))

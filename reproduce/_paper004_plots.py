@@ -10,6 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ._common import save_figure
+
 FORMS = ("mixture", "information")
 
 
@@ -25,11 +27,7 @@ def write_figures(result: dict, out: Path) -> list[Path]:
     written = []
 
     def save(fig, name: str) -> None:
-        path = out / name
-        fig.tight_layout()
-        fig.savefig(path, dpi=120)
-        plt.close(fig)
-        written.append(path)
+        written.append(save_figure(fig, out / name))
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
     for j, L in enumerate(rt16["ranges_km"]):

@@ -22,10 +22,8 @@ final PCRLB position RMS (documented choice; the book uses a similar final-error
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import asdict, dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.stats import chi2
@@ -49,6 +47,8 @@ from sensorgym.trackers.bearings_ml import ml_estimate
 from sensorgym.trackers.bearings_models import KNOT
 from sensorgym.trackers.bearings_pseudolinear import pseudolinear_estimate
 from sensorgym.trackers.geometry import wrap_angle
+
+from ._common import add_common_arguments, write_json
 
 HELP = "Textbook bearings-only benchmark (Ristic et al. ch. 6): EKF, CKF, RP-EKF, ML vs CRLB."
 DIVERGENCE_FACTOR = 5.0
@@ -367,12 +367,8 @@ def run_benchmark(
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=1000, help="Monte Carlo runs (default 1000)")
-    parser.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    add_common_arguments(parser, "bot-benchmark", 1000, "Monte Carlo runs")
     parser.add_argument("--members", type=int, default=8, help="RP bank size (default 8)")
-    parser.add_argument(
-        "--out", type=Path, default=Path("results/bot-benchmark"), help="output dir"
-    )
 
 
 def format_result(res: BotBenchmarkResult) -> str:
@@ -428,7 +424,5 @@ def format_result(res: BotBenchmarkResult) -> str:
 def run(args: argparse.Namespace) -> int:
     res = run_benchmark(args.runs, args.seed, args.members)
     print(format_result(res))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "bot_benchmark.json").write_text(json.dumps(asdict(res), indent=1))
-    print(f"\nwrote {args.out / 'bot_benchmark.json'}")
+    write_json(args.out, "bot_benchmark.json", asdict(res))
     return 0

@@ -21,9 +21,7 @@ is printed beside ours).
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -31,6 +29,7 @@ from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, m
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor
 
+from ._common import add_common_arguments, write_json
 from ._paper001_plots import write_figures
 
 HELP = "Paper 001: azimuth/elevation prediction through target loss (A-B-C vs LS fit vs Kalman)."
@@ -289,8 +288,7 @@ def format_report(result: dict) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=500, help="noise realisations (default 500)")
-    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    add_common_arguments(parser, "paper001", 500, "noise realisations", plots=True)
     parser.add_argument(
         "--loss-frame", type=int, default=400, help="frame of the last measurement (default 400)"
     )
@@ -301,10 +299,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs="*",
         default=[0.01, 0.03],
         help="turn rates (deg/frame) of the manoeuvring-target table (default 0.01 0.03)",
-    )
-    parser.add_argument("--no-plots", action="store_true", help="skip the matplotlib figures")
-    parser.add_argument(
-        "--out", type=Path, default=Path("results/paper001"), help="output directory"
     )
 
 
@@ -319,8 +313,7 @@ def run(args: argparse.Namespace) -> int:
     )
     result["seconds"] = time.perf_counter() - t0
     print(format_report(result))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "paper001.json").write_text(json.dumps(result, indent=1))
+    write_json(args.out, "paper001.json", result)
     if not args.no_plots:
         for path in write_figures(result, args.out):
             print(f"wrote {path}")

@@ -22,9 +22,7 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import json
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -44,6 +42,8 @@ from sensorgym.trackers.bearings_paper002 import (
     state_error,
 )
 from sensorgym.trackers.geometry import wrap_angle
+
+from ._common import add_common_arguments, write_json
 
 HELP = "Paper 002: fictitious-bearing method, noise-free (RT-8) and block-smoothed noisy (RT-9)."
 KMH = 1.0 / 3.6
@@ -274,10 +274,8 @@ def noisy_result(scn: Paper002Scenario, n_runs: int, seed: int, degree: int = 1)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=100, help="noise sets (default 100, as paper)")
-    parser.add_argument("--seed", type=int, default=0, help="master seed (default 0)")
+    add_common_arguments(parser, "paper002", 100, "noise sets, as the paper")
     parser.add_argument("--degree", type=int, default=1, help="smoothing polynomial degree")
-    parser.add_argument("--out", type=Path, default=Path("results/paper002"), help="output dir")
 
 
 def format_result(ideal: dict, noisy: dict, n_runs: int) -> str:
@@ -373,8 +371,6 @@ def run(args: argparse.Namespace) -> int:
     ideal = ideal_result(scn)
     noisy = noisy_result(scn, args.runs, args.seed, args.degree)
     print(format_result(ideal, noisy, args.runs))
-    args.out.mkdir(parents=True, exist_ok=True)
     out = {"runs": args.runs, "seed": args.seed, "ideal": ideal, "noisy": noisy}
-    (args.out / "paper002.json").write_text(json.dumps(out, indent=1))
-    print(f"\nwrote {args.out / 'paper002.json'}")
+    write_json(args.out, "paper002.json", out)
     return 0

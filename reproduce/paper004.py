@@ -18,10 +18,8 @@ Reconstruction choices (SPEC §11.6): (11) in its mixture form (a) and its infor
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
@@ -41,6 +39,7 @@ from sensorgym.trackers.fusion_variance import (
     tracking_error,
 )
 
+from ._common import add_common_arguments, write_json
 from ._paper004_plots import write_figures
 
 HELP = "Paper 004: detection probability, variance recurrence, Fig. 2 and fused tracking."
@@ -422,15 +421,10 @@ def format_report(result: dict) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=500, help="closed-loop runs (default 500)")
-    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    add_common_arguments(parser, "paper004", 500, "closed-loop runs", plots=True)
     parser.add_argument("--frames", type=int, default=300, help="frames per run (default 300)")
     parser.add_argument(
         "--ranges", type=float, nargs="+", default=[0.5, 1.0, 2.0, 3.0], help="L values, km"
-    )
-    parser.add_argument("--no-plots", action="store_true", help="skip the matplotlib figures")
-    parser.add_argument(
-        "--out", type=Path, default=Path("results/paper004"), help="output directory"
     )
 
 
@@ -441,8 +435,7 @@ def run(args: argparse.Namespace) -> int:
     )
     result["seconds"] = time.perf_counter() - t0
     print(format_report(result))
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "paper004.json").write_text(json.dumps(result, indent=1))
+    write_json(args.out, "paper004.json", result)
     if not args.no_plots:
         for path in write_figures(result, args.out):
             print(f"wrote {path}")

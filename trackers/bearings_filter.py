@@ -37,6 +37,7 @@ from .bearings_models import (
     BearingsGaussian,
     bearing,
     bearing_jacobian,
+    bearing_sequence,
     predict,
 )
 from .geometry import wrap_angle
@@ -347,12 +348,8 @@ def run_filter(
     output at ``k = 0`` is the prior; ``z`` ``(B, K)``, ``platform_positions`` ``(B, K, 2)``.
     A :class:`RangeBankState` prior runs the bank and returns its moment-matched output.
     """
-    z = finite_array(z, "z")
-    times = finite_array(times, "times")
-    p = finite_array(platform_positions, "platform_positions", tail=(2,))
+    z, times, p = bearing_sequence(z, times, platform_positions)
     K = times.shape[0]
-    if z.shape[-1] != K or p.shape[-2] != K:
-        raise ValueError(f"z, platform_positions: need {K} samples, got {z.shape}, {p.shape}")
     state = prior
     est = prior.estimate() if isinstance(prior, RangeBankState) else prior
     xs, Ps = [est.x], [est.P]

@@ -22,7 +22,13 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import least_squares
 
 from .bearings_crlb import batch_information, crlb
-from .bearings_models import STATE_DIM, BearingsGaussian, bearing_jacobian, cv_transition
+from .bearings_models import (
+    STATE_DIM,
+    BearingsGaussian,
+    bearing_jacobian,
+    bearing_sequence,
+    cv_transition,
+)
 from .bearings_pseudolinear import pseudolinear_estimate
 from .geometry import wrap_angle
 from .validation import finite_array
@@ -74,10 +80,8 @@ def ml_estimate(
     defaults to the pseudo-linear estimate (or the prior mean when a prior is given).
     Raises ``ValueError`` when the state is unobservable (no prior and no platform manoeuvre).
     """
-    z = finite_array(z, "z")
-    times = finite_array(times, "times")
-    p = finite_array(platform_positions, "platform_positions", tail=(2,))
-    if z.ndim != 2 or p.shape != (*z.shape, 2) or times.shape != (z.shape[1],):
+    z, times, p = bearing_sequence(z, times, platform_positions)
+    if z.ndim != 2 or p.shape != (*z.shape, 2):
         raise ValueError(
             f"z (B, K), times (K,), platform_positions (B, K, 2): got {z.shape}, "
             f"{times.shape}, {p.shape}"

@@ -142,3 +142,22 @@ def predict(state: BearingsGaussian, t: float, q_tilde: float) -> BearingsGaussi
     # P⁻ = F P Fᵀ + Q
     P = F @ state.P @ F.T + Q
     return BearingsGaussian(x, 0.5 * (P + np.swapaxes(P, -1, -2)), t)
+
+
+def bearing_sequence(
+    z: ArrayLike, times: ArrayLike, platform_positions: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Checked bearings ``z (..., K)`` (rad), ``times (K,)`` (s), ``platform_positions (..., K, 2)`` (m).
+
+    Raises ``ValueError`` naming the arguments when the sample counts disagree.
+    """
+    z = finite_array(z, "z")
+    times = finite_array(times, "times")
+    p = finite_array(platform_positions, "platform_positions", tail=(2,))
+    K = times.shape[0] if times.ndim == 1 else -1
+    if K < 0 or z.shape[-1:] != (K,) or p.shape[-2] != K:
+        raise ValueError(
+            f"z (..., K), times (K,), platform_positions (..., K, 2): got {z.shape}, "
+            f"{times.shape}, {p.shape}"
+        )
+    return z, times, p

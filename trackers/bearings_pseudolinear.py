@@ -19,8 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .bearings_models import STATE_DIM, BearingsGaussian
-from .validation import finite_array
+from .bearings_models import STATE_DIM, BearingsGaussian, bearing_sequence
 
 FloatArray = NDArray[np.float64]
 
@@ -39,12 +38,8 @@ def pseudolinear_estimate(
     the system is rank deficient for some scenario (fewer than 4 bearings, or no platform
     manoeuvre: the range is then unobservable).
     """
-    z = finite_array(z, "z")
-    times = finite_array(times, "times")
-    p = finite_array(platform_positions, "platform_positions", tail=(2,))
+    z, times, p = bearing_sequence(z, times, platform_positions)
     K = times.shape[0]
-    if z.shape[-1] != K or p.shape[-2] != K:
-        raise ValueError(f"z, platform_positions: expected {K} samples, got {z.shape}, {p.shape}")
     if K < STATE_DIM:
         raise ValueError(f"z: need at least {STATE_DIM} bearings, got {K}")
     if not np.isfinite(sigma) or sigma <= 0.0:

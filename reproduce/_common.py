@@ -1,0 +1,43 @@
+"""What every reproduction shares: the common command-line options and its output files."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+
+def add_common_arguments(
+    parser: argparse.ArgumentParser, name: str, runs: int, runs_help: str, *, plots: bool = False
+) -> None:
+    """``--runs``, ``--seed``, ``--out`` (default ``results/NAME``) and, with plots, ``--no-plots``."""
+    parser.add_argument("--runs", type=int, default=runs, help=f"{runs_help} (default {runs})")
+    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results") / name,
+        help=f"output directory (results/{name})",
+    )
+    if plots:
+        parser.add_argument("--no-plots", action="store_true", help="skip the matplotlib figures")
+
+
+def write_json(out: Path, filename: str, data: Any) -> Path:
+    """Write ``data`` as ``out/filename`` (creating ``out``), print and return the path."""
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / filename
+    path.write_text(json.dumps(data, indent=1) + "\n")
+    print(f"wrote {path}")
+    return path
+
+
+def save_figure(fig: Any, path: Path) -> Path:
+    """Lay out, save (120 dpi) and close a matplotlib figure; return its path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
