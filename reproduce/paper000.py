@@ -23,11 +23,9 @@ Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (S
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
-from pathlib import Path
 
 import numpy as np
 
@@ -40,6 +38,8 @@ from sensorgym.trackers.stereo_tracker000 import (
     track_alternative,
     track_proposed,
 )
+
+from ._common import add_common_arguments, write_json
 
 HELP = "Paper 000 Tables 1-2: alternative (n=2) vs proposed velocity-aware (n=3) stereo tracking."
 
@@ -300,14 +300,8 @@ def reproduce(
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument(
-        "--runs", type=int, default=1000, help="Monte Carlo runs per cell (default 1000)"
-    )
-    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    add_common_arguments(parser, "paper000", 1000, "Monte Carlo runs per table cell")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument(
-        "--out", type=Path, default=Path("results/paper000"), help="output directory"
-    )
 
 
 def format_report(result: dict) -> str:
@@ -353,8 +347,7 @@ def run(args: argparse.Namespace) -> int:
     result["seconds"] = time.perf_counter() - t0
     print(format_report(result))
     print(f"\n{result['seconds']:.1f} s")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "paper000.json").write_text(json.dumps(result, indent=2))
+    write_json(args.out, "paper000.json", result)
     return 0
 
 

@@ -24,14 +24,13 @@ Scenario choices where the paper is silent (printed with the tables):
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict
-from pathlib import Path
 
 import numpy as np
 
+from ._common import add_common_arguments, write_json
 from ._paper003_experiments import (
     Scenario003,
     algebraic_accuracy,
@@ -304,15 +303,11 @@ def format_report(res: dict) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--runs", type=int, default=1000, help="Monte Carlo runs (default 1000)")
+    add_common_arguments(parser, "paper003", 1000, "Monte Carlo runs per experiment")
     parser.add_argument(
         "--algorithmic-runs", type=int, default=None, help="runs per P(m) cell (default: --runs)"
     )
-    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    parser.add_argument(
-        "--out", type=Path, default=Path("results/paper003"), help="output directory"
-    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -323,8 +318,7 @@ def run(args: argparse.Namespace) -> int:
     res["seconds"] = time.perf_counter() - t0
     print(format_report(res))
     print(f"\n{res['seconds']:.1f} s")
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "paper003.json").write_text(json.dumps(res, indent=2))
+    write_json(args.out, "paper003.json", res)
     return 0
 
 
