@@ -142,6 +142,20 @@ def select(
     return idx[np.asarray(accepted, dtype=np.int64)]
 
 
+def extrapolation_residual(
+    M: FloatArray, V: FloatArray, t_ref: FloatArray, positions: FloatArray, times: FloatArray
+) -> FloatArray:
+    """``ΔJ (G, J)``: distance of each new candidate from each group's straight-line prediction.
+
+    ``M̂^Э = M̂_s + V̂_s (t(i, j) − t_s)``, ``ΔJ = ‖M(i, j) − M̂^Э‖`` (000 temporal steps 3–4);
+    ``M, V (G, 3)`` and ``t_ref (G,)`` per group, ``positions (J, 3)`` and ``times (J,)`` per
+    candidate.
+    """
+    dt = times[None, :] - t_ref[:, None]
+    pred = M[:, None, :] + V[:, None, :] * dt[..., None]
+    return np.linalg.norm(positions[None, :, :] - pred, axis=-1)
+
+
 def match_tracks(distance: FloatArray, gate: float) -> IntArray:
     """Identify simulated and found objects by proximity (000 "Pr_m", SPEC §2.5, gap 15).
 
@@ -195,6 +209,28 @@ class Detection:
     def m_hat(self) -> int:
         """Estimated number of objects m̂."""
         return int(self.score.shape[0])
+
+    @classmethod
+    def select_from(
+        cls,
+        members: IntArray,
+        score: FloatArray,
+        positions: FloatArray,
+        velocities: FloatArray,
+        times: FloatArray,
+        max_shared: int,
+        eligible: NDArray[np.bool_] | None = None,
+    ) -> Detection:
+        """The groups :func:`select` accepts out of all alive groups, as a detection."""
+        chosen = select(members, score, max_shared, eligible)
+        return cls(
+            members[chosen],
+            score[chosen],
+            positions[chosen],
+            velocities[chosen],
+            times[chosen],
+            groups_kept=int(score.shape[0]),
+        )
 
     def latest(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """``(position (m̂, 3), velocity (m̂, 3), time (m̂,))`` of each group's latest estimate."""

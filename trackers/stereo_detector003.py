@@ -381,18 +381,12 @@ def detect_algorithmic(
             np.zeros((0, N)),
         )
     # step 5: greedy selection, at most π shared vectors, confirmed groups only
-    chosen = assoc.select(
+    return assoc.Detection.select_from(
         groups.members,
         groups.score,
+        groups.hist_M,
+        groups.hist_V,
+        groups.hist_T,
         params.max_shared,
         eligible=groups.confirmed >= params.min_confirmed,
-    )
-    sel = groups.take(chosen)
-    return assoc.Detection(
-        sel.members,
-        sel.score,
-        sel.hist_M,
-        sel.hist_V,
-        sel.hist_T,
-        groups_kept=int(groups.score.shape[0]),
     )

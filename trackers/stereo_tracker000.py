@@ -250,10 +250,8 @@ def track_alternative(
     M, V, t_latest = M[keep], V[keep], t_latest[keep]
     for i in range(2, N):
         c = cands[i]
-        # M̂^Э = M̂_s + V̂_s (t(i, j) − t_latest);  ΔJ = ‖M(i, j) − M̂^Э‖  (000 steps 3–4)
-        dt = c.time[None, :] - t_latest[:, None]
-        pred = M[:, None, :] + V[:, None, :] * dt[..., None]
-        dJ = np.linalg.norm(c.position[None, :, :] - pred, axis=-1)
+        # ΔJ = ‖M(i, j) − (M̂_s + V̂_s (t(i, j) − t_latest))‖  (000 steps 3–4)
+        dJ = assoc.extrapolation_residual(M, V, t_latest, c.position, c.time)
         g, j, score = assoc.extend(score, dJ, delta, params.beam)
         members = members[g]
         members[:, i] = c.members[j]
@@ -262,14 +260,8 @@ def track_alternative(
         M, V = _line_fit(sums, t_latest)
         pos_hist, vel_hist, t_hist = pos_hist[g], vel_hist[g], t_hist[g]
         pos_hist[:, i], vel_hist[:, i], t_hist[:, i] = M, V, t_latest
-    chosen = assoc.select(members, score, params.max_shared)
-    return assoc.Detection(
-        members[chosen],
-        score[chosen],
-        pos_hist[chosen],
-        vel_hist[chosen],
-        t_hist[chosen],
-        groups_kept=int(score.shape[0]),
+    return assoc.Detection.select_from(
+        members, score, pos_hist, vel_hist, t_hist, params.max_shared
     )
 
 
@@ -312,10 +304,8 @@ def track_proposed(
     delta = params.delta
     for i in range(1, N):
         c = cands[i]
-        # M̂^Э = M̂_s + V̂_s (t(i, j) − t_s);  ΔJ = ‖M(i, j) − M̂^Э‖ ≤ δ  (000 proposed steps 2–3)
-        dt = c.time[None, :] - t_s[:, None]
-        pred = M[:, None, :] + V[:, None, :] * dt[..., None]
-        dJ = np.linalg.norm(c.position[None, :, :] - pred, axis=-1)
+        # ΔJ = ‖M(i, j) − (M̂_s + V̂_s (t(i, j) − t_s))‖ ≤ δ  (000 proposed steps 2–3)
+        dJ = assoc.extrapolation_residual(M, V, t_s, c.position, c.time)
         g, j, score = assoc.extend(score, dJ, delta, params.beam)
         members = members[g]
         members[:, i] = c.members[j]
@@ -323,12 +313,6 @@ def track_proposed(
         M, V, t_s = c.position[j], c.velocity[j], c.time[j]
         pos_hist, vel_hist, t_hist = pos_hist[g], vel_hist[g], t_hist[g]
         pos_hist[:, i], vel_hist[:, i], t_hist[:, i] = M, V, t_s
-    chosen = assoc.select(members, score, params.max_shared)
-    return assoc.Detection(
-        members[chosen],
-        score[chosen],
-        pos_hist[chosen],
-        vel_hist[chosen],
-        t_hist[chosen],
-        groups_kept=int(score.shape[0]),
+    return assoc.Detection.select_from(
+        members, score, pos_hist, vel_hist, t_hist, params.max_shared
     )
