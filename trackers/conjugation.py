@@ -324,6 +324,7 @@ def _finalise(
     cov: FloatArray,
     kappa: FloatArray,
     used_pinv: BoolArray,
+    position: FloatArray | None = None,
 ) -> ConjugationSolution:
     # every field carries the full batch shape, even where it depends on a broadcast input only
     shape = np.broadcast_shapes(X.shape[:-1], J.shape, cov.shape[:-2], kappa.shape, used_pinv.shape)
@@ -334,7 +335,7 @@ def _finalise(
     ranges = X[..., :n]
     return ConjugationSolution(
         ranges=ranges,
-        position=ranges[..., :1] * a1,
+        position=ranges[..., :1] * a1 if position is None else position,
         velocity=X[..., n : n + 3] if order >= 1 else None,
         acceleration=X[..., n + 3 : n + 6] if order >= 2 else None,
         residual=J,
@@ -346,6 +347,7 @@ def _finalise(
 
 def _closed_form_result(
     a1: FloatArray,
+    a1c: FloatArray,
     n: int,
     order: int,
     fast: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
@@ -358,11 +360,10 @@ def _closed_form_result(
     X, J, Q, kappa = fast
     shape = np.broadcast_shapes(X.shape[1:], J.shape, kappa.shape)
     X = np.moveaxis(np.broadcast_to(X, (X.shape[0], *shape)), 0, -1)
-    p = len(Q)
-    cov = np.empty((*shape, p, p))
-    for i in range(p):
-        for j in range(p):
-            cov[..., i, j] = Q[i][j]
+    # one contiguous (p, p, ...) block, returned as a (..., p, p) view: row writes are fast,
+    # strided writes into a batch-first array are not
+    cov = np.moveaxis(np.stack([np.broadcast_to(q, shape) for row in Q for q in row]), 0, -1)
+    cov = cov.reshape(*shape, len(Q), len(Q))
     J, kappa = np.broadcast_to(J, shape), np.broadcast_to(kappa, shape)
     used = ~(kappa <= cond_max)
     if np.any(used):
@@ -374,7 +375,9 @@ def _closed_form_result(
         fallback = _solve_svd(A, B, picked[4], sigma_e, cond_max)
         X, J, cov, kappa, used = (np.array(x, copy=True) for x in (X, J, cov, kappa, used))
         X[used], J[used], cov[used], kappa[used], used[used] = fallback
-    return _finalise(a1, n, order, X, J, cov, kappa, used)
+    # M̂_1 = r̂_1 a_1 from the contiguous components (a (N, 1) × (N, 3) broadcast is slow)
+    position = np.moveaxis(X[..., 0] * a1c, 0, -1)
+    return _finalise(a1, n, order, X, J, cov, kappa, used, position)
 
 
 def _concatenate(parts: list[ConjugationSolution], batch: tuple[int, ...]) -> ConjugationSolution:
@@ -508,12 +511,14 @@ def solve_conjugation(
             scale = 1.0 if w is None else w[..., 0] * w[..., 1]
             fast = _pair_closed_form(a1c, cc[:, 0], bc[:, 0], scale, sigma_e)
             row_w = None if w is None else np.repeat(scale[..., None], 3, axis=-1)
-            return _closed_form_result(a1, 2, 0, fast, (a1, c, b, None, row_w), sigma_e, cond_max)
+            return _closed_form_result(
+                a1, a1c, 2, 0, fast, (a1, c, b, None, row_w), sigma_e, cond_max
+            )
         if n == 3 and order == 1 and w is None:
             fast = _triple_velocity_closed_form(
                 a1c, cc[:, 0], cc[:, 1], bc[:, 0], bc[:, 1], dtc[0], dtc[1], sigma_e
             )
-            return _closed_form_result(a1, 3, 1, fast, (a1, c, b, dt, None), sigma_e, cond_max)
+            return _closed_form_result(a1, a1c, 3, 1, fast, (a1, c, b, dt, None), sigma_e, cond_max)
 
     A, B = build_system(a1, c, b, dt, order)
     X, J, cov, kappa, used = _solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
