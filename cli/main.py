@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import sys
 from importlib.metadata import version
 
 #: subcommand name -> module implementing it
@@ -17,7 +18,7 @@ COMMANDS: dict[str, str] = {
     "reproduce": "sensorgym.cli.reproduce",
 }
 
-#: what ``scripts/run.sh`` runs when given no arguments
+#: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments
 DEFAULT_JOB: list[str] = ["triangulate-demo"]
 
 
@@ -37,7 +38,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    """Run ``sensorgym ARGS``; with no arguments at all, the main job :data:`DEFAULT_JOB`."""
+    if argv is None:
+        argv = sys.argv[1:]
+    args = build_parser().parse_args(argv or DEFAULT_JOB)
     return int(args._run(args) or 0)
 
 

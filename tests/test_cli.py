@@ -20,6 +20,11 @@ def test_every_subcommand_has_help(capsys):
     assert DEFAULT_JOB[0] in COMMANDS
 
 
+def test_no_arguments_runs_the_main_job(capsys):
+    assert main([]) == 0
+    assert "iid formula" in capsys.readouterr().out
+
+
 def test_version(capsys):
     with pytest.raises(SystemExit):
         main(["--version"])
