@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +32,23 @@ def write_json(out: Path, filename: str, data: Any) -> Path:
     path.write_text(json.dumps(data, indent=1) + "\n")
     print(f"wrote {path}")
     return path
+
+
+def publish(
+    args: argparse.Namespace,
+    filename: str,
+    result: dict,
+    report: str,
+    write_figures: Callable[[dict, Path], list[Path]] | None = None,
+) -> None:
+    """Print the report and the run time, write the JSON and (unless ``--no-plots``) the figures."""
+    print(report)
+    write_json(args.out, filename, result)
+    if write_figures is not None and not getattr(args, "no_plots", False):
+        for path in write_figures(result, args.out):
+            print(f"wrote {path}")
+    if "seconds" in result:
+        print(f"{result['seconds']:.1f} s")
 
 
 def save_figure(fig: Any, path: Path) -> Path:

@@ -39,7 +39,7 @@ from sensorgym.trackers.stereo_tracker000 import (
     track_proposed,
 )
 
-from ._common import add_common_arguments, write_json
+from ._common import add_common_arguments, publish
 
 HELP = "Paper 000 Tables 1-2: alternative (n=2) vs proposed velocity-aware (n=3) stereo tracking."
 
@@ -345,16 +345,8 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = reproduce(runs=args.runs, seed=args.seed, jobs=args.jobs)
     result["seconds"] = time.perf_counter() - t0
-    print(format_report(result))
-    print(f"\n{result['seconds']:.1f} s")
-    write_json(args.out, "paper000.json", result)
+    publish(args, "paper000.json", result, format_report(result))
     return 0
 
 
 __all__ = ["CELLS", "HELP", "Scenario000", "add_arguments", "reproduce", "run", "run_cell"]
-
-
-if __name__ == "__main__":
-    _parser = argparse.ArgumentParser(description=HELP)
-    add_arguments(_parser)
-    raise SystemExit(run(_parser.parse_args()))

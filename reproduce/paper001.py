@@ -29,7 +29,7 @@ from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, m
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor
 
-from ._common import add_common_arguments, write_json
+from ._common import add_common_arguments, publish
 from ._paper001_plots import write_figures
 
 HELP = "Paper 001: azimuth/elevation prediction through target loss (A-B-C vs LS fit vs Kalman)."
@@ -312,16 +312,5 @@ def run(args: argparse.Namespace) -> int:
         turn_rates_deg=tuple(args.turn_rates),
     )
     result["seconds"] = time.perf_counter() - t0
-    print(format_report(result))
-    write_json(args.out, "paper001.json", result)
-    if not args.no_plots:
-        for path in write_figures(result, args.out):
-            print(f"wrote {path}")
-    print(f"\n{result['seconds']:.1f} s (Monte Carlo)")
+    publish(args, "paper001.json", result, format_report(result), write_figures)
     return 0
-
-
-if __name__ == "__main__":
-    _parser = argparse.ArgumentParser(description=HELP)
-    add_arguments(_parser)
-    raise SystemExit(run(_parser.parse_args()))

@@ -30,7 +30,7 @@ from dataclasses import asdict
 
 import numpy as np
 
-from ._common import add_common_arguments, write_json
+from ._common import add_common_arguments, publish
 from ._paper003_experiments import (
     Scenario003,
     algebraic_accuracy,
@@ -316,13 +316,5 @@ def run(args: argparse.Namespace) -> int:
         runs=args.runs, seed=args.seed, algorithmic_runs=args.algorithmic_runs, jobs=args.jobs
     )
     res["seconds"] = time.perf_counter() - t0
-    print(format_report(res))
-    print(f"\n{res['seconds']:.1f} s")
-    write_json(args.out, "paper003.json", res)
+    publish(args, "paper003.json", res, format_report(res))
     return 0
-
-
-if __name__ == "__main__":
-    _parser = argparse.ArgumentParser(description=HELP)
-    add_arguments(_parser)
-    raise SystemExit(run(_parser.parse_args()))

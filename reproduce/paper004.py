@@ -39,7 +39,7 @@ from sensorgym.trackers.fusion_variance import (
     tracking_error,
 )
 
-from ._common import add_common_arguments, write_json
+from ._common import add_common_arguments, publish
 from ._paper004_plots import write_figures
 
 HELP = "Paper 004: detection probability, variance recurrence, Fig. 2 and fused tracking."
@@ -434,16 +434,5 @@ def run(args: argparse.Namespace) -> int:
         runs=args.runs, seed=args.seed, frames=args.frames, ranges_km=tuple(args.ranges)
     )
     result["seconds"] = time.perf_counter() - t0
-    print(format_report(result))
-    write_json(args.out, "paper004.json", result)
-    if not args.no_plots:
-        for path in write_figures(result, args.out):
-            print(f"wrote {path}")
-    print(f"\n{result['seconds']:.1f} s")
+    publish(args, "paper004.json", result, format_report(result), write_figures)
     return 0
-
-
-if __name__ == "__main__":
-    _parser = argparse.ArgumentParser(description=HELP)
-    add_arguments(_parser)
-    raise SystemExit(run(_parser.parse_args()))
