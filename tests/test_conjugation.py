@@ -293,6 +293,10 @@ def test_bad_inputs_name_the_argument(rng):
         solve_conjugation(a1, ak, P, b[..., :1, :], dt, order=1)
     with pytest.raises(ValueError, match="dt"):
         solve_conjugation(a1, ak, P, b, np.full_like(dt, np.inf), order=1)
+    bad_P = P.copy()
+    bad_P[1, 0, 2, 1] = np.nan
+    with pytest.raises(ValueError, match="P: contains NaN"):
+        solve_conjugation(a1, ak, bad_P, b, dt, order=1)
     with pytest.raises(ValueError, match="P: must hold rotation"):
         solve_conjugation(a1, ak, 2 * P, b, dt, order=1)
     with pytest.raises(ValueError, match="weights"):

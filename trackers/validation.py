@@ -44,15 +44,20 @@ def unit_vector_components(
 
     Zero-length vectors are rejected; vectors whose norm differs from 1 by more than ``atol``
     are rejected rather than silently renormalised, because a non-unit direction vector means
-    the caller mixed up positions and directions (``check=False``: shape only). The component-major copy lets batched
-    kernels work on contiguous rows (numpy reduces a trailing axis of length 3 slowly).
+    the caller mixed up positions and directions (``check=False``: shape only). The
+    component-major copy lets batched kernels work on contiguous rows (numpy reduces a trailing
+    axis of length 3 slowly).
     """
-    arr = finite_array(value, name, tail=(3,), check=check)
+    arr = finite_array(value, name, tail=(3,), check=False)
     comp = np.ascontiguousarray(np.moveaxis(arr, -1, 0))
     if not check:
         return arr, comp
     x, y, z = comp
     norm2 = x * x + y * y + z * z
+    # ‖a‖² is finite for every vector iff its sum is (a NaN/inf component makes it NaN/inf);
+    # the finiteness check then names the bad values, one reduction instead of two
+    if not np.isfinite(norm2.sum()):
+        finite_array(arr, name)
     if np.any(norm2 == 0.0):
         raise ValueError(f"{name}: contains a zero-length direction vector")
     # |‖a‖² − 1| ≈ 2 |‖a‖ − 1|
@@ -77,7 +82,7 @@ def rotation_components(
     Raises ``ValueError`` naming ``name`` unless ``MᵀM = I`` within ``atol`` (``check=False``:
     shape only).
     """
-    arr = finite_array(value, name, tail=(3, 3), check=check)
+    arr = finite_array(value, name, tail=(3, 3), check=False)
     M = np.moveaxis(arr, (-2, -1), (0, 1))
     if not check:
         return M
@@ -86,7 +91,10 @@ def rotation_components(
         for j in range(i, 3):
             # (MᵀM)_ij = Σ_k M_ki M_kj
             g = M[0, i] * M[0, j] + M[1, i] * M[1, j] + M[2, i] * M[2, j]
-            worst = max(worst, float(np.max(np.abs(g - (i == j)), initial=0.0)))
+            err = float(np.max(np.abs(g - (i == j)), initial=0.0))
+            if not np.isfinite(err):  # a NaN/inf entry (np.max propagates it): name it
+                finite_array(arr, name)
+            worst = max(worst, err)
     if worst > atol:
         raise ValueError(f"{name}: must hold rotation matrices (max |MᵀM − I| = {worst:.3g})")
     return M
