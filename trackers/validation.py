@@ -77,13 +77,14 @@ def unit_vectors(value: ArrayLike, name: str, *, atol: float = 1e-6) -> NDArray[
 def rotation_components(
     value: ArrayLike, name: str, *, atol: float = 1e-6, check: bool = True
 ) -> NDArray[np.float64]:
-    """Checked rotation matrices ``(..., 3, 3)`` as a component-major ``(3, 3, ...)`` view.
+    """Checked rotation matrices ``(..., 3, 3)`` as a contiguous component-major ``(3, 3, ...)`` copy.
 
     Raises ``ValueError`` naming ``name`` unless ``MᵀM = I`` within ``atol`` (``check=False``:
     shape only).
     """
     arr = finite_array(value, name, tail=(3, 3), check=False)
-    M = np.moveaxis(arr, (-2, -1), (0, 1))
+    # one transposing copy makes every row below (and the caller's P a products) contiguous
+    M = np.ascontiguousarray(np.moveaxis(arr, (-2, -1), (0, 1)))
     if not check:
         return M
     worst = 0.0
