@@ -77,16 +77,17 @@ def unit_vectors(value: ArrayLike, name: str, *, atol: float = 1e-6) -> NDArray[
 def rotation_components(
     value: ArrayLike, name: str, *, atol: float = 1e-6, check: bool = True
 ) -> NDArray[np.float64]:
-    """Checked rotation matrices ``(..., 3, 3)`` as a contiguous component-major ``(3, 3, ...)`` copy.
+    """Checked rotation matrices ``(..., 3, 3)`` as component-major ``(3, 3, ...)`` components.
 
     Raises ``ValueError`` naming ``name`` unless ``MᵀM = I`` within ``atol`` (``check=False``:
     shape only).
     """
     arr = finite_array(value, name, tail=(3, 3), check=False)
-    # one transposing copy makes every row below (and the caller's P a products) contiguous
-    M = np.ascontiguousarray(np.moveaxis(arr, (-2, -1), (0, 1)))
+    M = np.moveaxis(arr, (-2, -1), (0, 1))
     if not check:
         return M
+    # one transposing copy makes every row of the check (and the caller's P a) contiguous
+    M = np.ascontiguousarray(M)
     worst = 0.0
     for i in range(3):
         for j in range(i, 3):
