@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .validation import finite_array, rotation_components, unit_vector_components
+from .validation import check_unit_norms, finite_array, unit_vector_components
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -471,7 +471,12 @@ def solve_conjugation(
             f"order {order} needs at least {_MIN_RECEIVERS[order]} receivers "
             f"(3(n−1) equations ≥ n + {_MOTION_UNKNOWNS[order]} unknowns), got n = {n}"
         )
-    Pc = None if P is None else rotation_components(P, "P", check=chk)
+    # P enters only through c_k = P_k a_k; it is checked there (see below)
+    Pc = (
+        None
+        if P is None
+        else np.moveaxis(finite_array(P, "P", tail=(3, 3), check=False), (-2, -1), (0, 1))
+    )
     b = finite_array(b, "b", tail=(m, 3), check=chk)
     if order >= 1:
         if dt is None:
@@ -493,6 +498,10 @@ def solve_conjugation(
     if Pc is not None:
         Pc = _broadcast_components(np.moveaxis(Pc, -1, 2), 3, batch)
     cc = np.ascontiguousarray(_rotate(Pc, akc))  # receivers 2..n in frame 1
+    if chk and Pc is not None:
+        # the solve uses P only as c_k = P_k a_k, so ‖P_k a_k‖ = 1 is exactly what it needs;
+        # a scaled, sheared or NaN P fails here (a full PᵀP = I test costs a third of the solve)
+        check_unit_norms(cc, P, "P", "must hold rotation matrices: ‖P_k a_k‖ ≠ 1")
     bc = np.ascontiguousarray(_broadcast_components(np.moveaxis(b, (-1, -2), (0, 1)), 2, batch))
     c = np.moveaxis(cc, (0, 1), (-1, -2))
     if dt is not None:

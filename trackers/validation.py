@@ -52,20 +52,14 @@ def unit_vector_components(
     comp = np.ascontiguousarray(np.moveaxis(arr, -1, 0))
     if not check:
         return arr, comp
-    x, y, z = comp
-    norm2 = x * x + y * y + z * z
-    # ‖a‖² is finite for every vector iff its sum is (a NaN/inf component makes it NaN/inf);
-    # the finiteness check then names the bad values, one reduction instead of two
-    if not np.isfinite(norm2.sum()):
-        finite_array(arr, name)
-    if np.any(norm2 == 0.0):
-        raise ValueError(f"{name}: contains a zero-length direction vector")
-    # |‖a‖² − 1| ≈ 2 |‖a‖ − 1|
-    if np.any(np.abs(norm2 - 1.0) > 2.0 * atol):
-        worst = float(np.max(np.abs(np.sqrt(norm2) - 1.0)))
-        raise ValueError(
-            f"{name}: direction vectors must have unit length (max |‖a‖-1| = {worst:.3g})"
-        )
+    check_unit_norms(
+        comp,
+        arr,
+        name,
+        "direction vectors must have unit length",
+        atol=atol,
+        zero_what="contains a zero-length direction vector",
+    )
     return arr, comp
 
 
@@ -74,29 +68,28 @@ def unit_vectors(value: ArrayLike, name: str, *, atol: float = 1e-6) -> NDArray[
     return unit_vector_components(value, name, atol=atol)[0]
 
 
-def rotation_components(
-    value: ArrayLike, name: str, *, atol: float = 1e-6, check: bool = True
-) -> NDArray[np.float64]:
-    """Checked rotation matrices ``(..., 3, 3)`` as component-major ``(3, 3, ...)`` components.
+def check_unit_norms(
+    comp: NDArray[np.float64],
+    source: ArrayLike,
+    name: str,
+    what: str,
+    *,
+    atol: float = 1e-6,
+    zero_what: str | None = None,
+) -> None:
+    """Raise ``ValueError`` naming ``name`` unless every vector of ``comp (3, ...)`` has unit length.
 
-    Raises ``ValueError`` naming ``name`` unless ``MᵀM = I`` within ``atol`` (``check=False``:
-    shape only).
+    ``source`` is the argument the vectors came from: NaN or infinite values in it are reported
+    as such (‖v‖² is finite everywhere iff its sum is, so one reduction serves both checks).
+    ``what`` completes the message for wrong lengths, ``zero_what`` for zero-length vectors.
     """
-    arr = finite_array(value, name, tail=(3, 3), check=False)
-    M = np.moveaxis(arr, (-2, -1), (0, 1))
-    if not check:
-        return M
-    # one transposing copy makes every row of the check (and the caller's P a) contiguous
-    M = np.ascontiguousarray(M)
-    worst = 0.0
-    for i in range(3):
-        for j in range(i, 3):
-            # (MᵀM)_ij = Σ_k M_ki M_kj
-            g = M[0, i] * M[0, j] + M[1, i] * M[1, j] + M[2, i] * M[2, j]
-            err = float(np.max(np.abs(g - (i == j)), initial=0.0))
-            if not np.isfinite(err):  # a NaN/inf entry (np.max propagates it): name it
-                finite_array(arr, name)
-            worst = max(worst, err)
-    if worst > atol:
-        raise ValueError(f"{name}: must hold rotation matrices (max |MᵀM − I| = {worst:.3g})")
-    return M
+    x, y, z = comp
+    norm2 = x * x + y * y + z * z
+    if not np.isfinite(norm2.sum()):
+        finite_array(source, name)
+    # |‖v‖² − 1| ≈ 2 |‖v‖ − 1|
+    if np.any(np.abs(norm2 - 1.0) > 2.0 * atol):
+        if zero_what is not None and np.any(norm2 == 0.0):
+            raise ValueError(f"{name}: {zero_what}")
+        worst = float(np.max(np.abs(np.sqrt(norm2) - 1.0)))
+        raise ValueError(f"{name}: {what} (max |‖v‖ − 1| = {worst:.3g})")
