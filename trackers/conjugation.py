@@ -47,6 +47,9 @@ trailing axis of length 3 an order of magnitude slower than it multiplies rows.
 
 from __future__ import annotations
 
+import os
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -225,11 +228,16 @@ def _solve_svd(
 
 
 def _pair_closed_form(
-    a: FloatArray, c: FloatArray, b: FloatArray, scale: FloatArray | float, sigma_e: float
+    a: FloatArray,
+    c: FloatArray,
+    b: FloatArray,
+    scale: FloatArray | float,
+    sigma_e: float,
+    out: FloatArray | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """n = 2, order 0 (000 eq. 7–8) via ``AᵀA = [[1, −g], [−g, 1]]``, ``g = a_1·c_2 = cos γ``.
 
-    Returns ``X (2, ...)``, ``J``, ``Q (2, 2, ...)``, ``κ_F``.
+    Returns ``X (2, ...)``, ``J``, ``Q (2, 2, ...)`` (written into ``out`` when given), ``κ_F``.
     """
     g = _dot(a, c)
     p1 = _dot(a, b)  # (Aᵀb)_1 = a_1·b
@@ -247,7 +255,10 @@ def _pair_closed_form(
     qg = q * g
     # κ_F = √(tr AᵀA · tr (AᵀA)⁻¹) = 2/sin γ
     kappa = 2.0 * np.sqrt(inv)
-    return np.stack([r1, r2]), J, np.array([[q, qg], [qg, q]]), kappa
+    Q = np.empty((2, 2, *J.shape)) if out is None else out
+    Q[0, 0] = Q[1, 1] = q
+    Q[0, 1] = Q[1, 0] = qg
+    return np.stack([r1, r2]), J, Q, kappa
 
 
 def _triple_velocity_closed_form(
@@ -312,32 +323,45 @@ def _triple_velocity_closed_form(
     return X, J, Q, kappa
 
 
-def _triple_velocity_chunked(
-    a: FloatArray,
-    c2: FloatArray,
-    c3: FloatArray,
-    b2: FloatArray,
-    b3: FloatArray,
-    d2: FloatArray,
-    d3: FloatArray,
+def _pool() -> ThreadPoolExecutor:
+    """Two worker threads (numpy releases the GIL inside its loops), created on first use."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
+    return _POOL
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _in_chunks(
+    closed_form: Callable[..., tuple[FloatArray, FloatArray, FloatArray, FloatArray]],
+    inputs: tuple[FloatArray, ...],
+    p: int,
     sigma_e: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """:func:`_triple_velocity_closed_form` over cache-sized chunks of a large batch.
+    """An elementwise closed form over cache-sized chunks of a large batch, two chunks at a time.
 
-    The closed form makes a few hundred temporaries; chunked they stay in cache, about twice as
-    fast. Outputs are written straight into full-size component-major arrays.
+    The closed forms make tens to hundreds of temporaries; in chunks of :data:`_CHUNK` they stay
+    in cache, and as numpy releases the GIL two threads use both cores. Each chunk writes its
+    own slice of full-size component-major outputs, so the result does not depend on the
+    threading. ``inputs`` share the batch shape of the last one (component axes lead).
     """
-    shape = d2.shape
-    size = d2.size
-    flat = [x.reshape(*x.shape[: x.ndim - len(shape)], size) for x in (a, c2, c3, b2, b3, d2, d3)]
-    X, J, Q, kappa = np.empty((6, size)), np.empty(size), np.empty((6, 6, size)), np.empty(size)
-    for lo in range(0, size, _CHUNK):
+    shape = inputs[-1].shape
+    size = int(np.prod(shape))
+    flat = [x.reshape(*x.shape[: x.ndim - len(shape)], size) for x in inputs]
+    X, J, Q, kappa = np.empty((p, size)), np.empty(size), np.empty((p, p, size)), np.empty(size)
+
+    def work(lo: int) -> None:
         sl = slice(lo, lo + _CHUNK)
-        Xc, Jc, _, kc = _triple_velocity_closed_form(
-            *(x[..., sl] for x in flat), sigma_e, out=Q[..., sl]
-        )
+        # errstate is per thread: degenerate elements are handled by the fallback
+        with np.errstate(divide="ignore", invalid="ignore"):
+            Xc, Jc, _, kc = closed_form(*(x[..., sl] for x in flat), sigma_e, out=Q[..., sl])
         X[:, sl], J[sl], kappa[sl] = Xc, Jc, kc
-    return X.reshape(6, *shape), J.reshape(shape), Q.reshape(6, 6, *shape), kappa.reshape(shape)
+
+    for _ in _pool().map(work, range(0, size, _CHUNK)):
+        pass
+    return X.reshape(p, *shape), J.reshape(shape), Q.reshape(p, p, *shape), kappa.reshape(shape)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -512,16 +536,22 @@ def solve_conjugation(
 
     with np.errstate(divide="ignore", invalid="ignore"):  # degenerate elements go to the fallback
         if n == 2 and order == 0:
-            scale = 1.0 if w is None else w[..., 0] * w[..., 1]
-            fast = _pair_closed_form(a1c, cc[:, 0], bc[:, 0], scale, sigma_e)
+            scale = np.broadcast_to(1.0 if w is None else w[..., 0] * w[..., 1], batch)
+            inputs = (a1c, cc[:, 0], bc[:, 0], scale)
+            if scale.size > _CHUNK:
+                fast = _in_chunks(_pair_closed_form, inputs, 2, sigma_e)
+            else:
+                fast = _pair_closed_form(*inputs, sigma_e)
             row_w = None if w is None else np.repeat(scale[..., None], 3, axis=-1)
             return _closed_form_result(
                 a1, a1c, 2, 0, fast, (a1, c, b, None, row_w), sigma_e, cond_max
             )
         if n == 3 and order == 1 and w is None:
-            big = int(np.prod(batch)) > _CHUNK
-            solve = _triple_velocity_chunked if big else _triple_velocity_closed_form
-            fast = solve(a1c, cc[:, 0], cc[:, 1], bc[:, 0], bc[:, 1], dtc[0], dtc[1], sigma_e)
+            inputs = (a1c, cc[:, 0], cc[:, 1], bc[:, 0], bc[:, 1], dtc[0], dtc[1])
+            if dtc[0].size > _CHUNK:
+                fast = _in_chunks(_triple_velocity_closed_form, inputs, 6, sigma_e)
+            else:
+                fast = _triple_velocity_closed_form(*inputs, sigma_e)
             return _closed_form_result(a1, a1c, 3, 1, fast, (a1, c, b, dt, None), sigma_e, cond_max)
 
     A, B = build_system(a1, c, b, dt, order)
