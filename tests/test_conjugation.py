@@ -376,3 +376,18 @@ def test_noise_free_pair_recovery_for_any_geometry(az, el, gamma, r1, r2):
     assert not sol.used_pinv
     np.testing.assert_allclose(sol.ranges, [r1, r2], rtol=1e-9, atol=1e-9)
     assert sol.condition == pytest.approx(2.0 / np.sin(gamma), rel=1e-9)
+
+
+def test_large_pair_batch_threaded_chunks_equal_single_solves():
+    """The two-receiver closed form over threaded chunks gives the one-at-a-time results."""
+    rng = np.random.default_rng(9)
+    scene, a, _, _, _ = random_moving_scene(rng, 2, 50_000, order=0)
+    a = a.copy()
+    a[40_001, 1] = scene.rotations[40_001, 1].T @ scene.rotations[40_001, 0] @ a[40_001, 0]
+    inputs = _inputs(scene, a)  # element 40 001 has parallel lines of sight
+    big = solve_conjugation(*inputs[:4])
+    for i in [0, 16_383, 16_384, 40_001, 49_999]:
+        one = solve_conjugation(*(x[i] for x in inputs[:4]))
+        np.testing.assert_allclose(big.ranges[i], one.ranges, rtol=1e-12)
+        np.testing.assert_allclose(big.covariance[i], one.covariance, rtol=1e-12)
+        assert big.used_pinv[i] == one.used_pinv == (i == 40_001)
