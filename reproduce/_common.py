@@ -25,6 +25,22 @@ def add_common_arguments(
         parser.add_argument("--no-plots", action="store_true", help="skip the matplotlib figures")
 
 
+def format_checks(checks: list[dict]) -> list[str]:
+    """The "Targets (SPEC §8)" block: one line per check with the paper's value beside ours.
+
+    Each check is a dict with ``id``, ``status`` (matched / missed / …), ``what``, ``paper``,
+    ``ours`` and ``reason`` (why it was missed, or empty).
+    """
+    lines = ["", "Targets (SPEC §8):"]
+    for ch in checks:
+        tail = f" — {ch['reason']}" if ch["reason"] else ""
+        lines.append(
+            f"  {ch['id']:<6} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, "
+            f"ours {ch['ours']}{tail}"
+        )
+    return lines
+
+
 def write_json(out: Path, filename: str, data: Any) -> Path:
     """Write ``data`` as ``out/filename`` (creating ``out``), print and return the path."""
     out.mkdir(parents=True, exist_ok=True)

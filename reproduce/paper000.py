@@ -39,7 +39,7 @@ from sensorgym.trackers.stereo_tracker000 import (
     track_proposed,
 )
 
-from ._common import add_common_arguments, publish
+from ._common import add_common_arguments, format_checks, publish
 
 HELP = "Paper 000 Tables 1-2: alternative (n=2) vs proposed velocity-aware (n=3) stereo tracking."
 
@@ -331,13 +331,7 @@ def format_report(result: dict) -> str:
                 f" {o['d_avg']:>6.3f}/{o['d_std']:<6.3f} | {p['pr_m']:>10.2f}"
                 f" {o['pr_m']:>6.3f} {o['m_hat_exact']:>6.3f}"
             )
-    lines += ["", "Targets (SPEC §8):"]
-    for ch in result["checks"]:
-        tail = f" — {ch['reason']}" if ch["reason"] else ""
-        lines.append(
-            f"  {ch['id']:<5} {ch['status']:<8} {ch['what']}:"
-            f" paper {ch['paper']}, ours {ch['ours']}{tail}"
-        )
+    lines += format_checks(result["checks"])
     return "\n".join(lines)
 
 

@@ -29,7 +29,7 @@ from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, m
 from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angle_prediction import ABCPredictor
 
-from ._common import add_common_arguments, publish
+from ._common import add_common_arguments, format_checks, publish
 from ._paper001_plots import write_figures
 
 HELP = "Paper 001: azimuth/elevation prediction through target loss (A-B-C vs LS fit vs Kalman)."
@@ -277,13 +277,7 @@ def format_report(result: dict) -> str:
     lines += ["", "Noise-free max |error| over the gate (deg):"]
     for traj, d in result["noise_free_max_error_deg"].items():
         lines.append("  " + traj + ": " + ", ".join(f"{s} {v:.1e}" for s, v in d.items()))
-    lines += ["", "Targets (SPEC §8):"]
-    for ch in result["checks"]:
-        tail = f" — {ch['reason']}" if ch["reason"] else ""
-        lines.append(
-            f"  {ch['id']:<5} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, "
-            f"ours {ch['ours']}{tail}"
-        )
+    lines += format_checks(result["checks"])
     return "\n".join(lines)
 
 

@@ -30,7 +30,7 @@ from dataclasses import asdict
 
 import numpy as np
 
-from ._common import add_common_arguments, publish
+from ._common import add_common_arguments, format_checks, publish
 from ._paper003_experiments import (
     Scenario003,
     algebraic_accuracy,
@@ -289,16 +289,7 @@ def format_report(res: dict) -> str:
             for p, c in zip(PAPER_P[int(N)], res["extension_whitened"][N], strict=True)
         )
         lines.append(f"  {N:>3} | {row}")
-    lines += [
-        "",
-        "Targets (SPEC §8):",
-    ]
-    for ch in res["checks"]:
-        tail = f" — {ch['reason']}" if ch["reason"] else ""
-        lines.append(
-            f"  {ch['id']:<6} {ch['status']:<8} {ch['what']}:"
-            f" paper {ch['paper']}, ours {ch['ours']}{tail}"
-        )
+    lines += format_checks(res["checks"])
     return "\n".join(lines)
 
 

@@ -39,7 +39,7 @@ from sensorgym.trackers.fusion_variance import (
     tracking_error,
 )
 
-from ._common import add_common_arguments, publish
+from ._common import add_common_arguments, format_checks, publish
 from ._paper004_plots import write_figures
 
 HELP = "Paper 004: detection probability, variance recurrence, Fig. 2 and fused tracking."
@@ -410,13 +410,7 @@ def format_report(result: dict) -> str:
             f" {r['tracker_mean_delta']:>10.5f} {r['mc_error_delta']:>10.5f}"
             f" {r['eq11a_delta']:>10.5f} {r['eq11b_delta']:>10.5f}"
         )
-    lines += ["", "Targets (SPEC §8):"]
-    for ch in result["checks"]:
-        tail = f" — {ch['reason']}" if ch["reason"] else ""
-        lines.append(
-            f"  {ch['id']:<6} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, "
-            f"ours {ch['ours']}{tail}"
-        )
+    lines += format_checks(result["checks"])
     return "\n".join(lines)
 
 
