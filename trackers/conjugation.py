@@ -339,6 +339,7 @@ def _in_chunks(
     inputs: tuple[FloatArray, ...],
     p: int,
     sigma_e: float,
+    chunk: int = _CHUNK,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """An elementwise closed form over cache-sized chunks of a large batch, two chunks at a time.
 
@@ -353,13 +354,13 @@ def _in_chunks(
     X, J, Q, kappa = np.empty((p, size)), np.empty(size), np.empty((p, p, size)), np.empty(size)
 
     def work(lo: int) -> None:
-        sl = slice(lo, lo + _CHUNK)
+        sl = slice(lo, lo + chunk)
         # errstate is per thread: degenerate elements are handled by the fallback
         with np.errstate(divide="ignore", invalid="ignore"):
             Xc, Jc, _, kc = closed_form(*(x[..., sl] for x in flat), sigma_e, out=Q[..., sl])
         X[:, sl], J[sl], kappa[sl] = Xc, Jc, kc
 
-    for _ in _pool().map(work, range(0, size, _CHUNK)):
+    for _ in _pool().map(work, range(0, size, chunk)):
         pass
     return X.reshape(p, *shape), J.reshape(shape), Q.reshape(p, p, *shape), kappa.reshape(shape)
 
@@ -539,7 +540,9 @@ def solve_conjugation(
             scale = np.broadcast_to(1.0 if w is None else w[..., 0] * w[..., 1], batch)
             inputs = (a1c, cc[:, 0], bc[:, 0], scale)
             if scale.size > _CHUNK:
-                fast = _in_chunks(_pair_closed_form, inputs, 2, sigma_e)
+                # few temporaries: one half per thread beats cache-sized chunks
+                half = -(-scale.size // 2)
+                fast = _in_chunks(_pair_closed_form, inputs, 2, sigma_e, max(_CHUNK, half))
             else:
                 fast = _pair_closed_form(*inputs, sigma_e)
             row_w = None if w is None else np.repeat(scale[..., None], 3, axis=-1)
