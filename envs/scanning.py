@@ -41,21 +41,25 @@ VISIT_ITERATIONS = 4
 
 @dataclass(frozen=True)
 class ReceiverLayout:
-    """World poses of ``n`` receivers (SPEC §1.1); receiver 0 is the papers' receiver 1."""
+    """World poses of ``n`` receivers (SPEC §1.1); receiver 0 is the papers' receiver 1.
+
+    Leading batch axes are allowed (many layouts at once, e.g. candidate placements).
+    """
 
     rotations: FloatArray = field(repr=False)
-    """(n, 3, 3) local→world rotations ``R_k`` (columns: receiver axes X, Y, Z in world)."""
+    """(..., n, 3, 3) local→world rotations ``R_k`` (columns: receiver axes X, Y, Z in world)."""
     positions: FloatArray = field(repr=False)
-    """(n, 3) world positions ``o_k`` of the receiver frame origins, m."""
+    """(..., n, 3) world positions ``o_k`` of the receiver frame origins, m."""
 
     def __post_init__(self) -> None:
         R = finite_array(self.rotations, "rotations", tail=(3, 3))
         o = finite_array(self.positions, "positions", tail=(3,))
-        if R.ndim != 3 or o.ndim != 2 or R.shape[0] != o.shape[0]:
+        if R.ndim < 3 or R.shape[:-2] != o.shape[:-1]:
             raise ValueError(
-                f"rotations/positions: expected (n, 3, 3) and (n, 3), got {R.shape} and {o.shape}"
+                "rotations/positions: expected (..., n, 3, 3) and (..., n, 3), "
+                f"got {R.shape} and {o.shape}"
             )
-        if R.shape[0] < 1:
+        if R.shape[-3] < 1:
             raise ValueError("rotations: need at least one receiver")
         err = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(3)).max()
         if err > 1e-9 or np.any(np.linalg.det(R) < 0.0):
@@ -66,24 +70,28 @@ class ReceiverLayout:
     @property
     def n(self) -> int:
         """Number of receivers."""
-        return int(self.positions.shape[0])
+        return int(self.positions.shape[-2])
 
     @property
     def relative(self) -> tuple[FloatArray, FloatArray]:
         """``(P, b)``: (n−1, 3, 3) and (n−1, 3) with ``M_1 = P_k M_k + b_k`` (SPEC §1.1)."""
-        return relative_pose(
-            self.rotations[0], self.positions[0], self.rotations[1:], self.positions[1:]
-        )
+        R, o = self.rotations, self.positions
+        return relative_pose(R[..., :1, :, :], o[..., :1, :], R[..., 1:, :, :], o[..., 1:, :])
 
     def to_local(self, points_world: ArrayLike) -> FloatArray:
-        """World points ``(..., n, 3)`` → components in each receiver's own frame."""
+        """World points ``(..., n, 3)`` → components in each receiver's own frame: ``R_kᵀ(p − o_k)``."""
         p = finite_array(points_world, "points_world", tail=(3,))
-        return np.einsum("kji,...kj->...ki", self.rotations, p - self.positions)
+        return np.einsum("...kji,...kj->...ki", self.rotations, p - self.positions)
+
+    def to_frame1(self, points_world: ArrayLike) -> FloatArray:
+        """World points ``(..., 3)`` → frame of receiver 1, where the trackers report: ``R_1ᵀ(p − o_1)``."""
+        p = finite_array(points_world, "points_world", tail=(3,))
+        return (p - self.positions[..., 0, :]) @ self.rotations[..., 0, :, :]
 
     def subset(self, indices: ArrayLike) -> ReceiverLayout:
         """The layout of the receivers ``indices`` (in that order; the first is the reference)."""
         idx = np.asarray(indices, dtype=int)
-        return ReceiverLayout(self.rotations[idx], self.positions[idx])
+        return ReceiverLayout(self.rotations[..., idx, :, :], self.positions[..., idx, :])
 
     @classmethod
     def looking_at(cls, positions: ArrayLike, aim: ArrayLike) -> ReceiverLayout:

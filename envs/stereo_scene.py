@@ -1,6 +1,7 @@
 """Static stereo scenes: receivers at world poses looking at one point (SPEC §1.1, §2.2).
 
-The smallest world the conjugation trackers can watch: ``n`` receivers with local→world
+The smallest world the conjugation trackers can watch: a :class:`~.scanning.ReceiverLayout`
+(the same receiver poses the scanning world uses) of ``n`` receivers with local→world
 rotations ``R_k`` (000/003 frame: ``Y`` up, ``Z`` boresight) and world origins ``o_k``, and a
 point target. It produces what the receivers measure (unit vectors in their own frames) and
 the relative poses ``P_k, b_k`` the trackers need, keeping the truth (ranges, positions)
@@ -15,29 +16,37 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.trackers.geometry import look_at_rotation, relative_pose
+from sensorgym.trackers.geometry import look_at_rotation
 from sensorgym.trackers.validation import finite_array, unit_vectors
+
+from .scanning import ReceiverLayout
 
 FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
 class StereoScene:
-    """``n`` receivers and one point target, batched over leading axes ``...``."""
+    """A receiver layout and one point target, batched over leading axes ``...``."""
 
-    origins: FloatArray
-    """``(..., n, 3)`` receiver positions ``o_k`` in the world frame, metres."""
-    rotations: FloatArray
-    """``(..., n, 3, 3)`` local→world rotations ``R_k`` (columns: receiver axes)."""
+    layout: ReceiverLayout
+    """Receiver world poses ``R_k``, ``o_k`` (``(..., n, 3, 3)``, ``(..., n, 3)``)."""
     target: FloatArray
     """``(..., 3)`` target position in the world frame, metres."""
 
     def __post_init__(self) -> None:
-        finite_array(self.origins, "origins", tail=(3,))
-        finite_array(self.rotations, "rotations", tail=(3, 3))
         finite_array(self.target, "target", tail=(3,))
         if np.any(self.ranges == 0.0):
             raise ValueError("target: coincides with a receiver origin")
+
+    @property
+    def origins(self) -> FloatArray:
+        """``(..., n, 3)`` receiver positions ``o_k`` in the world frame, metres."""
+        return self.layout.positions
+
+    @property
+    def rotations(self) -> FloatArray:
+        """``(..., n, 3, 3)`` local→world rotations ``R_k`` (columns: receiver axes)."""
+        return self.layout.rotations
 
     @property
     def ranges(self) -> FloatArray:
@@ -53,14 +62,13 @@ class StereoScene:
     @property
     def directions(self) -> FloatArray:
         """``(..., n, 3)`` unit vectors ``a_k`` each receiver measures in its own frame."""
-        # a_k = R_kᵀ u_k
-        return np.einsum("...kji,...kj->...ki", self.rotations, self.world_los)
+        local = self.layout.to_local(self.target[..., None, :])
+        return local / np.linalg.norm(local, axis=-1, keepdims=True)
 
     @property
     def relative_poses(self) -> tuple[FloatArray, FloatArray]:
         """``P (..., n−1, 3, 3)`` and ``b (..., n−1, 3)`` of receivers 2..n w.r.t. receiver 1."""
-        R, o = self.rotations, self.origins
-        return relative_pose(R[..., :1, :, :], o[..., :1, :], R[..., 1:, :, :], o[..., 1:, :])
+        return self.layout.relative
 
 
 def receivers_around(
@@ -82,9 +90,8 @@ def receivers_around(
         raise ValueError("ranges: must be positive")
     origins = T[..., None, :] - r[..., None] * d
     aim = T[..., None, :] + finite_array(boresight_offset, "boresight_offset", tail=(3,))
-    return StereoScene(
-        origins, look_at_rotation(origins, aim), np.broadcast_to(T, (*origins.shape[:-2], 3))
-    )
+    layout = ReceiverLayout(look_at_rotation(origins, aim), origins)
+    return StereoScene(layout, np.broadcast_to(T, (*origins.shape[:-2], 3)))
 
 
 def pair_scene(

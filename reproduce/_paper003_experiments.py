@@ -66,10 +66,6 @@ def _close_layout(sc: Scenario003, n: int, aim: tuple) -> ReceiverLayout:
     return ReceiverLayout(R @ yaw, pos)
 
 
-def _frame1(layout: ReceiverLayout, p: np.ndarray) -> np.ndarray:
-    return (p - layout.positions[0]) @ layout.rotations[0]
-
-
 def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, runs: int) -> dict:
     """Mean and median position error of the 6-parameter (with velocity) and 3-parameter
     solves in one period, and of the economical variant (n = 2, N = 2)."""
@@ -101,7 +97,7 @@ def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, 
         if any(f.count != 1 for f in fixes):
             continue
         t1 = fixes[0].times[0]
-        truth = _frame1(layout, traj.position(t1))[0]
+        truth = layout.to_frame1(traj.position(t1))[0]
         for order, store in ((1, err6), (0, err3)):
             sol = algebraic_single(fixes, P, b, order=order)
             store.append(float(np.linalg.norm(sol.position - truth)))
@@ -121,7 +117,7 @@ def algebraic_accuracy(rng: np.random.Generator, sc: Scenario003, variant: int, 
                 t11 = per2[0][0].times[0]
                 err_eco.append(
                     float(
-                        np.linalg.norm(det.positions[0, 0] - _frame1(pair, slow.position(t11))[0])
+                        np.linalg.norm(det.positions[0, 0] - pair.to_frame1(slow.position(t11))[0])
                     )
                 )
     return {
@@ -211,7 +207,7 @@ def algorithmic_cell(
                 found += 1
                 j = lab[0, 0]
                 t = det.times[s, -1]
-                true = _frame1(layout, traj.position(np.full(m, t))[j])
+                true = layout.to_frame1(traj.position(np.full(m, t))[j])
                 errors.append(float(np.linalg.norm(det.positions[s, -1] - true)))
         all_found += found == m
     return {

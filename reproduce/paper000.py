@@ -119,7 +119,7 @@ def run_cell(
         truth = np.stack([traj.position(np.full(m, tk)) for tk in t], axis=1) if det.m_hat else None
         if truth is None:
             continue
-        local = (truth - layout.positions[0]) @ layout.rotations[0]
+        local = layout.to_frame1(truth)
         d = np.linalg.norm(local - pos[None], axis=-1)
         nearest = match_tracks(d, np.inf)
         ok = nearest >= 0

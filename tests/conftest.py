@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sensorgym.envs.scanning import ReceiverLayout
 from sensorgym.envs.stereo_scene import StereoScene
 from sensorgym.trackers.geometry import look_at_rotation
 
@@ -35,4 +36,4 @@ def random_moving_scene(
     u = Mk - o
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
     a = np.einsum("bkji,bkj->bki", R, u)
-    return StereoScene(o, R, T), a, t[:, 1:], V, Vd
+    return StereoScene(ReceiverLayout(R, o), T), a, t[:, 1:], V, Vd

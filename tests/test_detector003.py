@@ -19,10 +19,6 @@ AIM = (0.0, 25.0, 0.0)
 SCAN = RasterScan(30.0, 30.0, 100, 100, 20.0)
 
 
-def _frame1(layout, p):
-    return (p - layout.positions[0]) @ layout.rotations[0]
-
-
 def _labels(det, truth, s):
     N, S = det.members.shape[1:]
     return np.array(
@@ -37,7 +33,7 @@ def test_algebraic_single_noise_free_recovers_position_and_velocity():
     P, b = layout.relative
     sol = algebraic_single(per[0], P, b, order=1)
     t1 = per[0][0].times[0]
-    np.testing.assert_allclose(sol.position, _frame1(layout, traj.position(t1))[0], atol=1e-6)
+    np.testing.assert_allclose(sol.position, layout.to_frame1(traj.position(t1))[0], atol=1e-6)
     np.testing.assert_allclose(sol.velocity, layout.rotations[0].T @ traj.velocity[0], atol=1e-6)
     # weights do not change a square (n = 3) system
     w = algebraic_single(per[0], P, b, order=1, weighted=True)
@@ -83,7 +79,7 @@ def test_economical_two_periods_two_receivers():
         assert np.all(lab == lab[0, 0])
         j = lab[0, 0]
         np.testing.assert_allclose(
-            det.positions[s, 0], _frame1(layout, traj.position(det.times[s, 0]))[j], atol=1e-5
+            det.positions[s, 0], layout.to_frame1(traj.position(det.times[s, 0]))[j], atol=1e-5
         )
 
 
@@ -106,7 +102,7 @@ def test_algorithmic_noise_free_detects_every_object_exactly():
         j = lab[0, 0]
         t = det.times[s, -1]
         np.testing.assert_allclose(
-            det.positions[s, -1], _frame1(layout, traj.position(np.full(3, t))[j]), atol=0.05
+            det.positions[s, -1], layout.to_frame1(traj.position(np.full(3, t))[j]), atol=0.05
         )
 
 

@@ -22,10 +22,6 @@ TRAJ = Trajectories.linear(
 )
 
 
-def _frame1(p):
-    return (p - LAYOUT.positions[0]) @ LAYOUT.rotations[0]
-
-
 def test_proposed_noise_free_recovers_objects_and_association():
     timings = (FixedDelay(0.0), FixedDelay(0.1), FixedDelay(0.2))
     per, truth = simulate(np.random.default_rng(0), TRAJ, LAYOUT, timings, 5, 1.0)
@@ -37,7 +33,9 @@ def test_proposed_noise_free_recovers_objects_and_association():
         labels = {int(truth[i].source[k][det.members[s, i, k]]) for i in range(5) for k in range(3)}
         assert len(labels) == 1
         j = labels.pop()
-        np.testing.assert_allclose(pos[s], _frame1(TRAJ.position(np.full(3, t[s]))[j]), atol=1e-7)
+        np.testing.assert_allclose(
+            pos[s], LAYOUT.to_frame1(TRAJ.position(np.full(3, t[s]))[j]), atol=1e-7
+        )
         np.testing.assert_allclose(vel[s], LAYOUT.rotations[0].T @ TRAJ.velocity[j], atol=1e-7)
 
 
@@ -52,7 +50,9 @@ def test_alternative_noise_free_without_delay_is_exact():
     pos, vel, t = det.latest()
     for s in range(3):
         j = int(truth[-1].source[0][det.members[s, -1, 0]])
-        np.testing.assert_allclose(pos[s], _frame1(TRAJ.position(np.full(3, t[s]))[j]), atol=1e-6)
+        np.testing.assert_allclose(
+            pos[s], LAYOUT.to_frame1(TRAJ.position(np.full(3, t[s]))[j]), atol=1e-6
+        )
         np.testing.assert_allclose(vel[s], LAYOUT.rotations[0].T @ TRAJ.velocity[j], atol=1e-6)
 
 
@@ -67,7 +67,7 @@ def test_alternative_dynamic_error_grows_with_delay():
         )
         det = track_alternative(per, P[0], b[0], AlternativeParams(max_delay=d))
         pos, _, t = det.latest()
-        err.append(np.linalg.norm(pos[0] - _frame1(one.position(t[0]))[0]))
+        err.append(np.linalg.norm(pos[0] - LAYOUT.to_frame1(one.position(t[0]))[0]))
     assert err[1] / err[0] == pytest.approx(2.5, rel=0.15)
 
 
