@@ -13,6 +13,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 
 RESULTS = Path(__file__).parent / "results"
@@ -45,6 +46,7 @@ def machine() -> dict[str, Any]:
     return {
         "python": platform.python_version(),
         "numpy": np.__version__,
+        "numba": numba.__version__,
         "machine": platform.machine(),
         "cpus": os.cpu_count(),
         "load_average_1min": load,

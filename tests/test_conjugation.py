@@ -282,29 +282,55 @@ def test_zero_or_equal_delays_give_finite_flagged_solution(rng, dt):
         assert np.all(np.isfinite(x))
 
 
-def test_bad_inputs_name_the_argument(rng):
-    scene, a, dt, _, _ = random_moving_scene(rng, 3, 2, order=1)
+@pytest.mark.parametrize("n,order", [(2, 0), (3, 1), (4, 1)])  # two kernels, generic SVD
+def test_bad_inputs_name_the_argument(rng, n, order):
+    scene, a, dt, _, _ = random_moving_scene(rng, n, 2, order=order)
     a1, ak, P, b, _ = _inputs(scene, a)
-    with pytest.raises(ValueError, match="a1"):
-        solve_conjugation(np.full_like(a1, np.nan), ak, P, b, dt, order=1)
+    dt = dt if order else None
+
+    def solve(a1=a1, ak=ak, P=P, b=b, dt=dt, **kw):
+        return solve_conjugation(a1, ak, P, b, dt, order=order, **kw)
+
+    with pytest.raises(ValueError, match="a1: contains NaN"):
+        solve(a1=np.full_like(a1, np.nan))
     with pytest.raises(ValueError, match="ak: contains a zero-length"):
-        solve_conjugation(a1, np.zeros_like(ak), P, b, dt, order=1)
+        solve(ak=np.zeros_like(ak))
+    with pytest.raises(ValueError, match="ak: direction vectors must have unit length"):
+        solve(ak=1.01 * ak)
     with pytest.raises(ValueError, match="b: expected shape"):
-        solve_conjugation(a1, ak, P, b[..., :1, :], dt, order=1)
-    with pytest.raises(ValueError, match="dt"):
-        solve_conjugation(a1, ak, P, b, np.full_like(dt, np.inf), order=1)
+        solve(b=b[..., :2])
+    with pytest.raises(ValueError, match="b: contains NaN"):
+        solve(b=np.where(np.arange(3) == 1, np.inf, b))
+    if order:
+        with pytest.raises(ValueError, match="dt: contains NaN"):
+            solve(dt=np.full_like(dt, np.inf))
     bad_P = P.copy()
     bad_P[1, 0, 2, 1] = np.nan
     with pytest.raises(ValueError, match="P: contains NaN"):
-        solve_conjugation(a1, ak, bad_P, b, dt, order=1)
+        solve(P=bad_P)
     with pytest.raises(ValueError, match="P: must hold rotation"):
-        solve_conjugation(a1, ak, 2 * P, b, dt, order=1)
+        solve(P=2 * P)
+    with pytest.raises(ValueError, match="inputs: batch shapes"):
+        solve(a1=np.concatenate([a1, a1, a1]))
     with pytest.raises(ValueError, match="weights"):
-        solve_conjugation(a1, ak, P, b, dt, order=1, weights=np.zeros((2, 3)))
+        solve(weights=np.zeros((2, n)))
     with pytest.raises(ValueError, match="order"):
         solve_conjugation(a1, ak, P, b, dt, order=3)
     with pytest.raises(ValueError, match="sigma_e"):
-        solve_conjugation(a1, ak, P, b, dt, order=1, sigma_e=-1.0)
+        solve(sigma_e=-1.0)
+
+
+@pytest.mark.parametrize("n,order", [(2, 0), (3, 1), (3, 0)])  # two kernels, generic SVD
+def test_unit_length_tolerance_is_the_same_on_every_path(rng, n, order):
+    """|‖v‖ − 1| ≤ 1e-6 passes and 2e-6 fails, for directions and for ‖P_k a_k‖ alike."""
+    scene, a, dt, _, _ = random_moving_scene(rng, n, 3, order=order)
+    a1, ak, P, b, _ = _inputs(scene, a)
+    dt = dt if order else None
+    solve_conjugation((1 + 0.9e-6) * a1, ak, (1 - 0.9e-6) * P, b, dt, order=order)
+    with pytest.raises(ValueError, match="a1: direction vectors must have unit length"):
+        solve_conjugation((1 + 2e-6) * a1, ak, P, b, dt, order=order)
+    with pytest.raises(ValueError, match="P: must hold rotation"):
+        solve_conjugation(a1, ak, (1 - 2e-6) * P, b, dt, order=order)
 
 
 # --- batching -----------------------------------------------------------------------------------
@@ -336,21 +362,53 @@ def test_batch_mixing_degenerate_and_regular_problems(rng):
         np.testing.assert_allclose(batch.ranges[i], one.ranges, rtol=1e-12)
 
 
-def test_large_batch_chunked_path_equals_single_solves():
-    """Batches above the chunk size take the chunked closed form; results are unchanged."""
-    rng = np.random.default_rng(5)
-    scene, a, dt, _, _ = random_moving_scene(rng, 3, 40_000, order=1)
-    dt = dt.copy()
-    dt[123] = [0.2, 0.2]  # one degenerate element inside a later chunk
-    inputs = _inputs(scene, a, dt)
-    big = solve_conjugation(*inputs, order=1)
-    assert big.ranges.shape == (40_000, 3) and big.covariance.shape == (40_000, 6, 6)
-    for i in [0, 123, 32_767, 32_768, 39_999]:
-        one = solve_conjugation(*(x[i] for x in inputs), order=1)
+@pytest.mark.parametrize("n,order", [(2, 0), (3, 1)])
+def test_large_batch_with_a_degenerate_element_equals_single_solves(n, order):
+    """A large batch through a compiled closed form equals one-at-a-time solves; its one
+    degenerate element (parallel lines of sight / equal delays) takes the fallback alone."""
+    rng = np.random.default_rng(5 + n)
+    scene, a, dt, _, _ = random_moving_scene(rng, n, 30_000, order=order)
+    a, dt = a.copy(), dt.copy()
+    bad = 12_345
+    if order:
+        dt[bad] = [0.2, 0.2]
+    else:
+        R = scene.rotations[bad]
+        a[bad, 1] = R[1].T @ R[0] @ a[bad, 0]
+    inputs = _inputs(scene, a, dt if order else None)
+    big = solve_conjugation(*inputs, order=order)
+    p = n + 3 * order
+    assert big.ranges.shape == (30_000, n) and big.covariance.shape == (30_000, p, p)
+    assert np.flatnonzero(big.used_pinv).tolist() == [bad]
+    for i in [0, bad, 29_999]:
+        one = solve_conjugation(*(None if x is None else x[i] for x in inputs), order=order)
         np.testing.assert_allclose(big.ranges[i], one.ranges, rtol=1e-12)
-        np.testing.assert_allclose(big.velocity[i], one.velocity, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(big.position[i], one.position, rtol=1e-12)
         np.testing.assert_allclose(big.covariance[i], one.covariance, rtol=1e-12, atol=1e-15)
-        assert big.used_pinv[i] == one.used_pinv == (i == 123)
+        np.testing.assert_allclose(big.residual[i], one.residual, rtol=1e-9, atol=1e-20)
+
+
+@pytest.mark.parametrize("n,order", [(2, 0), (3, 1), (3, 0)])
+def test_broadcast_inputs_equal_explicitly_repeated_inputs(rng, n, order):
+    """One receiver geometry shared by a (4, 5) batch of measurements, ``P = None`` included."""
+    scene, a, dt, _, _ = random_moving_scene(rng, n, 1, order=order)
+    a1, ak, P, b, _ = _inputs(scene, a)
+    dt = dt[0] if order else None
+    ak_batch = np.broadcast_to(ak[0], (4, 5, n - 1, 3))
+    for P_shared in (P[0], None):
+        shared = solve_conjugation(a1[0], ak_batch, P_shared, b[0], dt, order=order)
+        Pb = None if P_shared is None else np.broadcast_to(P_shared, (4, 5, n - 1, 3, 3))
+        full = solve_conjugation(
+            np.broadcast_to(a1[0], (4, 5, 3)).copy(),
+            ak_batch.copy(),
+            None if Pb is None else Pb.copy(),
+            np.broadcast_to(b[0], (4, 5, n - 1, 3)).copy(),
+            None if dt is None else np.broadcast_to(dt, (4, 5, n - 1)).copy(),
+            order=order,
+        )
+        assert shared.ranges.shape == (4, 5, n) and shared.position.shape == (4, 5, 3)
+        for f in ("ranges", "position", "residual", "covariance", "condition", "used_pinv"):
+            np.testing.assert_array_equal(getattr(shared, f), getattr(full, f))
 
 
 @settings(max_examples=150, deadline=None)
@@ -376,18 +434,3 @@ def test_noise_free_pair_recovery_for_any_geometry(az, el, gamma, r1, r2):
     assert not sol.used_pinv
     np.testing.assert_allclose(sol.ranges, [r1, r2], rtol=1e-9, atol=1e-9)
     assert sol.condition == pytest.approx(2.0 / np.sin(gamma), rel=1e-9)
-
-
-def test_large_pair_batch_threaded_chunks_equal_single_solves():
-    """The two-receiver closed form over threaded chunks gives the one-at-a-time results."""
-    rng = np.random.default_rng(9)
-    scene, a, _, _, _ = random_moving_scene(rng, 2, 50_000, order=0)
-    a = a.copy()
-    a[40_001, 1] = scene.rotations[40_001, 1].T @ scene.rotations[40_001, 0] @ a[40_001, 0]
-    inputs = _inputs(scene, a)  # element 40 001 has parallel lines of sight
-    big = solve_conjugation(*inputs[:4])
-    for i in [0, 16_383, 16_384, 40_001, 49_999]:
-        one = solve_conjugation(*(x[i] for x in inputs[:4]))
-        np.testing.assert_allclose(big.ranges[i], one.ranges, rtol=1e-12)
-        np.testing.assert_allclose(big.covariance[i], one.covariance, rtol=1e-12)
-        assert big.used_pinv[i] == one.used_pinv == (i == 40_001)

@@ -40,22 +40,20 @@ Fast paths. n = 2 order 0 and n = 3 order 1 (the systems of papers 000/003) are 
 closed form: the first by the 2×2 normal equations, the second by eliminating the velocity
 (``Δt_3·block 2 − Δt_2·block 3``), which leaves a 3×3 system in the ranges solved by
 Cramer's rule with triple products. Both agree with the generic SVD path to rounding and
-hand any element whose ``κ_F`` exceeds ``cond_max`` to it. They work on component-major
-arrays (``(3, ...)``: ``u[0], u[1], u[2]`` are contiguous rows), because numpy reduces a
-trailing axis of length 3 an order of magnitude slower than it multiplies rows.
+hand any element whose ``κ_F`` exceeds ``cond_max`` to it. They are compiled kernels
+(:mod:`.conjugation_kernels`) that solve each element in registers with the input checks fused
+in: numpy would spend its time on temporaries and transposing copies of ``(..., 3)`` rows.
 """
 
 from __future__ import annotations
 
-import os
-from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .validation import check_unit_norms, finite_array, unit_vector_components
+from .conjugation_kernels import pair_kernel, triple_velocity_kernel
+from .validation import check_unit_norms, finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -63,9 +61,6 @@ BoolArray = NDArray[np.bool_]
 #: default switch to the pseudo-inverse branch (SPEC §11.2 item 14 suggests 1e6 for κ₂;
 #: κ_F ≤ p κ₂, so 1e7 keeps well-conditioned 6×6 systems off the fallback)
 DEFAULT_COND_MAX = 1e7
-
-#: batch elements per chunk of the n = 3 velocity closed form (cache-sized temporaries)
-_CHUNK = 16384
 
 #: number of unknowns in X beyond the n ranges, per motion order
 _MOTION_UNKNOWNS = {0: 0, 1: 3, 2: 6}
@@ -104,34 +99,6 @@ class ConjugationSolution:
         """``(..., n)`` standard deviations of the ranges, ``√diag(Q)[:n]``, metres."""
         n = self.ranges.shape[-1]
         return np.sqrt(np.diagonal(self.covariance, axis1=-2, axis2=-1)[..., :n])
-
-
-# ---------------------------------------------------------------------------------------------
-# component-major vector algebra: u is (3, ...) with contiguous rows u[0], u[1], u[2]
-
-
-def _dot(u: FloatArray, v: FloatArray) -> FloatArray:
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
-
-
-def _cross(u: FloatArray, v: FloatArray) -> FloatArray:
-    return np.stack(
-        [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
-    )
-
-
-def _rotate(P: FloatArray | None, a: FloatArray) -> FloatArray:
-    """``c_k = P_k a_k`` (frame k → frame 1) for component-major ``P (3, 3, ...)``, ``a (3, ...)``."""
-    if P is None:
-        return a
-    return np.stack([P[i, 0] * a[0] + P[i, 1] * a[1] + P[i, 2] * a[2] for i in range(3)])
-
-
-def _broadcast_components(u: FloatArray, lead: int, batch: tuple[int, ...]) -> FloatArray:
-    """Broadcast ``u (*lead axes, *own batch)`` to ``(*lead axes, *batch)``."""
-    own = u.ndim - lead
-    shape = (*u.shape[:lead], *(1,) * (len(batch) - own), *u.shape[lead:])
-    return np.broadcast_to(u.reshape(shape), (*u.shape[:lead], *batch))
 
 
 def _check_weights(weights: ArrayLike | None, n: int) -> FloatArray | None:
@@ -224,149 +191,25 @@ def _solve_svd(
 
 
 # ---------------------------------------------------------------------------------------------
-# closed forms (component-major inputs)
+# input checks and assembling results
 
 
-def _pair_closed_form(
-    a: FloatArray,
-    c: FloatArray,
-    b: FloatArray,
-    scale: FloatArray | float,
-    sigma_e: float,
-    out: FloatArray | None = None,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """n = 2, order 0 (000 eq. 7–8) via ``AᵀA = [[1, −g], [−g, 1]]``, ``g = a_1·c_2 = cos γ``.
+def _check_inputs(
+    a1: FloatArray, ak: FloatArray, P: FloatArray | None, b: FloatArray, dt: FloatArray | None
+) -> None:
+    """Values checks in argument order: finite, unit directions, ``‖P_k a_k‖ = 1``, finite ``b``, ``dt``.
 
-    Returns ``X (2, ...)``, ``J``, ``Q (2, 2, ...)`` (written into ``out`` when given), ``κ_F``.
+    The solve uses ``P`` only as ``c_k = P_k a_k``, so ``‖P_k a_k‖ = 1`` is exactly what it needs
+    of it; a scaled, sheared or NaN ``P`` fails here (a full ``PᵀP = I`` test costs more).
     """
-    g = _dot(a, c)
-    p1 = _dot(a, b)  # (Aᵀb)_1 = a_1·b
-    p2 = _dot(c, b)  # (Aᵀb)_2 = −c_2·b
-    # 1/det AᵀA = 1/sin²γ
-    inv = 1.0 / (1.0 - g * g)
-    # R̂ = (AᵀA)⁻¹Aᵀb = [[1, g], [g, 1]] (a_1·b, −c_2·b) / sin²γ
-    r1 = (p1 - g * p2) * inv
-    r2 = (g * p1 - p2) * inv
-    # E = r_1 a_1 − r_2 c_2 − b ;  J = w_1 w_2 ‖E‖²   (000 eq. 9)
-    E = r1 * a - r2 * c - b
-    J = _dot(E, E) * scale
-    # Q = σ_e²/(w_1 w_2 sin²γ) [[1, cos γ], [cos γ, 1]]   (000 eq. 12)
-    q = (sigma_e**2 / scale) * inv
-    qg = q * g
-    # κ_F = √(tr AᵀA · tr (AᵀA)⁻¹) = 2/sin γ
-    kappa = 2.0 * np.sqrt(inv)
-    Q = np.empty((2, 2, *J.shape)) if out is None else out
-    Q[0, 0] = Q[1, 1] = q
-    Q[0, 1] = Q[1, 0] = qg
-    return np.stack([r1, r2]), J, Q, kappa
-
-
-def _triple_velocity_closed_form(
-    a: FloatArray,
-    c2: FloatArray,
-    c3: FloatArray,
-    b2: FloatArray,
-    b3: FloatArray,
-    d2: FloatArray,
-    d3: FloatArray,
-    sigma_e: float,
-    out: FloatArray | None = None,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """n = 3, order 1 (000 eq. 10–11, 003 eq. 4): eliminate ``V`` and solve the 3×3 range system.
-
-    ``Δt_3·(block 2) − Δt_2·(block 3)`` removes ``V``:
-    ``r_1 (Δt_3 − Δt_2) a_1 − r_2 Δt_3 c_2 + r_3 Δt_2 c_3 = Δt_3 b_2 − Δt_2 b_3 = d`` (SPEC §2.2),
-    ``M R = d`` solved by Cramer's rule; then ``V̂`` is the least-squares fit of both blocks,
-    ``V̂ = (Δt_2 b_2 + Δt_3 b_3 + G R)/Δ²`` with ``Δ² = Δt_2² + Δt_3²`` and ``G`` the columns
-    ``(−(Δt_2+Δt_3) a_1, Δt_2 c_2, Δt_3 c_3)``. As a map of ``(b_2, b_3)`` this is
-    ``A⁻¹ = [[M⁻¹ [Δt_3 I, −Δt_2 I]], [[Δt_2 I + Δt_3 H, Δt_3 I − Δt_2 H]/Δ²]]``, ``H = G M⁻¹``,
-    whence (by multiplying out) ``Q = σ_e² A⁻¹A⁻ᵀ`` has the blocks
-    ``Q_rr = Δ² M⁻¹M⁻ᵀ``, ``Q_rV = M⁻¹Hᵀ``, ``Q_VV = (I + H Hᵀ)/Δ²`` and
-    ``‖A⁻¹‖_F² = Δ² ‖M⁻¹‖_F² + (3 + ‖H‖_F²)/Δ²``. Returns ``X (6, ...)``, ``J``,
-    ``Q (6, 6, ...)`` (written into ``out`` when given), ``κ_F``.
-    """
-    # columns of M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]
-    u1, u2, u3 = (d3 - d2) * a, -d3 * c2, d2 * c3
-    # rows of M⁻¹ = (u_2×u_3, u_3×u_1, u_1×u_2) / det M   (Cramer), det M = u_1·(u_2×u_3)
-    x23 = _cross(u2, u3)
-    inv_det = 1.0 / _dot(u1, x23)
-    Mi = [x23 * inv_det, _cross(u3, u1) * inv_det, _cross(u1, u2) * inv_det]  # Mi[row][col]
-    # R̂ = M⁻¹ d
-    d = d3 * b2 - d2 * b3
-    r = [_dot(Mi[k], d) for k in range(3)]
-    # V̂ = (Δt_2 (b_2 − r_1 a_1 + r_2 c_2) + Δt_3 (b_3 − r_1 a_1 + r_3 c_3)) / Δ²
-    delta2 = d2 * d2 + d3 * d3
-    V = (d2 * b2 + d3 * b3 - (d2 + d3) * r[0] * a + d2 * r[1] * c2 + d3 * r[2] * c3) / delta2
-    # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = ‖E_2‖² + ‖E_3‖²
-    E2 = r[0] * a - r[1] * c2 + d2 * V - b2
-    E3 = r[0] * a - r[2] * c3 + d3 * V - b3
-    J = _dot(E2, E2) + _dot(E3, E3)
-    # H = G M⁻¹ : H[i][j] = Σ_m G[i][m] M⁻¹[m][j]
-    Gcols = (-(d2 + d3) * a, d2 * c2, d3 * c3)
-    H = [[sum(Gcols[m][i] * Mi[m][j] for m in range(3)) for j in range(3)] for i in range(3)]
-    s2 = sigma_e**2
-    Q = np.empty((6, 6, *J.shape)) if out is None else out
-    for i in range(3):
-        for j in range(3):
-            # Q_rV = M⁻¹ Hᵀ
-            Q[i, 3 + j] = Q[3 + j, i] = s2 * sum(Mi[i][k] * H[j][k] for k in range(3))
-        for j in range(i, 3):
-            # Q_rr = Δ² M⁻¹ M⁻ᵀ ;  Q_VV = (I + H Hᵀ)/Δ²
-            Q[i, j] = Q[j, i] = s2 * delta2 * _dot(Mi[i], Mi[j])
-            hh = sum(H[i][k] * H[j][k] for k in range(3)) + (1.0 if i == j else 0.0)
-            Q[3 + i, 3 + j] = Q[3 + j, 3 + i] = s2 * hh / delta2
-    # κ_F² = ‖A‖_F² ‖A⁻¹‖_F², ‖A‖_F² = 2‖a_1‖² + ‖c_2‖² + ‖c_3‖² + 3Δ²
-    frob_mi = sum(_dot(Mi[k], Mi[k]) for k in range(3))
-    frob_h = sum(H[i][j] ** 2 for i in range(3) for j in range(3))
-    kappa = np.sqrt((4.0 + 3.0 * delta2) * (delta2 * frob_mi + (3.0 + frob_h) / delta2))
-    X = np.stack([r[0], r[1], r[2], V[0], V[1], V[2]])
-    return X, J, Q, kappa
-
-
-def _pool() -> ThreadPoolExecutor:
-    """Two worker threads (numpy releases the GIL inside its loops), created on first use."""
-    global _POOL
-    if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=min(2, os.cpu_count() or 1))
-    return _POOL
-
-
-_POOL: ThreadPoolExecutor | None = None
-
-
-def _in_chunks(
-    closed_form: Callable[..., tuple[FloatArray, FloatArray, FloatArray, FloatArray]],
-    inputs: tuple[FloatArray, ...],
-    p: int,
-    sigma_e: float,
-    chunk: int = _CHUNK,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """An elementwise closed form over cache-sized chunks of a large batch, two chunks at a time.
-
-    The closed forms make tens to hundreds of temporaries; in chunks of :data:`_CHUNK` they stay
-    in cache, and as numpy releases the GIL two threads use both cores. Each chunk writes its
-    own slice of full-size component-major outputs, so the result does not depend on the
-    threading. ``inputs`` share the batch shape of the last one (component axes lead).
-    """
-    shape = inputs[-1].shape
-    size = int(np.prod(shape))
-    flat = [x.reshape(*x.shape[: x.ndim - len(shape)], size) for x in inputs]
-    X, J, Q, kappa = np.empty((p, size)), np.empty(size), np.empty((p, p, size)), np.empty(size)
-
-    def work(lo: int) -> None:
-        sl = slice(lo, lo + chunk)
-        # errstate is per thread: degenerate elements are handled by the fallback
-        with np.errstate(divide="ignore", invalid="ignore"):
-            Xc, Jc, _, kc = closed_form(*(x[..., sl] for x in flat), sigma_e, out=Q[..., sl])
-        X[:, sl], J[sl], kappa[sl] = Xc, Jc, kc
-
-    for _ in _pool().map(work, range(0, size, chunk)):
-        pass
-    return X.reshape(p, *shape), J.reshape(shape), Q.reshape(p, p, *shape), kappa.reshape(shape)
-
-
-# ---------------------------------------------------------------------------------------------
-# assembling results
+    unit_vectors(a1, "a1")
+    unit_vectors(ak, "ak")
+    if P is not None:
+        c = np.moveaxis(np.einsum("...ij,...j->...i", P, ak), -1, 0)
+        check_unit_norms(c, P, "P", "must hold rotation matrices: ‖P_k a_k‖ ≠ 1")
+    finite_array(b, "b")
+    if dt is not None:
+        finite_array(dt, "dt")
 
 
 def _finalise(
@@ -399,40 +242,68 @@ def _finalise(
     )
 
 
-def _closed_form_result(
+def _flat(x: FloatArray, batch: tuple[int, ...], tail: tuple[int, ...]) -> FloatArray:
+    """``x`` broadcast to ``(*batch, *tail)`` as a C-contiguous ``(N, *tail)`` array (no copy if
+    it already is one)."""
+    size = int(np.prod(batch))
+    return np.ascontiguousarray(np.broadcast_to(x, (*batch, *tail)).reshape(size, *tail))
+
+
+def _solve_closed_form(
     a1: FloatArray,
-    a1c: FloatArray,
-    n: int,
+    ak: FloatArray,
+    P: FloatArray | None,
+    b: FloatArray,
+    extra: FloatArray,
+    batch: tuple[int, ...],
     order: int,
-    fast: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
-    system: tuple[FloatArray, FloatArray, FloatArray, FloatArray | None, FloatArray | None],
+    w: FloatArray | None,
     sigma_e: float,
     cond_max: float,
+    check: bool,
 ) -> ConjugationSolution:
-    """Component-major closed-form outputs → result; elements with ``κ_F > cond_max`` re-solved
-    on the generic pseudo-inverse path. ``system = (a1, c, b, dt, row_w)`` in ``(..., 3)`` form."""
-    X, J, Q, kappa = fast
-    shape = np.broadcast_shapes(X.shape[1:], J.shape, kappa.shape)
-    X = np.moveaxis(np.broadcast_to(X, (X.shape[0], *shape)), 0, -1)
-    # Q is one contiguous (p, p, ...) block, returned as a (..., p, p) view: row writes are
-    # fast, strided writes into a batch-first array are not
-    p = Q.shape[0]
-    cov = np.moveaxis(np.broadcast_to(Q, (p, p, *shape)).reshape(p * p, *shape), 0, -1)
-    cov = cov.reshape(*shape, p, p)
-    J, kappa = np.broadcast_to(J, shape), np.broadcast_to(kappa, shape)
+    """The compiled closed form for n = 2 order 0 (``extra = w_1 w_2``) or n = 3 order 1
+    (``extra = Δt``); elements with ``κ_F > cond_max`` re-solved on the generic SVD path."""
+    m = ak.shape[-2]
+    n, p = m + 1, m + 1 + _MOTION_UNKNOWNS[order]
+    kernel = pair_kernel if order == 0 else triple_velocity_kernel
+    eye = np.eye(3)
+    flat = (
+        _flat(a1, batch, (3,)),
+        _flat(ak, batch, (m, 3)),
+        _flat(eye if P is None else P, batch, (m, 3, 3)),
+        _flat(b, batch, (m, 3)),
+        _flat(extra, batch, extra.shape[len(extra.shape) - (order > 0) :]),
+    )
+    size = flat[0].shape[0]
+    X, J, Q = np.empty((size, p)), np.empty(size), np.empty((size, p, p))
+    kappa, position = np.empty(size), np.empty((size, 3))
+    code = kernel(*flat, sigma_e**2, check, 0, size, X, J, Q, kappa, position)
+    if code:
+        _check_inputs(a1, ak, P, b, extra if order > 0 else None)  # raises with the message
+        name = ("a1", "ak", "P", "b", "dt")[code - 1]
+        raise ValueError(f"{name}: failed the input check (non-finite or non-unit values)")
     used = ~(kappa <= cond_max)
     if np.any(used):
-        picked = [
-            None if x is None else np.broadcast_to(x, (*shape, *x.shape[x.ndim - t :]))[used]
-            for x, t in zip(system, (1, 2, 2, 1, 1), strict=True)
-        ]
-        A, B = build_system(*picked[:4], order)
-        fallback = _solve_svd(A, B, picked[4], sigma_e, cond_max)
-        X, J, cov, kappa, used = (np.array(x, copy=True) for x in (X, J, cov, kappa, used))
-        X[used], J[used], cov[used], kappa[used], used[used] = fallback
-    # M̂_1 = r̂_1 a_1 from the contiguous components (a (N, 1) × (N, 3) broadcast is slow)
-    position = np.moveaxis(X[..., 0] * a1c, 0, -1)
-    return _finalise(a1, n, order, X, J, cov, kappa, used, position)
+        a1u, aku, Pu, bu, extra_u = (x[used] for x in flat)
+        c = np.einsum("...ij,...j->...i", Pu, aku)
+        row_w = None if w is None else np.repeat(extra_u[:, None], 3, axis=-1)
+        A, B = build_system(a1u, c, bu, extra_u if order > 0 else None, order)
+        Xu, J[used], Q[used], kappa[used], pinv = _solve_svd(A, B, row_w, sigma_e, cond_max)
+        X[used] = Xu
+        position[used] = Xu[:, :1] * a1u
+        used[used] = pinv
+    return _finalise(
+        a1,
+        n,
+        order,
+        X.reshape(*batch, p),
+        J.reshape(batch),
+        Q.reshape(*batch, p, p),
+        kappa.reshape(batch),
+        used.reshape(batch),
+        position.reshape(*batch, 3),
+    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -475,18 +346,17 @@ def solve_conjugation(
     cond_max
         ``κ_F`` above which the pseudo-inverse fallback runs.
     check_inputs
-        verify finiteness, unit length of directions and orthonormality of ``P`` (shapes are
-        always checked). Pass ``False`` only for arrays known good, e.g. built by the
-        environments; it saves about a third of the time of the closed forms.
+        verify finiteness, unit length of directions and ``‖P_k a_k‖ = 1`` (shapes are always
+        checked). On the compiled closed forms the checks are fused into the solve and cost
+        little; ``False`` is for arrays known good, e.g. built by the environments.
 
     All leading axes broadcast; batched results equal one-at-a-time results.
     """
     if order not in _MOTION_UNKNOWNS:
         raise ValueError(f"order: must be 0, 1 or 2, got {order!r}")
     _check_sigma(sigma_e, cond_max)
-    chk = check_inputs
-    a1, a1c = unit_vector_components(a1, "a1", check=chk)
-    ak, akc = unit_vector_components(ak, "ak", check=chk)
+    a1 = finite_array(a1, "a1", tail=(3,), check=False)
+    ak = finite_array(ak, "ak", tail=(3,), check=False)
     if ak.ndim < 2:
         raise ValueError(f"ak: expected shape (..., n-1, 3), got {ak.shape}")
     m = ak.shape[-2]
@@ -496,67 +366,34 @@ def solve_conjugation(
             f"order {order} needs at least {_MIN_RECEIVERS[order]} receivers "
             f"(3(n−1) equations ≥ n + {_MOTION_UNKNOWNS[order]} unknowns), got n = {n}"
         )
-    # P enters only through c_k = P_k a_k and is checked there (below). With several
-    # receivers their matrices interleave in memory and one transposing copy beats strided
-    # reads of the nine rows; with one receiver the strided view is faster (measured)
-    Pc = None
     if P is not None:
-        P = finite_array(P, "P", tail=(3, 3), check=False)
-        Pc = np.moveaxis(P, (-2, -1), (0, 1))
-        if m > 1:
-            Pc = np.ascontiguousarray(Pc)
-    b = finite_array(b, "b", tail=(m, 3), check=chk)
+        P = finite_array(P, "P", tail=(m, 3, 3), check=False)
+    b = finite_array(b, "b", tail=(m, 3), check=False)
     if order >= 1:
         if dt is None:
             raise ValueError(f"dt: delays are required for motion order {order}")
-        dt = finite_array(dt, "dt", tail=(m,), check=chk)
+        dt = finite_array(dt, "dt", tail=(m,), check=False)
     else:
         dt = None
     w = _check_weights(weights, n)
-    batch = np.broadcast_shapes(a1.shape[:-1], ak.shape[:-2], b.shape[:-2])
-    if Pc is not None:
-        batch = np.broadcast_shapes(batch, Pc.shape[2:-1])
-    if dt is not None:
-        batch = np.broadcast_shapes(batch, dt.shape[:-1])
-        dt = np.broadcast_to(dt, (*batch, m))
-    # component-major with the receiver axis in front of the batch, so that every row used by
-    # the closed forms is contiguous: (3, ...), (3, m, ...), (3, 3, m, ...), (m, ...)
-    a1c = _broadcast_components(a1c, 1, batch)
-    akc = _broadcast_components(np.moveaxis(akc, -1, 1), 2, batch)
-    if Pc is not None:
-        Pc = _broadcast_components(np.moveaxis(Pc, -1, 2), 3, batch)
-    cc = np.ascontiguousarray(_rotate(Pc, akc))  # receivers 2..n in frame 1
-    if chk and Pc is not None:
-        # the solve uses P only as c_k = P_k a_k, so ‖P_k a_k‖ = 1 is exactly what it needs;
-        # a scaled, sheared or NaN P fails here (a full PᵀP = I test costs a third of the solve)
-        check_unit_norms(cc, P, "P", "must hold rotation matrices: ‖P_k a_k‖ ≠ 1")
-    bc = np.ascontiguousarray(_broadcast_components(np.moveaxis(b, (-1, -2), (0, 1)), 2, batch))
-    c = np.moveaxis(cc, (0, 1), (-1, -2))
-    if dt is not None:
-        dtc = np.ascontiguousarray(np.moveaxis(dt, -1, 0))
+    shapes = [a1.shape[:-1], ak.shape[:-2], b.shape[:-2]]
+    shapes += [x.shape[: x.ndim - t] for x, t in ((P, 3), (dt, 1), (w, 1)) if x is not None]
+    try:
+        batch = np.broadcast_shapes(*shapes)
+    except ValueError:
+        raise ValueError(f"inputs: batch shapes {shapes} do not broadcast") from None
 
-    with np.errstate(divide="ignore", invalid="ignore"):  # degenerate elements go to the fallback
-        if n == 2 and order == 0:
-            scale = np.broadcast_to(1.0 if w is None else w[..., 0] * w[..., 1], batch)
-            inputs = (a1c, cc[:, 0], bc[:, 0], scale)
-            if scale.size > _CHUNK:
-                # few temporaries: one half per thread beats cache-sized chunks
-                half = -(-scale.size // 2)
-                fast = _in_chunks(_pair_closed_form, inputs, 2, sigma_e, max(_CHUNK, half))
-            else:
-                fast = _pair_closed_form(*inputs, sigma_e)
-            row_w = None if w is None else np.repeat(scale[..., None], 3, axis=-1)
-            return _closed_form_result(
-                a1, a1c, 2, 0, fast, (a1, c, b, None, row_w), sigma_e, cond_max
-            )
-        if n == 3 and order == 1 and w is None:
-            inputs = (a1c, cc[:, 0], cc[:, 1], bc[:, 0], bc[:, 1], dtc[0], dtc[1])
-            if dtc[0].size > _CHUNK:
-                fast = _in_chunks(_triple_velocity_closed_form, inputs, 6, sigma_e)
-            else:
-                fast = _triple_velocity_closed_form(*inputs, sigma_e)
-            return _closed_form_result(a1, a1c, 3, 1, fast, (a1, c, b, dt, None), sigma_e, cond_max)
+    if n == 2 and order == 0:
+        scale = 1.0 if w is None else w[..., 0] * w[..., 1]
+        return _solve_closed_form(
+            a1, ak, P, b, np.asarray(scale), batch, 0, w, sigma_e, cond_max, check_inputs
+        )
+    if n == 3 and order == 1 and w is None:
+        return _solve_closed_form(a1, ak, P, b, dt, batch, 1, None, sigma_e, cond_max, check_inputs)
 
+    if check_inputs:
+        _check_inputs(a1, ak, P, b, dt)
+    c = ak if P is None else np.einsum("...ij,...j->...i", P, ak)  # receivers 2..n in frame 1
     A, B = build_system(a1, c, b, dt, order)
     X, J, cov, kappa, used = _solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
     return _finalise(a1, n, order, X, J, cov, kappa, used)

@@ -1,0 +1,257 @@
+"""Compiled closed forms of the two conjugation systems the papers solve (SPEC §2.2).
+
+n = 2 order 0 (000 eq. 7–9, 12) and n = 3 order 1 (000 eq. 10–11, 003 eq. 4) are solved
+element by element in registers by numba kernels: no temporaries, no transposing copies, the
+input checks fused into the same pass. Each kernel works on a half-open range ``[lo, hi)`` of a
+flat batch and releases the GIL (callers may run parts of a batch on their own threads). At
+batch 1e5 on one core of the 2-core reference machine they solve about 38 M two-receiver and
+13 M three-receiver velocity problems per second (``benchmarks/triangulation.py``).
+
+The system, its weighting and ``κ_F`` are defined in :mod:`.conjugation`, whose generic SVD solver
+is the reference both kernels are tested against. A kernel returns 0, or the
+1-based index of the first argument (in call order) whose input check failed; the caller then
+re-runs the ordinary validators on that argument for the message. Degenerate geometry is not an
+input error: it gives ``κ_F = inf`` or NaN there and the caller re-solves those elements on the
+pseudo-inverse path.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+#: tolerance on unit length (|‖v‖² − 1| ≤ 2·atol ≈ |‖v‖ − 1| ≤ atol), as in ``validation``
+UNIT_ATOL = 1e-6
+
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+
+@njit(inline="always")
+def _dot(u, v):
+    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+
+
+@njit(inline="always")
+def _cross(u, v):
+    return (u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0])
+
+
+@njit(inline="always")
+def _vec(x, i):
+    """Row ``x[i]`` of an ``(N, 3)`` array as a register tuple."""
+    return (x[i, 0], x[i, 1], x[i, 2])
+
+
+@njit(inline="always")
+def _rotate(P, i, k, a):
+    """``c_k = P_k a_k`` (frame k → frame 1) for ``P (N, m, 3, 3)``."""
+    return (
+        P[i, k, 0, 0] * a[0] + P[i, k, 0, 1] * a[1] + P[i, k, 0, 2] * a[2],
+        P[i, k, 1, 0] * a[0] + P[i, k, 1, 1] * a[1] + P[i, k, 1, 2] * a[2],
+        P[i, k, 2, 0] * a[0] + P[i, k, 2, 1] * a[1] + P[i, k, 2, 2] * a[2],
+    )
+
+
+@njit(inline="always")
+def _not_unit(u):
+    """True unless ``u`` is finite with ``|‖u‖² − 1| ≤ 2·atol`` (NaN fails every comparison)."""
+    return not (abs(_dot(u, u) - 1.0) <= 2.0 * UNIT_ATOL)
+
+
+@njit(inline="always")
+def _not_finite(u):
+    return not (np.isfinite(u[0]) and np.isfinite(u[1]) and np.isfinite(u[2]))
+
+
+@njit(**_JIT)
+def pair_kernel(
+    a1: Array,
+    a2: Array,
+    P: Array,
+    b: Array,
+    scale: Array,
+    sigma2: float,
+    check: bool,
+    lo: int,
+    hi: int,
+    X: Array,
+    J: Array,
+    Q: Array,
+    kappa: Array,
+    position: Array,
+) -> int:
+    """n = 2, order 0 for elements ``lo..hi−1``.
+
+    Inputs ``a1 (N, 3)``, ``a2 (N, 1, 3)``, ``P (N, 1, 3, 3)``, ``b (N, 1, 3)``, ``scale (N,)``
+    ``= w_1 w_2``; outputs ``X (N, 2)``, ``J (N,)``, ``Q (N, 2, 2)``, ``κ_F (N,)``,
+    ``M̂_1 (N, 3)``. With ``AᵀA = [[1, −g], [−g, 1]]``, ``g = a_1·c_2 = cos γ``.
+    """
+    for i in range(lo, hi):
+        a = _vec(a1, i)
+        c = _rotate(P, i, 0, (a2[i, 0, 0], a2[i, 0, 1], a2[i, 0, 2]))
+        bb = (b[i, 0, 0], b[i, 0, 1], b[i, 0, 2])
+        if check:
+            if _not_unit(a):
+                return 1
+            if _not_unit((a2[i, 0, 0], a2[i, 0, 1], a2[i, 0, 2])):
+                return 2
+            if _not_unit(c):  # ‖P_k a_k‖ = 1 is all the solve needs of P
+                return 3
+            if _not_finite(bb):
+                return 4
+        g = _dot(a, c)
+        p1 = _dot(a, bb)  # (Aᵀb)_1 = a_1·b
+        p2 = _dot(c, bb)  # (Aᵀb)_2 = −c_2·b
+        # 1/det AᵀA = 1/sin²γ
+        inv = 1.0 / (1.0 - g * g)
+        # R̂ = (AᵀA)⁻¹Aᵀb = [[1, g], [g, 1]] (a_1·b, −c_2·b) / sin²γ
+        r1 = (p1 - g * p2) * inv
+        r2 = (g * p1 - p2) * inv
+        # E = r_1 a_1 − r_2 c_2 − b ;  J = w_1 w_2 ‖E‖²   (000 eq. 9)
+        e = (
+            r1 * a[0] - r2 * c[0] - bb[0],
+            r1 * a[1] - r2 * c[1] - bb[1],
+            r1 * a[2] - r2 * c[2] - bb[2],
+        )
+        J[i] = _dot(e, e) * scale[i]
+        # Q = σ_e²/(w_1 w_2 sin²γ) [[1, cos γ], [cos γ, 1]]   (000 eq. 12)
+        q = sigma2 / scale[i] * inv
+        Q[i, 0, 0] = Q[i, 1, 1] = q
+        Q[i, 0, 1] = Q[i, 1, 0] = q * g
+        # κ_F = √(tr AᵀA · tr (AᵀA)⁻¹) = 2/sin γ
+        kappa[i] = 2.0 * np.sqrt(inv)
+        X[i, 0], X[i, 1] = r1, r2
+        position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
+    return 0
+
+
+@njit(**_JIT)
+def triple_velocity_kernel(
+    a1: Array,
+    ak: Array,
+    P: Array,
+    b: Array,
+    dt: Array,
+    sigma2: float,
+    check: bool,
+    lo: int,
+    hi: int,
+    X: Array,
+    J: Array,
+    Q: Array,
+    kappa: Array,
+    position: Array,
+) -> int:
+    """n = 3, order 1 for elements ``lo..hi−1``: velocity eliminated, Cramer on the ranges.
+
+    Inputs ``a1 (N, 3)``, ``ak (N, 2, 3)``, ``P (N, 2, 3, 3)``, ``b (N, 2, 3)``, ``dt (N, 2)``;
+    outputs ``X (N, 6)``, ``J (N,)``, ``Q (N, 6, 6)``, ``κ_F (N,)``, ``M̂_1 (N, 3)``.
+
+    ``Δt_3·(block 2) − Δt_2·(block 3)`` removes ``V``:
+    ``r_1 (Δt_3 − Δt_2) a_1 − r_2 Δt_3 c_2 + r_3 Δt_2 c_3 = Δt_3 b_2 − Δt_2 b_3 = d`` (SPEC §2.2),
+    ``M R = d`` solved by Cramer's rule; then ``V̂`` is the least-squares fit of both blocks,
+    ``V̂ = (Δt_2 b_2 + Δt_3 b_3 + G R)/Δ²`` with ``Δ² = Δt_2² + Δt_3²`` and ``G`` the columns
+    ``(−(Δt_2+Δt_3) a_1, Δt_2 c_2, Δt_3 c_3)``. As a map of ``(b_2, b_3)`` this is
+    ``A⁻¹ = [[M⁻¹ [Δt_3 I, −Δt_2 I]], [[Δt_2 I + Δt_3 H, Δt_3 I − Δt_2 H]/Δ²]]``, ``H = G M⁻¹``,
+    whence (by multiplying out) ``Q = σ_e² A⁻¹A⁻ᵀ`` has the blocks
+    ``Q_rr = Δ² M⁻¹M⁻ᵀ``, ``Q_rV = M⁻¹Hᵀ``, ``Q_VV = (I + H Hᵀ)/Δ²`` and
+    ``‖A⁻¹‖_F² = Δ² ‖M⁻¹‖_F² + (3 + ‖H‖_F²)/Δ²``.
+    """
+    for i in range(lo, hi):
+        a = _vec(a1, i)
+        x2 = (ak[i, 0, 0], ak[i, 0, 1], ak[i, 0, 2])
+        x3 = (ak[i, 1, 0], ak[i, 1, 1], ak[i, 1, 2])
+        c2 = _rotate(P, i, 0, x2)
+        c3 = _rotate(P, i, 1, x3)
+        b2 = (b[i, 0, 0], b[i, 0, 1], b[i, 0, 2])
+        b3 = (b[i, 1, 0], b[i, 1, 1], b[i, 1, 2])
+        d2, d3 = dt[i, 0], dt[i, 1]
+        if check:
+            if _not_unit(a):
+                return 1
+            if _not_unit(x2) or _not_unit(x3):
+                return 2
+            if _not_unit(c2) or _not_unit(c3):
+                return 3
+            if _not_finite(b2) or _not_finite(b3):
+                return 4
+            if not (np.isfinite(d2) and np.isfinite(d3)):
+                return 5
+        # Δt_3·(block 2) − Δt_2·(block 3):  M R = d,  M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]
+        u1 = ((d3 - d2) * a[0], (d3 - d2) * a[1], (d3 - d2) * a[2])
+        u2 = (-d3 * c2[0], -d3 * c2[1], -d3 * c2[2])
+        u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
+        # rows of M⁻¹ = (u_2×u_3, u_3×u_1, u_1×u_2) / det M   (Cramer), det M = u_1·(u_2×u_3)
+        x23 = _cross(u2, u3)
+        inv_det = 1.0 / _dot(u1, x23)
+        x31 = _cross(u3, u1)
+        x12 = _cross(u1, u2)
+        Mi = (
+            (x23[0] * inv_det, x23[1] * inv_det, x23[2] * inv_det),
+            (x31[0] * inv_det, x31[1] * inv_det, x31[2] * inv_det),
+            (x12[0] * inv_det, x12[1] * inv_det, x12[2] * inv_det),
+        )
+        # R̂ = M⁻¹ d,  d = Δt_3 b_2 − Δt_2 b_3
+        d = (d3 * b2[0] - d2 * b3[0], d3 * b2[1] - d2 * b3[1], d3 * b2[2] - d2 * b3[2])
+        r1, r2, r3 = _dot(Mi[0], d), _dot(Mi[1], d), _dot(Mi[2], d)
+        # V̂ = (Δt_2 (b_2 − r_1 a_1 + r_2 c_2) + Δt_3 (b_3 − r_1 a_1 + r_3 c_3)) / Δ²
+        delta2 = d2 * d2 + d3 * d3
+        # G columns (−(Δt_2+Δt_3) a_1, Δt_2 c_2, Δt_3 c_3), so V̂ = (Δt_2 b_2 + Δt_3 b_3 + G R̂)/Δ²
+        g1 = (-(d2 + d3) * a[0], -(d2 + d3) * a[1], -(d2 + d3) * a[2])
+        g2 = (d2 * c2[0], d2 * c2[1], d2 * c2[2])
+        g3 = (d3 * c3[0], d3 * c3[1], d3 * c3[2])
+        V = (
+            (d2 * b2[0] + d3 * b3[0] + g1[0] * r1 + g2[0] * r2 + g3[0] * r3) / delta2,
+            (d2 * b2[1] + d3 * b3[1] + g1[1] * r1 + g2[1] * r2 + g3[1] * r3) / delta2,
+            (d2 * b2[2] + d3 * b3[2] + g1[2] * r1 + g2[2] * r2 + g3[2] * r3) / delta2,
+        )
+        # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = ‖E_2‖² + ‖E_3‖²
+        J2 = 0.0
+        J3 = 0.0
+        for j in range(3):
+            e2 = r1 * a[j] - r2 * c2[j] + d2 * V[j] - b2[j]
+            e3 = r1 * a[j] - r3 * c3[j] + d3 * V[j] - b3[j]
+            J2 += e2 * e2
+            J3 += e3 * e3
+        J[i] = J2 + J3
+        # H = G M⁻¹ :  H[j][k] = Σ_m G[j][m] M⁻¹[m][k]
+        H = (
+            (
+                g1[0] * Mi[0][0] + g2[0] * Mi[1][0] + g3[0] * Mi[2][0],
+                g1[0] * Mi[0][1] + g2[0] * Mi[1][1] + g3[0] * Mi[2][1],
+                g1[0] * Mi[0][2] + g2[0] * Mi[1][2] + g3[0] * Mi[2][2],
+            ),
+            (
+                g1[1] * Mi[0][0] + g2[1] * Mi[1][0] + g3[1] * Mi[2][0],
+                g1[1] * Mi[0][1] + g2[1] * Mi[1][1] + g3[1] * Mi[2][1],
+                g1[1] * Mi[0][2] + g2[1] * Mi[1][2] + g3[1] * Mi[2][2],
+            ),
+            (
+                g1[2] * Mi[0][0] + g2[2] * Mi[1][0] + g3[2] * Mi[2][0],
+                g1[2] * Mi[0][1] + g2[2] * Mi[1][1] + g3[2] * Mi[2][1],
+                g1[2] * Mi[0][2] + g2[2] * Mi[1][2] + g3[2] * Mi[2][2],
+            ),
+        )
+        frob_mi = 0.0
+        frob_h = 0.0
+        for j in range(3):
+            frob_mi += _dot(Mi[j], Mi[j])
+            frob_h += _dot(H[j], H[j])
+            for k in range(3):
+                # Q_rV = M⁻¹ Hᵀ
+                Q[i, j, 3 + k] = Q[i, 3 + k, j] = sigma2 * _dot(Mi[j], H[k])
+            for k in range(j, 3):
+                # Q_rr = Δ² M⁻¹ M⁻ᵀ ;  Q_VV = (I + H Hᵀ)/Δ²
+                Q[i, j, k] = Q[i, k, j] = sigma2 * delta2 * _dot(Mi[j], Mi[k])
+                hh = _dot(H[j], H[k]) + (1.0 if j == k else 0.0)
+                Q[i, 3 + j, 3 + k] = Q[i, 3 + k, 3 + j] = sigma2 * hh / delta2
+        # κ_F² = ‖A‖_F² ‖A⁻¹‖_F²,  ‖A‖_F² = 2‖a_1‖² + ‖c_2‖² + ‖c_3‖² + 3Δ² ,
+        # ‖A⁻¹‖_F² = Δ² ‖M⁻¹‖_F² + (3 + ‖H‖_F²)/Δ²
+        kappa[i] = np.sqrt((4.0 + 3.0 * delta2) * (delta2 * frob_mi + (3.0 + frob_h) / delta2))
+        X[i, 0], X[i, 1], X[i, 2] = r1, r2, r3
+        X[i, 3], X[i, 4], X[i, 5] = V[0], V[1], V[2]
+        position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
+    return 0
