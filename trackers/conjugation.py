@@ -47,6 +47,7 @@ in: numpy would spend its time on temporaries and transposing copies of ``(..., 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,6 +62,9 @@ BoolArray = NDArray[np.bool_]
 #: default switch to the pseudo-inverse branch (SPEC §11.2 item 14 suggests 1e6 for κ₂;
 #: κ_F ≤ p κ₂, so 1e7 keeps well-conditioned 6×6 systems off the fallback)
 DEFAULT_COND_MAX = 1e7
+
+_EYE = np.eye(3)
+_EYE.flags.writeable = False
 
 #: number of unknowns in X beyond the n ranges, per motion order
 _MOTION_UNKNOWNS = {0: 0, 1: 3, 2: 6}
@@ -225,14 +229,15 @@ def _finalise(
 ) -> ConjugationSolution:
     # every field carries the full batch shape, even where it depends on a broadcast input only
     shape = np.broadcast_shapes(X.shape[:-1], J.shape, cov.shape[:-2], kappa.shape, used_pinv.shape)
-    X = np.broadcast_to(X, (*shape, X.shape[-1]))
-    J, kappa, used_pinv = (np.broadcast_to(x, shape) for x in (J, kappa, used_pinv))
-    cov = np.broadcast_to(cov, (*shape, *cov.shape[-2:]))
-    a1 = np.broadcast_to(a1, (*shape, 3))
+    X = _broadcast(X, (*shape, X.shape[-1]))
+    J, kappa, used_pinv = (_broadcast(x, shape) for x in (J, kappa, used_pinv))
+    cov = _broadcast(cov, (*shape, *cov.shape[-2:]))
     ranges = X[..., :n]
+    if position is None:
+        position = ranges[..., :1] * _broadcast(a1, (*shape, 3))
     return ConjugationSolution(
         ranges=ranges,
-        position=ranges[..., :1] * a1 if position is None else position,
+        position=position,
         velocity=X[..., n : n + 3] if order >= 1 else None,
         acceleration=X[..., n + 3 : n + 6] if order >= 2 else None,
         residual=J,
@@ -242,11 +247,16 @@ def _finalise(
     )
 
 
+def _broadcast(x: FloatArray, shape: tuple[int, ...]) -> FloatArray:
+    """``np.broadcast_to`` without its cost (several µs) where ``x`` already has the shape."""
+    return x if x.shape == shape else np.broadcast_to(x, shape)
+
+
 def _flat(x: FloatArray, batch: tuple[int, ...], tail: tuple[int, ...]) -> FloatArray:
     """``x`` broadcast to ``(*batch, *tail)`` as a C-contiguous ``(N, *tail)`` array (no copy if
     it already is one)."""
-    size = int(np.prod(batch))
-    return np.ascontiguousarray(np.broadcast_to(x, (*batch, *tail)).reshape(size, *tail))
+    x = _broadcast(x, (*batch, *tail)).reshape(math.prod(batch), *tail)
+    return x if x.flags.c_contiguous else np.ascontiguousarray(x)
 
 
 def _solve_closed_form(
@@ -267,11 +277,10 @@ def _solve_closed_form(
     m = ak.shape[-2]
     n, p = m + 1, m + 1 + _MOTION_UNKNOWNS[order]
     kernel = pair_kernel if order == 0 else triple_velocity_kernel
-    eye = np.eye(3)
     flat = (
         _flat(a1, batch, (3,)),
         _flat(ak, batch, (m, 3)),
-        _flat(eye if P is None else P, batch, (m, 3, 3)),
+        _flat(_EYE if P is None else P, batch, (m, 3, 3)),
         _flat(b, batch, (m, 3)),
         _flat(extra, batch, extra.shape[len(extra.shape) - (order > 0) :]),
     )
@@ -284,7 +293,7 @@ def _solve_closed_form(
         name = ("a1", "ak", "P", "b", "dt")[code - 1]
         raise ValueError(f"{name}: failed the input check (non-finite or non-unit values)")
     used = ~(kappa <= cond_max)
-    if np.any(used):
+    if used.any():
         a1u, aku, Pu, bu, extra_u = (x[used] for x in flat)
         c = np.einsum("...ij,...j->...i", Pu, aku)
         row_w = None if w is None else np.repeat(extra_u[:, None], 3, axis=-1)
