@@ -434,3 +434,15 @@ def test_noise_free_pair_recovery_for_any_geometry(az, el, gamma, r1, r2):
     assert not sol.used_pinv
     np.testing.assert_allclose(sol.ranges, [r1, r2], rtol=1e-9, atol=1e-9)
     assert sol.condition == pytest.approx(2.0 / np.sin(gamma), rel=1e-9)
+
+
+@pytest.mark.parametrize("n,order", [(2, 0), (3, 1), (4, 1)])
+def test_unchecked_nan_direction_is_still_named(rng, n, order):
+    """``check_inputs=False`` skips the checks, but a NaN direction (which makes the element
+    degenerate) is reported by name instead of failing inside the SVD."""
+    scene, a, dt, _, _ = random_moving_scene(rng, n, 3, order=order)
+    a1, ak, P, b, _ = _inputs(scene, a)
+    a1 = a1.copy()
+    a1[1] = np.nan
+    with pytest.raises(ValueError, match="a1: contains NaN"):
+        solve_conjugation(a1, ak, P, b, dt if order else None, order=order, check_inputs=False)

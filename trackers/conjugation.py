@@ -295,6 +295,8 @@ def _solve_closed_form(
     used = ~(kappa <= cond_max)
     if used.any():
         a1u, aku, Pu, bu, extra_u = (x[used] for x in flat)
+        if not check:  # few elements: an unchecked NaN lands here, so name it rather than
+            _check_inputs(a1u, aku, Pu, bu, extra_u if order > 0 else None)  # crash in the SVD
         c = np.einsum("...ij,...j->...i", Pu, aku)
         row_w = None if w is None else np.repeat(extra_u[:, None], 3, axis=-1)
         A, B = build_system(a1u, c, bu, extra_u if order > 0 else None, order)
@@ -357,7 +359,9 @@ def solve_conjugation(
     check_inputs
         verify finiteness, unit length of directions and ``‖P_k a_k‖ = 1`` (shapes are always
         checked). On the compiled closed forms the checks are fused into the solve and cost
-        little; ``False`` is for arrays known good, e.g. built by the environments.
+        little; ``False`` is for arrays known good, e.g. built by the environments (like
+        scipy's ``check_finite=False``: a NaN that reaches the SVD is still reported by name,
+        one that reaches only ``b`` comes out as NaN).
 
     All leading axes broadcast; batched results equal one-at-a-time results.
     """
@@ -404,7 +408,11 @@ def solve_conjugation(
         _check_inputs(a1, ak, P, b, dt)
     c = ak if P is None else np.einsum("...ij,...j->...i", P, ak)  # receivers 2..n in frame 1
     A, B = build_system(a1, c, b, dt, order)
-    X, J, cov, kappa, used = _solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
+    try:
+        X, J, cov, kappa, used = _solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
+    except np.linalg.LinAlgError:
+        _check_inputs(a1, ak, P, b, dt)  # an unchecked NaN or inf: raise naming the argument
+        raise
     return _finalise(a1, n, order, X, J, cov, kappa, used)
 
 
