@@ -1,1 +1,22 @@
-"""Simulated worlds and the Gymnasium / PettingZoo environments built on them."""
+"""Simulated worlds and the Gymnasium / PettingZoo environments built on them.
+
+Importing this package registers the environments with Gymnasium (``gym.make`` also imports it
+itself when given ``"sensorgym.envs:ID"``). Episode lengths live here, not in the envs.
+"""
+
+from gymnasium.envs.registration import register, registry
+
+_ENVS = [
+    {
+        "id": "sensorgym/BearingsManeuver-v0",
+        "entry_point": "sensorgym.envs.bearings_maneuver:BearingsManeuverEnv",
+        "vector_entry_point": "sensorgym.envs.bearings_maneuver:BearingsManeuverVectorEnv",
+        "max_episode_steps": 30,
+    },
+]
+
+for _spec in _ENVS:
+    if _spec["id"] not in registry:
+        register(**_spec)
+
+ENV_IDS = [spec["id"] for spec in _ENVS]
