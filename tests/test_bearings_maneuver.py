@@ -249,7 +249,13 @@ def test_greedy_rule_steers_across_the_line_of_sight():
 
 
 def test_coming_too_close_terminates_with_the_penalty():
-    params = ManeuverParams(initial_range=(600.0, 600.0), min_range=1_000.0, close_penalty=5.0)
+    params = ManeuverParams(
+        initial_range=(600.0, 600.0),
+        target_speed=(0.0, 0.0),
+        initial_platform_speed=0.0,
+        min_range=1_000.0,
+        close_penalty=5.0,
+    )
     state = core.reset(params, np.random.default_rng(10), 3)
     new, reward, terminated = core.step(params, state, np.zeros((3, 2)), np.random.default_rng(11))
     assert terminated.all()
