@@ -16,6 +16,8 @@ from importlib.metadata import version
 COMMANDS: dict[str, str] = {
     "triangulate-demo": "sensorgym.cli.triangulate_demo",
     "reproduce": "sensorgym.cli.reproduce",
+    "benchmark": "sensorgym.cli.benchmark",
+    "train": "sensorgym.cli.train",
 }
 
 #: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments

@@ -161,10 +161,12 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
     """``num_envs`` independent :class:`BearingsManeuverEnv` scenarios in one batched core.
 
     Same spaces, rewards and episode ends as the single env (its docstring is the spec);
-    truncation after ``max_episode_steps`` is done here. Autoreset is ``NEXT_STEP``
-    (Gymnasium's default): the step after an episode ends returns the first observation of the
-    next one, with reward 0 and both flags False. With ``num_envs=1`` and one seed it produces
-    exactly the single env's episodes.
+    truncation after ``max_episode_steps`` is done here. ``autoreset_mode``: ``NEXT_STEP``
+    (Gymnasium's default) — the step after an episode ends returns the first observation of
+    the next one, with reward 0 and both flags False; with ``num_envs=1`` and one seed it
+    produces exactly the single env's episodes. ``SAME_STEP`` — an ending scenario restarts
+    within the step (its last observation in ``infos["final_obs"]``), as SB3 expects
+    (:class:`sensorgym.train.sb3_vec_env.SB3VecEnv`).
     """
 
     metadata: ClassVar[dict[str, Any]] = {
@@ -178,6 +180,7 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         params: ManeuverParams | None = None,
         max_episode_steps: int | None = 30,
         render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
     ):
         if num_envs < 1:
             raise ValueError(f"num_envs: must be >= 1, got {num_envs}")
@@ -185,6 +188,10 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
             raise ValueError("render_mode: the vector env does not render (use the single env)")
         if max_episode_steps is not None and max_episode_steps < 1:
             raise ValueError(f"max_episode_steps: must be >= 1 or None, got {max_episode_steps}")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if self.autoreset_mode is AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode: NEXT_STEP or SAME_STEP (DISABLED is not supported)")
+        self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs = num_envs
         self.params = ManeuverParams() if params is None else params
         self.max_episode_steps = max_episode_steps
@@ -194,7 +201,7 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._state: ManeuverState | None = None
         self._steps = np.zeros(num_envs, dtype=np.int64)
-        self._done = np.zeros(num_envs, dtype=bool)
+        self._done = np.zeros(num_envs, dtype=bool)  # NEXT_STEP: ended on the last step
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
@@ -211,26 +218,57 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         if self._state is None:
             raise RuntimeError("step: call reset() first")
         a = _action(actions, (self.num_envs, 2))
-        done, state = self._done, self._state
+        if self.autoreset_mode is AutoresetMode.SAME_STEP:
+            return self._step_same(a)
+        return self._step_next(a)
+
+    def _restart(self, done: NDArray[np.bool_], state: ManeuverState) -> ManeuverState:
+        """Fresh scenarios where ``done``; when all restart, the tracker clock restarts too."""
+        if done.all():
+            return core.reset(self.params, self.np_random, self.num_envs)
+        fresh = core.reset(self.params, self.np_random, self.num_envs, t=state.bank.t)
+        return core.where(done, fresh, state)
+
+    def _truncated(self) -> NDArray[np.bool_]:
+        if self.max_episode_steps is None:
+            return np.zeros(self.num_envs, dtype=bool)
+        return self._steps >= self.max_episode_steps
+
+    def _step_next(self, a: FloatArray) -> tuple:
+        """NEXT_STEP: scenarios that ended last step restart now (reward 0, flags down)."""
+        done = self._done
         reward = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         if done.all():
-            # every scenario restarts: the tracker clock may restart too
-            new = core.reset(self.params, self.np_random, self.num_envs)
+            new = self._restart(done, self._state)
         else:
-            new, reward, terminated = core.step(self.params, state, a, self.np_random)
+            new, reward, terminated = core.step(self.params, self._state, a, self.np_random)
             if done.any():
-                fresh = core.reset(self.params, self.np_random, self.num_envs, t=new.bank.t)
-                new = core.where(done, fresh, new)
+                new = self._restart(done, new)
                 reward = np.where(done, 0.0, reward)
                 terminated = terminated & ~done
         self._steps = np.where(done, 0, self._steps + 1)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        if self.max_episode_steps is not None:
-            # as the TimeLimit wrapper of the single env: both flags may be set on one step
-            truncated = (self._steps >= self.max_episode_steps) & ~done
+        # as the TimeLimit wrapper of the single env: both flags may be set on one step
+        truncated = self._truncated() & ~done
         self._state, self._done = new, terminated | truncated
         return core.observe(self.params, new), reward, terminated, truncated, self._infos(new)
+
+    def _step_same(self, a: FloatArray) -> tuple:
+        """SAME_STEP: scenarios that end now restart at once; their last observation and info
+        go to ``infos["final_obs"]`` ``(num_envs, 10)`` and ``infos["final_info"]`` (valid
+        where the masks ``"_final_obs"``/``"_final_info"`` are True) — what SB3's VecEnv needs."""
+        new, reward, terminated = core.step(self.params, self._state, a, self.np_random)
+        self._steps = self._steps + 1
+        truncated = self._truncated()
+        done = terminated | truncated
+        obs, infos = core.observe(self.params, new), self._infos(new)
+        if done.any():
+            final = {"final_obs": obs, "_final_obs": done, "final_info": infos, "_final_info": done}
+            new = self._restart(done, new)
+            self._steps = np.where(done, 0, self._steps)
+            obs, infos = core.observe(self.params, new), {**self._infos(new), **final}
+        self._state = new
+        return obs, reward, terminated, truncated, infos
 
     def _infos(self, state: ManeuverState) -> dict[str, Any]:
         # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them

@@ -54,3 +54,6 @@ def test_wheel_contains_only_sensorgym(tmp_path):
                 continue
             rel = p.relative_to(ROOT / d).as_posix()
             assert f"sensorgym/{d}/{rel}" in names, f"{d}/{rel} missing from the wheel"
+    # package data: the training hyperparameters
+    for p in (ROOT / "train" / "hyperparams").glob("*.yml"):
+        assert f"sensorgym/train/hyperparams/{p.name}" in names, f"{p.name} missing from the wheel"

@@ -1,0 +1,54 @@
+"""``sensorgym train``: SB3 training on a registered env's native vector env.
+
+Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--timesteps`` and
+``--n-envs`` override them. The run folder gets ``model.zip``, the resolved ``config.yaml`` and
+``evaluation.json`` (the trained policy beside the heuristic rules, same seed and scenarios);
+``sensorgym benchmark --model RUN_FOLDER`` scores it again later.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+HELP = "Train an SB3 policy (PPO or SAC) on an environment and score it beside the rules."
+
+DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
+    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
+    parser.add_argument("--timesteps", type=int, default=None, help="override the YAML's")
+    parser.add_argument("--n-envs", type=int, default=None, help="override the YAML's")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--eval-episodes", type=int, default=64)
+    parser.add_argument("--out", type=Path, default=Path("results/train"))
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from rich.console import Console
+    from rich.table import Table
+
+    from sensorgym.train.trainer import train
+
+    result = train(
+        args.env,
+        args.algo,
+        seed=args.seed,
+        timesteps=args.timesteps,
+        n_envs=args.n_envs,
+        out=args.out,
+        eval_episodes=args.eval_episodes,
+        progress=not args.no_progress,
+    )
+    table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
+    for column in ("policy", "mean", "±95 %"):
+        table.add_column(column, justify="left" if column == "policy" else "right")
+    for name, r in sorted(result.evaluation.items(), key=lambda kv: -kv[1]["mean"]):
+        table.add_row(name, f"{r['mean']:.3f}", f"{r['ci95']:.3f}")
+    console = Console()
+    console.print(table)
+    console.print(f"saved {result.run_dir}")
+    return 0

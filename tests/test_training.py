@@ -1,0 +1,109 @@
+"""SB3 on the native vector envs: the adapter, YAML hyperparameters, train / benchmark commands."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from sensorgym.agents.maneuver_rules import StraightCourse
+from sensorgym.cli.main import main
+from sensorgym.envs.bearings_maneuver import BearingsManeuverVectorEnv
+from sensorgym.train.config import load_hyperparams, split_run_settings
+from sensorgym.train.evaluation import evaluate, make_sb3_env
+from sensorgym.train.models import load_model, read_config
+from sensorgym.train.sb3_vec_env import SB3VecEnv
+from sensorgym.train.trainer import train
+
+ENV_ID = "sensorgym/BearingsManeuver-v0"
+
+
+def test_same_step_autoreset_is_next_step_shifted_by_one():
+    """SAME_STEP returns at the ending step what NEXT_STEP returns one step later, and keeps the
+    ending observation in ``final_obs``."""
+    same = BearingsManeuverVectorEnv(2, max_episode_steps=3, autoreset_mode="SameStep")
+    nxt = BearingsManeuverVectorEnv(2, max_episode_steps=3)
+    o_s, _ = same.reset(seed=2)
+    o_n, _ = nxt.reset(seed=2)
+    a = np.full((2, 2), 0.5)
+    for _ in range(2):
+        o_s, r_s, *_ = same.step(a)
+        o_n, r_n, *_ = nxt.step(a)
+        np.testing.assert_array_equal(o_s, o_n)
+        np.testing.assert_array_equal(r_s, r_n)
+    o_s, r_s, term_s, trunc_s, info_s = same.step(a)
+    o_n, r_n, _, trunc_n, _ = nxt.step(a)
+    np.testing.assert_array_equal(r_s, r_n)
+    assert trunc_s.all() and trunc_n.all() and not term_s.any()
+    np.testing.assert_array_equal(info_s["final_obs"], o_n)  # the ending observation
+    assert info_s["_final_obs"].all()
+    o_n, *_ = nxt.step(a)  # NEXT_STEP restarts now
+    np.testing.assert_array_equal(o_s, o_n)
+
+
+def test_sb3_adapter_reports_terminal_observations_and_time_limits():
+    venv = SB3VecEnv(BearingsManeuverVectorEnv(3, max_episode_steps=4, autoreset_mode="SameStep"))
+    venv.seed(5)
+    venv.reset()
+    for _ in range(4):
+        obs, reward, dones, infos = venv.step(np.zeros((3, 2), dtype=np.float32))
+        assert obs.shape == (3, 10) and reward.dtype == np.float32
+        assert all(isinstance(i["range"], float) for i in infos)
+    assert dones.all()
+    for info in infos:
+        assert info["TimeLimit.truncated"] is True
+        assert info["terminal_observation"].shape == (10,)
+    with pytest.raises(ValueError, match="SAME_STEP"):
+        SB3VecEnv(BearingsManeuverVectorEnv(2))
+
+
+def test_evaluation_is_seeded_and_ranks_rules():
+    env = make_sb3_env(ENV_ID, 4, seed=0)
+    a = evaluate(StraightCourse(), env, 8, seed=3)
+    b = evaluate(StraightCourse(), env, 8, seed=3)
+    assert a == b and a.episodes == 8 and a.mean_length == 30.0
+
+
+def test_hyperparameters_come_from_yaml():
+    hp = load_hyperparams("ppo", ENV_ID)
+    run, kwargs = split_run_settings(hp)
+    assert run["policy"] == "MlpPolicy" and isinstance(run["n_timesteps"], int)
+    assert isinstance(kwargs["learning_rate"], float) and kwargs["policy_kwargs"]["net_arch"]
+    assert load_hyperparams("sac", ENV_ID)["policy"] == "MlpPolicy"
+    with pytest.raises(KeyError, match="known"):
+        load_hyperparams("ppo", "sensorgym/Nothing-v0")
+    with pytest.raises(KeyError, match="algo"):
+        load_hyperparams("dqn", ENV_ID)
+
+
+def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
+    result = train(
+        ENV_ID, "ppo", seed=1, timesteps=2048, out=tmp_path, eval_episodes=8, progress=False
+    )
+    assert (result.run_dir / "model.zip").is_file()
+    config = read_config(result.run_dir)
+    assert config["env"] == ENV_ID and config["hyperparams"]["n_timesteps"] == 2048
+    evaluation = json.loads((result.run_dir / "evaluation.json").read_text())["results"]
+    assert {"trained", "straight-course", "paper002", "greedy-information"} <= set(evaluation)
+    model = load_model(result.run_dir)
+    obs = np.random.default_rng(0).uniform(-1, 1, (5, 10)).astype(np.float32)
+    again = load_model(result.run_dir / "model.zip")
+    action = model.predict(obs, deterministic=True)[0]
+    np.testing.assert_array_equal(action, again.predict(obs, deterministic=True)[0])
+    assert np.all(np.abs(action) <= 1.0)
+
+
+def test_benchmark_command_scores_every_rule(tmp_path, capsys):
+    assert main(["benchmark", "--episodes", "8", "--n-envs", "4", "--out", str(tmp_path)]) == 0
+    doc = json.loads((tmp_path / "sensorgym__BearingsManeuver-v0.json").read_text())
+    results = doc["results"]
+    assert set(results) == {"straight-course", "paper002", "greedy-information"}
+    assert results["greedy-information"]["mean"] > results["straight-course"]["mean"]
+    assert "greedy-information" in capsys.readouterr().out
+
+
+def test_autoreset_mode_is_validated():
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        BearingsManeuverVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)

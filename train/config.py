@@ -1,0 +1,43 @@
+"""Training configuration: algorithms and per-env hyperparameters from YAML.
+
+Hyperparameters live in ``hyperparams/<algo>.yml`` keyed by env id (the rl-baselines3-zoo
+layout) and are read with ``yaml.safe_load`` — values are data, never code. ``n_envs``,
+``n_timesteps`` and ``policy`` are run settings; every other key goes to the algorithm.
+"""
+
+from __future__ import annotations
+
+from importlib.resources import files
+from typing import Any
+
+import yaml
+from stable_baselines3 import PPO, SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
+
+#: algorithm name -> SB3 class (both handle the continuous Box actions of our envs)
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
+
+#: keys of a hyperparameter set that configure the run, not the algorithm
+RUN_KEYS = ("n_envs", "n_timesteps", "policy")
+
+
+def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
+    """The hyperparameter set of ``algo`` for ``env_id``; ``KeyError`` lists what exists."""
+    if algo not in ALGORITHMS:
+        raise KeyError(f"algo: {algo!r} is not one of {sorted(ALGORITHMS)}")
+    text = files("sensorgym.train").joinpath("hyperparams", f"{algo}.yml").read_text()
+    table = yaml.safe_load(text) or {}
+    if env_id not in table:
+        raise KeyError(f"no {algo} hyperparameters for {env_id!r}; known: {sorted(table)}")
+    hp = dict(table[env_id])
+    missing = [k for k in RUN_KEYS if k not in hp]
+    if missing:
+        raise KeyError(f"{algo}.yml, {env_id}: missing {missing}")
+    return hp
+
+
+def split_run_settings(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``(run settings, algorithm keyword arguments)`` of a hyperparameter set."""
+    run = {k: hp[k] for k in RUN_KEYS}
+    algo_kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    return run, algo_kwargs

@@ -1,0 +1,116 @@
+"""Train an SB3 algorithm on a registered env's native vector env, save it, score it.
+
+The run folder (:mod:`.models`) gets the model, the resolved configuration and an evaluation of
+the trained policy beside every heuristic rule registered for the env, all on one seed and the
+same evaluation scenarios (a seed disjoint from training's).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from dataclasses import dataclass
+from importlib.metadata import version
+from pathlib import Path
+from typing import Any
+
+import yaml
+from rich.progress import Progress
+from stable_baselines3.common.callbacks import BaseCallback
+
+from sensorgym.agents.registry import RULES, rules_for
+
+from .config import ALGORITHMS, load_hyperparams, split_run_settings
+from .evaluation import env_params, evaluate, make_sb3_env
+from .models import CONFIG_FILE, MODEL_FILE
+
+#: evaluation scenarios come from this offset of the training seed
+EVAL_SEED_OFFSET = 10_000
+
+
+class RichProgress(BaseCallback):
+    """Advances a ``rich`` progress task by the transitions collected (one per env per step)."""
+
+    def __init__(self, progress: Progress, task: Any):
+        super().__init__()
+        self.progress, self.task = progress, task
+
+    def _on_step(self) -> bool:
+        self.progress.update(self.task, completed=self.num_timesteps)
+        return True
+
+
+@dataclass(frozen=True)
+class TrainResult:
+    """Where a run was saved and how its policy scored."""
+
+    run_dir: Path
+    """The run folder (model, config, evaluation)."""
+    evaluation: dict[str, dict[str, float]]
+    """Policy name → episode-return statistics (``"trained"`` and every rule)."""
+
+
+def run_dir_for(out: Path, env_id: str, algo: str, seed: int) -> Path:
+    """``out/<env id with / as __>/<algo>_seed<seed>``."""
+    return Path(out) / env_id.replace("/", "__") / f"{algo}_seed{seed}"
+
+
+def train(
+    env_id: str,
+    algo: str = "ppo",
+    *,
+    seed: int = 0,
+    timesteps: int | None = None,
+    n_envs: int | None = None,
+    out: Path = Path("results/train"),
+    eval_episodes: int = 64,
+    progress: bool = True,
+) -> TrainResult:
+    """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
+    override them), save the run and evaluate it beside the rules."""
+    hp = load_hyperparams(algo, env_id)
+    if timesteps is not None:
+        hp["n_timesteps"] = timesteps
+    if n_envs is not None:
+        hp["n_envs"] = n_envs
+    run, algo_kwargs = split_run_settings(hp)
+    if run["n_timesteps"] < 1 or run["n_envs"] < 1:
+        raise ValueError(f"timesteps and n_envs must be >= 1, got {run}")
+    env = make_sb3_env(env_id, run["n_envs"], seed)
+    model = ALGORITHMS[algo](run["policy"], env, seed=seed, device="cpu", verbose=0, **algo_kwargs)
+    with Progress(disable=not progress) as bar:
+        task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
+        model.learn(run["n_timesteps"], callback=RichProgress(bar, task))
+    env.close()
+
+    run_dir = run_dir_for(out, env_id, algo, seed)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    model.save(run_dir / MODEL_FILE)
+    config = {
+        "env": env_id,
+        "algo": algo,
+        "seed": seed,
+        "hyperparams": hp,
+        "versions": {
+            "sensorgym": version("sensorgym"),
+            "stable_baselines3": version("stable-baselines3"),
+            "torch": version("torch"),
+            "python": platform.python_version(),
+        },
+    }
+    (run_dir / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
+
+    n_eval = min(16, eval_episodes)
+    eval_env = make_sb3_env(env_id, n_eval, seed + EVAL_SEED_OFFSET)
+    eval_seed = seed + EVAL_SEED_OFFSET
+    policies: dict[str, Any] = {"trained": model}
+    if env_id in RULES:
+        policies.update(rules_for(env_id, env_params(eval_env)))
+    evaluation = {
+        name: evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
+        for name, policy in policies.items()
+    }
+    eval_env.close()
+    doc = {"episodes": eval_episodes, "seed": eval_seed, "results": evaluation}
+    (run_dir / "evaluation.json").write_text(json.dumps(doc, indent=2) + "\n")
+    return TrainResult(run_dir, evaluation)
