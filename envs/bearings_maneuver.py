@@ -36,13 +36,22 @@ def _action(action: Any, shape: tuple[int, ...]) -> FloatArray:
     return a
 
 
+def _one_platform(params: ManeuverParams) -> ManeuverParams:
+    if params.platforms != 1:
+        raise ValueError(
+            f"params.platforms: the Gymnasium envs fly one platform, got {params.platforms} "
+            "(use the PettingZoo env, sensorgym.envs.bearings_maneuver_pz, for several)"
+        )
+    return params
+
+
 def _info(params: ManeuverParams, state: ManeuverState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy)."""
     est = state.estimate
     return {
-        "range": state.world.range,
+        "range": state.range.min(axis=1),
         "bound": state.accuracy,
-        "position_error": np.hypot(*(est.position - state.world.target[:, :2]).T),
+        "position_error": np.hypot(*(est.position - state.target[:, :2]).T),
         "tracker_t": np.full(state.batch_size, state.bank.t),
     }
 
@@ -110,7 +119,7 @@ class BearingsManeuverEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
 
     def __init__(self, params: ManeuverParams | None = None, render_mode: str | None = None):
-        self.params = ManeuverParams() if params is None else params
+        self.params = _one_platform(ManeuverParams() if params is None else params)
         if render_mode not in (None, *self.metadata["render_modes"]):
             raise ValueError(
                 f"render_mode: one of {self.metadata['render_modes']}, got {render_mode!r}"
@@ -126,7 +135,7 @@ class BearingsManeuverEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         super().reset(seed=seed)
         self._state = core.reset(self.params, self.np_random, 1)
         self._history = [self._state]
-        return core.observe(self.params, self._state)[0], self._single_info()
+        return core.observe(self.params, self._state)[0, 0], self._single_info()
 
     def step(
         self, action: NDArray[np.float32]
@@ -140,7 +149,7 @@ class BearingsManeuverEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         if self.render_mode is not None:
             self._history.append(self._state)
         # truncation=False: the time limit is the TimeLimit wrapper added by gym.make
-        obs = core.observe(self.params, self._state)[0]
+        obs = core.observe(self.params, self._state)[0, 0]
         return obs, float(reward[0]), bool(terminated[0]), False, self._single_info()
 
     def _single_info(self) -> dict[str, Any]:
@@ -193,7 +202,7 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
             raise ValueError("autoreset_mode: NEXT_STEP or SAME_STEP (DISABLED is not supported)")
         self.metadata = {**self.metadata, "autoreset_mode": self.autoreset_mode}
         self.num_envs = num_envs
-        self.params = ManeuverParams() if params is None else params
+        self.params = _one_platform(ManeuverParams() if params is None else params)
         self.max_episode_steps = max_episode_steps
         self.render_mode = render_mode
         self.single_observation_space, self.single_action_space = _spaces()
@@ -210,7 +219,7 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         self._state = core.reset(self.params, self.np_random, self.num_envs)
         self._steps[:] = 0
         self._done[:] = False
-        return core.observe(self.params, self._state), self._infos(self._state)
+        return self._observe(self._state), self._infos(self._state)
 
     def step(
         self, actions: NDArray[np.float32]
@@ -251,7 +260,7 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         # as the TimeLimit wrapper of the single env: both flags may be set on one step
         truncated = self._truncated() & ~done
         self._state, self._done = new, terminated | truncated
-        return core.observe(self.params, new), reward, terminated, truncated, self._infos(new)
+        return self._observe(new), reward, terminated, truncated, self._infos(new)
 
     def _step_same(self, a: FloatArray) -> tuple:
         """SAME_STEP: scenarios that end now restart at once; their last observation and info
@@ -261,14 +270,17 @@ class BearingsManeuverVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float3
         self._steps = self._steps + 1
         truncated = self._truncated()
         done = terminated | truncated
-        obs, infos = core.observe(self.params, new), self._infos(new)
+        obs, infos = self._observe(new), self._infos(new)
         if done.any():
             final = {"final_obs": obs, "_final_obs": done, "final_info": infos, "_final_info": done}
             new = self._restart(done, new)
             self._steps = np.where(done, 0, self._steps)
-            obs, infos = core.observe(self.params, new), {**self._infos(new), **final}
+            obs, infos = self._observe(new), {**self._infos(new), **final}
         self._state = new
         return obs, reward, terminated, truncated, infos
+
+    def _observe(self, state: ManeuverState) -> NDArray[np.float32]:
+        return core.observe(self.params, state)[:, 0]
 
     def _infos(self, state: ManeuverState) -> dict[str, Any]:
         # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them

@@ -27,6 +27,11 @@ One step (``params.world.dt`` seconds):
 
 Without a manoeuvre range is unobservable (SPEC §4, §7 OC-5): a platform that keeps a
 straight course collects almost no reward after the first bearings.
+
+Several platforms (``params.platforms = K``, each an agent of the PettingZoo env) all take a
+bearing every step; the tracker fuses them (sequential updates) and the bound adds their
+information, so cross-bearings make range observable even without manoeuvres. Arrays of
+platform quantities carry an axis ``K`` after the batch axis; ``K = 1`` is the Gymnasium env.
 """
 
 from __future__ import annotations
@@ -53,14 +58,13 @@ from sensorgym.trackers.bearings_filter import (
 from sensorgym.trackers.bearings_models import BearingsGaussian
 from sensorgym.trackers.validation import finite_array
 
-from . import platform_world as world
-from .platform_world import PlatformWorldParams, PlatformWorldState
+from .platform_world import PlatformWorldParams, fly, noisy_bearings, propagate_target
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 Metric = Literal["position", "relative_range"]
 
-#: observation length (see :func:`observe`)
+#: observation length of a lone platform (see :func:`observe`; + 2 per other platform)
 OBS_DIM = 10
 #: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]`` (a diverged filter stays finite)
 OBS_CLIP = 10.0
@@ -78,6 +82,10 @@ class ManeuverParams:
     """Target speed, drawn uniformly (m/s); course uniform over all directions."""
     initial_platform_speed: float = 5.0
     """Platform speed at the start (m/s); its heading is drawn uniformly."""
+    platforms: int = 1
+    """Number of platforms ``K`` taking bearings on the one target (agents in PettingZoo)."""
+    formation_radius: float = 2_000.0
+    """Platforms 2..K start uniformly within this distance of platform 1 (at the origin), m."""
     bank_ranges: tuple[float, float] = (2_000.0, 40_000.0)
     """Range span (m) covered by the filter bank's members (the prior's range support)."""
     bank_members: int = 8
@@ -108,6 +116,12 @@ class ManeuverParams:
         b_lo, b_hi = self.bank_ranges
         if not (np.isfinite(b_hi) and 0.0 < b_lo < b_hi):
             raise ValueError(f"bank_ranges: need 0 < low < high, got {self.bank_ranges}")
+        if self.platforms < 1:
+            raise ValueError(f"platforms: must be >= 1, got {self.platforms}")
+        if not (np.isfinite(self.formation_radius) and self.formation_radius >= 0.0):
+            raise ValueError(
+                f"formation_radius: must be finite and >= 0, got {self.formation_radius}"
+            )
         if self.bank_members < 1:
             raise ValueError(f"bank_members: must be >= 1, got {self.bank_members}")
         if not (self.prior_speed[0] >= 0.0 and self.prior_speed[1] > 0.0):
@@ -127,6 +141,11 @@ class ManeuverParams:
         return self.initial_range[1]
 
     @property
+    def obs_dim(self) -> int:
+        """Observation length per platform: ``OBS_DIM + 2 (K − 1)``."""
+        return OBS_DIM + 2 * (self.platforms - 1)
+
+    @property
     def speed_scale(self) -> float:
         """Speed (m/s) that normalises observed velocities: platform plus target top speed."""
         return self.world.max_speed + self.target_speed[1]
@@ -134,24 +153,43 @@ class ManeuverParams:
 
 @dataclass(frozen=True)
 class ManeuverState:
-    """Batched episode state: the world, the tracker and the bound (leading axis ``B``)."""
+    """Batched episode state: platforms, target, tracker and bound (leading axis ``B``)."""
 
-    world: PlatformWorldState
-    """Platform and true target."""
+    t: FloatArray
+    """Time since the scenario began ``(B,)`` (s)."""
+    platform_position: FloatArray
+    """Platform positions ``(B, K, 2)``, East and North (m)."""
+    heading: FloatArray
+    """Platform headings ``(B, K)`` from North clockwise (rad)."""
+    speed: FloatArray
+    """Platform speeds ``(B, K)`` (m/s)."""
+    target: FloatArray
+    """True target state ``(B, 4)``: East, North (m), velocity (m/s)."""
     bank: RangeBankState
-    """The tracker the agent sees through: range-parameterised EKF bank, batch ``(B, N)``.
+    """The tracker the agents see through: range-parameterised EKF bank, batch ``(B, N)``.
     All scenarios share its clock ``bank.t`` (the dynamics are time-invariant)."""
     information: FloatArray
     """Posterior Fisher information ``J`` ``(B, 4, 4)`` about the true state, now."""
     accuracy: FloatArray
     """``m(J⁻¹)`` ``(B,)``: the bound the reward measures (m, or dimensionless)."""
     bearing: FloatArray
-    """Last measured absolute bearing ``(B,)`` (rad, from North clockwise)."""
+    """Last measured absolute bearings ``(B, K)`` (rad, from North clockwise)."""
 
     @property
     def batch_size(self) -> int:
         """Number of scenarios ``B``."""
-        return self.world.batch_size
+        return self.platform_position.shape[0]
+
+    @property
+    def platform_velocity(self) -> FloatArray:
+        """Platform velocities ``v (sin ψ, cos ψ)`` ``(B, K, 2)`` (m/s)."""
+        return self.speed[..., None] * np.stack([np.sin(self.heading), np.cos(self.heading)], -1)
+
+    @property
+    def range(self) -> FloatArray:
+        """Platform–target ranges ``(B, K)`` (m)."""
+        d = self.target[:, None, :2] - self.platform_position
+        return np.hypot(d[..., 0], d[..., 1])
 
     @property
     def estimate(self) -> BearingsGaussian:
@@ -159,11 +197,23 @@ class ManeuverState:
         return self.bank.estimate()
 
 
-def _accuracy(params: ManeuverParams, J: FloatArray, w: PlatformWorldState) -> FloatArray:
+def _accuracy(
+    params: ManeuverParams, J: FloatArray, target: FloatArray, origin: FloatArray
+) -> FloatArray:
+    """``m(J⁻¹)``; the relative range bound is taken from ``origin`` ``(B, 2)`` (platform 1)."""
     P = crlb(J)
     if params.metric == "position":
         return position_rms_bound(P)
-    return relative_range_bound(P, w.target[:, :2], w.platform_position)
+    return relative_range_bound(P, target[:, :2], origin)
+
+
+def _fuse(
+    bank: RangeBankState, z: FloatArray, positions: FloatArray, sigma: float, first: int = 0
+) -> RangeBankState:
+    """Sequential bank updates with the bearings ``z (B, K)`` of platforms ``first..K−1``."""
+    for k in range(first, z.shape[1]):
+        bank = range_bank_update(bank, z[:, k], positions[:, k], sigma)
+    return bank
 
 
 def reset(
@@ -176,9 +226,9 @@ def reset(
     """
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
-    w = params.world
+    w, K = params.world, params.platforms
     # scenario draws, in a fixed order so that a seed fixes every scenario
-    heading = rng.uniform(-np.pi, np.pi, batch)
+    heading = rng.uniform(-np.pi, np.pi, (batch, K))
     r0 = rng.uniform(*params.initial_range, batch)
     beta0 = rng.uniform(-np.pi, np.pi, batch)
     v_t = rng.uniform(*params.target_speed, batch)
@@ -192,63 +242,81 @@ def reset(
         ],
         axis=-1,
     )
-    state = PlatformWorldState(
-        t=np.zeros(batch),
-        platform_position=np.zeros((batch, 2)),
-        heading=heading,
-        speed=np.full(batch, params.initial_platform_speed),
-        target=target,
-    )
-    z = world.measure_bearings(state, w, rng)
-    # prior from the first bearing (Ristic §6.3.1): course uniform over the half plane
-    # heading towards the platform
+    positions = np.zeros((batch, K, 2))
+    if K > 1:  # uniform over the disc around platform 1
+        rho = params.formation_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, K - 1)))
+        phi = rng.uniform(-np.pi, np.pi, (batch, K - 1))
+        positions[:, 1:] = np.stack([rho * np.sin(phi), rho * np.cos(phi)], -1)
+    z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
+    # prior from platform 1's first bearing (Ristic §6.3.1): course uniform over the half plane
+    # heading towards it; the other platforms' first bearings update it
     bank = range_bank_prior(
-        z,
+        z[:, 0],
         w.sigma_bearing,
-        state.platform_position,
+        positions[:, 0],
         t,
         range_min=params.bank_ranges[0],
         range_max=params.bank_ranges[1],
         n_members=params.bank_members,
         speed_mean=params.prior_speed[0],
         speed_sigma=params.prior_speed[1],
-        course_mean=z + np.pi,
+        course_mean=z[:, 0] + np.pi,
         course_sigma=np.pi / np.sqrt(12.0),
         course_distribution="uniform",
     )
-    # J_0 = P_prior⁻¹: the prior already conditions on the first bearing (its position
-    # covariance carries the bearing spread σ), so the bound starts from what the tracker knows
+    # J_0 = P_prior⁻¹ + Σ_{k≥2} I_k(x_0): the prior already conditions on platform 1's first
+    # bearing (its position covariance carries the bearing spread σ)
     J = np.linalg.inv(bank.estimate().P)
-    return ManeuverState(state, bank, J, _accuracy(params, J, state), z)
+    if K > 1:
+        bank = _fuse(bank, z, positions, w.sigma_bearing, first=1)
+        J = J + bearing_information(target[:, None], positions[:, 1:], w.sigma_bearing).sum(1)
+    return ManeuverState(
+        t=np.zeros(batch),
+        platform_position=positions,
+        heading=heading,
+        speed=np.full((batch, K), params.initial_platform_speed),
+        target=target,
+        bank=bank,
+        information=J,
+        accuracy=_accuracy(params, J, target, positions[:, 0]),
+        bearing=z,
+    )
 
 
 def step(
     params: ManeuverParams, state: ManeuverState, action: ArrayLike, rng: np.random.Generator
 ) -> tuple[ManeuverState, FloatArray, BoolArray]:
-    """Advance every scenario one step under ``action`` ``(B, 2)`` in ``[−1, 1]``.
+    """Advance every scenario one step under ``action`` ``(B, K, 2)`` (or ``(B, 2)`` for one
+    platform) in ``[−1, 1]``.
 
     Actions outside ``[−1, 1]`` are clipped (documented fallback, as Box spaces allow);
     NaN or infinite actions raise ``ValueError``. Returns ``(state, reward (B,),
-    terminated (B,))``; truncation (the time limit) is the shell's business.
+    terminated (B,))`` — one team reward per scenario; truncation (the time limit) is the
+    shell's business. An episode terminates when any platform comes within ``min_range``.
     """
+    B, K = state.heading.shape
     a = finite_array(action, "action", tail=(2,))
-    a = np.clip(np.broadcast_to(a, (state.batch_size, 2)), -1.0, 1.0)
+    if a.ndim == 2 and K == 1:
+        a = a[:, None]
+    a = np.clip(np.broadcast_to(a, (B, K, 2)), -1.0, 1.0)
     w = params.world
     command = a * np.array([w.max_turn_rate, w.max_speed_change])
-    new_world = world.step(state.world, command, w, rng)
-    z = world.measure_bearings(new_world, w, rng)
+    positions, heading, speed = fly(state.platform_position, state.heading, state.speed, command, w)
+    target = propagate_target(state.target, w, rng)
+    z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
     bank = range_bank_predict(state.bank, state.bank.t + w.dt, w.q_tilde)
-    bank = range_bank_update(bank, z, new_world.platform_position, w.sigma_bearing)
-    # J_{k+1} = (I + J̄ Q)⁻¹ J̄ + Hᵀ H / σ²
+    bank = _fuse(bank, z, positions, w.sigma_bearing)
+    # J_{k+1} = (I + J̄ Q)⁻¹ J̄ + Σ_platforms Hᵀ H / σ²
     J = predict_information(state.information, w.dt, w.q_tilde) + bearing_information(
-        new_world.target, new_world.platform_position, w.sigma_bearing
-    )
-    accuracy = _accuracy(params, J, new_world)
+        target[:, None], positions, w.sigma_bearing
+    ).sum(1)
+    accuracy = _accuracy(params, J, target, positions[:, 0])
+    new = ManeuverState(state.t + w.dt, positions, heading, speed, target, bank, J, accuracy, z)
     # reward_k = ln m_k − ln m_{k+1}
     reward = np.log(state.accuracy) - np.log(accuracy)
-    terminated = new_world.range < params.min_range
+    terminated = np.any(new.range < params.min_range, axis=1)
     reward = reward - params.close_penalty * terminated
-    return ManeuverState(new_world, bank, J, accuracy, z), reward, terminated
+    return new, reward, terminated
 
 
 def where(mask: ArrayLike, new: ManeuverState, old: ManeuverState) -> ManeuverState:
@@ -268,11 +336,15 @@ def where(mask: ArrayLike, new: ManeuverState, old: ManeuverState) -> ManeuverSt
         old.bank.t,
     )
     return ManeuverState(
-        world=world.where(m, new.world, old.world),
+        t=np.where(m, new.t, old.t),
+        platform_position=np.where(mb[..., None], new.platform_position, old.platform_position),
+        heading=np.where(mb, new.heading, old.heading),
+        speed=np.where(mb, new.speed, old.speed),
+        target=np.where(mb, new.target, old.target),
         bank=RangeBankState(np.where(mb, new.bank.log_weights, old.bank.log_weights), members),
         information=np.where(m[:, None, None], new.information, old.information),
         accuracy=np.where(m, new.accuracy, old.accuracy),
-        bearing=np.where(m, new.bearing, old.bearing),
+        bearing=np.where(mb, new.bearing, old.bearing),
     )
 
 
@@ -286,42 +358,48 @@ def body_frame(heading: ArrayLike, v: ArrayLike) -> FloatArray:
 
 
 def observe(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]:
-    """The agent's observation ``(B, OBS_DIM)`` float32 — tracker output, no ground truth.
+    """Each platform's observation ``(B, K, params.obs_dim)`` float32 — tracker output in that
+    platform's own frame, no ground truth.
 
-    | index | meaning                                                              |
-    |-------|----------------------------------------------------------------------|
-    | 0, 1  | sin, cos of the last bearing relative to the heading (starboard > 0) |
-    | 2     | platform speed / ``world.max_speed``                                 |
-    | 3, 4  | estimated target position relative to the platform, platform frame   |
-    |       | (starboard, ahead) / ``range_scale``                                 |
-    | 5, 6  | estimated relative velocity (target − platform), platform frame /    |
-    |       | ``speed_scale``                                                      |
-    | 7, 8  | ln of the position standard deviations along the platform axes,      |
-    |       | ``ln(σ / range_scale)``                                              |
-    | 9     | correlation of those two position errors                             |
+    | index  | meaning                                                              |
+    |--------|----------------------------------------------------------------------|
+    | 0, 1   | sin, cos of its last bearing relative to its heading (starboard > 0) |
+    | 2      | its speed / ``world.max_speed``                                      |
+    | 3, 4   | estimated target position relative to it, own frame (starboard,      |
+    |        | ahead) / ``range_scale``                                             |
+    | 5, 6   | estimated relative velocity (target − own), own frame /              |
+    |        | ``speed_scale``                                                      |
+    | 7, 8   | ln of the position standard deviations along its axes,               |
+    |        | ``ln(σ / range_scale)``                                              |
+    | 9      | correlation of those two position errors                             |
+    | 10, 11 | (K > 1) each other platform's position relative to it, own frame /   |
+    | …      | ``range_scale``, in platform order                                   |
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
-    w = state.world
+    B, K = state.heading.shape
     est = state.estimate
-    rel_bearing = state.bearing - w.heading
-    rel_pos = body_frame(w.heading, est.position - w.platform_position)
-    rel_vel = body_frame(w.heading, est.velocity - w.platform_velocity)
-    # position covariance in the platform frame: R P Rᵀ with R the rows of body_frame
-    s, c = np.sin(w.heading), np.cos(w.heading)
-    R = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], axis=-2)
-    Pb = R @ est.P[:, :2, :2] @ np.swapaxes(R, -1, -2)
+    psi = state.heading
+    rel_bearing = state.bearing - psi
+    rel_pos = body_frame(psi, est.position[:, None] - state.platform_position)
+    rel_vel = body_frame(psi, est.velocity[:, None] - state.platform_velocity)
+    # position covariance in each platform frame: R P Rᵀ with R the rows of body_frame
+    s, c = np.sin(psi), np.cos(psi)
+    R = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], axis=-2)  # (B, K, 2, 2)
+    Pb = R @ est.P[:, None, :2, :2] @ np.swapaxes(R, -1, -2)
     sd = np.sqrt(np.clip(np.diagonal(Pb, axis1=-2, axis2=-1), 1e-12, None))
-    rho = Pb[:, 0, 1] / (sd[:, 0] * sd[:, 1])
-    obs = np.concatenate(
-        [
-            np.stack([np.sin(rel_bearing), np.cos(rel_bearing)], -1),
-            (w.speed / max(params.world.max_speed, 1e-12))[:, None],
-            rel_pos / params.range_scale,
-            rel_vel / params.speed_scale,
-            np.log(sd / params.range_scale),
-            rho[:, None],
-        ],
-        axis=-1,
-    )
+    rho = Pb[..., 0, 1] / (sd[..., 0] * sd[..., 1])
+    parts = [
+        np.stack([np.sin(rel_bearing), np.cos(rel_bearing)], -1),
+        (state.speed / max(params.world.max_speed, 1e-12))[..., None],
+        rel_pos / params.range_scale,
+        rel_vel / params.speed_scale,
+        np.log(sd / params.range_scale),
+        rho[..., None],
+    ]
+    if K > 1:
+        others = np.array([[j for j in range(K) if j != k] for k in range(K)])  # (K, K−1)
+        d = state.platform_position[:, others] - state.platform_position[:, :, None]
+        parts.append(body_frame(psi[..., None], d).reshape(B, K, 2 * (K - 1)) / params.range_scale)
+    obs = np.concatenate(parts, axis=-1)
     return np.clip(obs, -OBS_CLIP, OBS_CLIP).astype(np.float32)

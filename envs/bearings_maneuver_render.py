@@ -22,15 +22,16 @@ def draw(
     canvas = FigureCanvasAgg(fig)  # no pyplot: no global state, no display needed
     ax = fig.add_subplot()
     km = 1e-3
-    platform = np.array([s.world.platform_position[0] for s in history]) * km
-    target = np.array([s.world.target[0, :2] for s in history]) * km
+    platforms = np.array([s.platform_position[0] for s in history]) * km  # (T, K, 2)
+    target = np.array([s.target[0, :2] for s in history]) * km
     now = history[-1]
     est = now.estimate
     for s in history:  # bearing lines from each platform position, to the true range
-        p, b = s.world.platform_position[0] * km, s.bearing[0]
-        r = s.world.range[0] * km
-        ax.plot([p[0], p[0] + r * np.sin(b)], [p[1], p[1] + r * np.cos(b)], lw=0.5, c="0.8")
-    ax.plot(*platform.T, "-o", ms=2, c="tab:blue", label="platform")
+        for p, b, r in zip(s.platform_position[0] * km, s.bearing[0], s.range[0] * km, strict=True):
+            ax.plot([p[0], p[0] + r * np.sin(b)], [p[1], p[1] + r * np.cos(b)], lw=0.5, c="0.8")
+    for k in range(platforms.shape[1]):
+        label = "platform" if k == 0 else None
+        ax.plot(*platforms[:, k].T, "-o", ms=2, c=f"C{k % 10}" if k else "tab:blue", label=label)
     ax.plot(*target.T, "-", c="tab:red", label="target")
     ax.plot(*target[-1], "x", c="tab:red")
     x = est.position[0] * km
@@ -41,7 +42,7 @@ def draw(
     ring = (V * (2.0 * np.sqrt(np.clip(lam, 0.0, None)))) @ np.stack([np.cos(u), np.sin(u)])
     ax.plot(x[0] + ring[0], x[1] + ring[1], c="tab:green", lw=1)
     unit = "m" if params.metric == "position" else ""
-    ax.set_title(f"t = {now.world.t[0]:.0f} s   bound {now.accuracy[0]:.3g} {unit}", fontsize=9)
+    ax.set_title(f"t = {now.t[0]:.0f} s   bound {now.accuracy[0]:.3g} {unit}", fontsize=9)
     ax.set_xlabel("East (km)")
     ax.set_ylabel("North (km)")
     ax.set_aspect("equal", adjustable="datalim")

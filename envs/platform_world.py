@@ -158,10 +158,50 @@ def clip_action(
     """
     a = finite_array(action, "action", tail=(2,))
     a = np.broadcast_to(a, (state.batch_size, 2))
-    omega = np.clip(a[:, 0], -params.max_turn_rate, params.max_turn_rate)
-    dv = np.clip(a[:, 1], -params.max_speed_change, params.max_speed_change)
-    speed = np.clip(state.speed + dv, params.min_speed, params.max_speed)
-    return np.stack([omega, speed - state.speed], axis=-1)
+    return _clip_command(a, state.speed, params)
+
+
+def _clip_command(a: FloatArray, speed: FloatArray, params: PlatformWorldParams) -> FloatArray:
+    omega = np.clip(a[..., 0], -params.max_turn_rate, params.max_turn_rate)
+    dv = np.clip(a[..., 1], -params.max_speed_change, params.max_speed_change)
+    new_speed = np.clip(speed + dv, params.min_speed, params.max_speed)
+    return np.stack([omega, new_speed - speed], axis=-1)
+
+
+def fly(
+    position: FloatArray,
+    heading: FloatArray,
+    speed: FloatArray,
+    command: ArrayLike,
+    params: PlatformWorldParams,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Platform kinematics over one step, for any leading shape ``(...)`` (e.g. ``(B, K)``
+    platforms): ``position (..., 2)``, ``heading``, ``speed`` ``(...)``, ``command (..., 2)``
+    (heading rate, speed change; clipped to the limits). Returns the new three."""
+    a = _clip_command(finite_array(command, "action", tail=(2,)), speed, params)
+    T = params.dt
+    omega = a[..., 0]
+    v = speed + a[..., 1]
+    # exact arc: Δp = v T sinc(ωT/2) (sin ψ_m, cos ψ_m), ψ_m = ψ₀ + ωT/2
+    half = 0.5 * omega * T
+    psi_mid = heading + half
+    chord = v * T * np.sinc(half / np.pi)
+    dp = chord[..., None] * np.stack([np.sin(psi_mid), np.cos(psi_mid)], axis=-1)
+    return position + dp, wrap_angle(heading + omega * T), v
+
+
+def propagate_target(
+    target: FloatArray, params: PlatformWorldParams, rng: np.random.Generator | None = None
+) -> FloatArray:
+    """Target states ``(B, 4)`` one step on: ``x' = F x + w``, ``w ~ N(0, Q)`` (CWNA)."""
+    T = params.dt
+    out = target @ cv_transition(T).T
+    if params.q_tilde > 0.0:
+        if rng is None:
+            raise ValueError("rng: a np.random.Generator is required when q_tilde > 0")
+        L = np.linalg.cholesky(cwna_covariance(T, params.q_tilde))
+        out = out + rng.standard_normal(target.shape) @ L.T
+    return out
 
 
 def step(
@@ -171,28 +211,14 @@ def step(
     rng: np.random.Generator | None = None,
 ) -> PlatformWorldState:
     """Advance every scenario by ``params.dt`` under ``action`` (see the module docstring)."""
-    a = clip_action(action, state, params)
-    T = params.dt
-    omega = a[:, 0]
-    v = state.speed + a[:, 1]
-    # exact arc: Δp = v T sinc(ωT/2) (sin ψ_m, cos ψ_m), ψ_m = ψ₀ + ωT/2
-    half = 0.5 * omega * T
-    psi_mid = state.heading + half
-    chord = v * T * np.sinc(half / np.pi)
-    dp = chord[:, None] * np.stack([np.sin(psi_mid), np.cos(psi_mid)], axis=-1)
-    # x' = F x + w,  w ~ N(0, Q)
-    target = state.target @ cv_transition(T).T
-    if params.q_tilde > 0.0:
-        if rng is None:
-            raise ValueError("rng: a np.random.Generator is required when q_tilde > 0")
-        L = np.linalg.cholesky(cwna_covariance(T, params.q_tilde))
-        target = target + rng.standard_normal((state.batch_size, STATE_DIM)) @ L.T
+    a = np.broadcast_to(finite_array(action, "action", tail=(2,)), (state.batch_size, 2))
+    position, heading, speed = fly(state.platform_position, state.heading, state.speed, a, params)
     return PlatformWorldState(
-        t=state.t + T,
-        platform_position=state.platform_position + dp,
-        heading=state.heading + omega * T,
-        speed=v,
-        target=target,
+        t=state.t + params.dt,
+        platform_position=position,
+        heading=heading,
+        speed=speed,
+        target=propagate_target(state.target, params, rng),
     )
 
 
@@ -219,8 +245,18 @@ def measure_bearings(
     state: PlatformWorldState, params: PlatformWorldParams, rng: np.random.Generator
 ) -> FloatArray:
     """Noisy bearings ``z = wrap(β + σ ε)``, ``ε ~ N(0, 1)``, shape ``(B,)`` (rad)."""
-    noise = params.sigma_bearing * rng.standard_normal(state.batch_size)
-    return wrap_angle(true_bearings(state) + noise)
+    return noisy_bearings(state.target[:, :2], state.platform_position, params.sigma_bearing, rng)
+
+
+def noisy_bearings(
+    target_position: ArrayLike,
+    platform_position: ArrayLike,
+    sigma: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """``z = wrap(β + σ ε)`` for broadcasting positions ``(..., 2)`` → ``(...)`` (rad)."""
+    beta = bearing(target_position, platform_position)
+    return wrap_angle(beta + sigma * rng.standard_normal(beta.shape))
 
 
 @dataclass(frozen=True)

@@ -144,8 +144,8 @@ def test_observation_is_the_tracker_view_in_the_platform_frame():
     relative position (obs 3, 4) points along that bearing (the prior sits on it)."""
     params = ManeuverParams()
     state = core.reset(params, np.random.default_rng(3), 5)
-    obs = core.observe(params, state).astype(np.float64)
-    theta = state.bearing - state.world.heading
+    obs = core.observe(params, state)[:, 0].astype(np.float64)
+    theta = state.bearing[:, 0] - state.heading[:, 0]
     np.testing.assert_allclose(obs[:, 0], np.sin(theta), atol=1e-6)
     np.testing.assert_allclose(obs[:, 1], np.cos(theta), atol=1e-6)
     direction = obs[:, 3:5] / np.linalg.norm(obs[:, 3:5], axis=1, keepdims=True)
