@@ -92,6 +92,12 @@ def _predict(
     return (action[0] if single else action), None
 
 
+def _assign(rule: Any, params: PointingParams, observation: NDArray[Any]) -> NDArray[np.int64]:
+    obs, single = as_batch(observation, params.obs_dim)
+    choice = rule.choose(_view(params, obs))
+    return choice[0] if single else choice
+
+
 def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
     """``bonus`` times the number of receivers each candidate leaves on a drone they see
     ``(N, C)``: hysteresis, so that near-ties do not make receivers slew back and forth."""
@@ -130,6 +136,10 @@ class TrackNearest:
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         return np.argmin(view.ranges, axis=-1)
+
+    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
+        return _assign(self, self.params, observation)
 
     def predict(
         self,
@@ -171,6 +181,10 @@ class OrthogonalPairs:
         objective = objective + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
+    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
+        return _assign(self, self.params, observation)
+
     def predict(
         self,
         observation: NDArray[Any],
@@ -210,6 +224,10 @@ class GreedyInformation:
         _, logdet = np.linalg.slogdet(prior + fix)  # (N, C, m)
         objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
+
+    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
+        return _assign(self, self.params, observation)
 
     def predict(
         self,
