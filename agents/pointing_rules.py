@@ -197,17 +197,22 @@ class OrthogonalPairs:
 
 @dataclass(frozen=True)
 class GreedyInformation:
-    """Choose the assignment that maximises ``Σ_j ln det I_j`` of the predicted position
-    information (one-step D-optimal sensor selection, SPEC §7 OC-1/OC-2):
-    ``I_j = 3/σ̂_j² · I + [|S_j| ≥ 2] Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``,
-    the tracker's prior (isotropic, from the observed RMS ``σ̂_j``) plus the fix the assigned
-    receivers would give at the predicted position (a single view gives no fix).
+    """Choose the assignment that maximises ``Σ_j ln det I_j`` of the position information the
+    assigned receivers would give at the predicted positions (one-step D-optimal sensor
+    selection, SPEC §7 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
+
+    A drone given fewer than two receivers gets no fix (its ``I_j`` is singular, and the env's
+    reward for it is ``−R``); it scores ``−no_fix_cost`` instead of ``−∞``, so that when there
+    are too few receivers for all drones the rule still fixes as many as it can. Unlike
+    :class:`OrthogonalPairs` the score counts ranges (the angle-noise model of the reward).
     """
 
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (receiver layout, noise, slew limit, observation layout)."""
     keep_bonus: float = 0.05
     """Objective bonus per receiver left on a drone it sees (hysteresis against flapping)."""
+    no_fix_cost: float = 1e3
+    """Score of a drone left without a pair of receivers (ln det units)."""
 
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
@@ -218,10 +223,10 @@ class GreedyInformation:
         u = view.los
         proj = np.eye(3) - u[..., :, None] * u[..., None, :]  # (N, n, m, 3, 3)
         w = 1.0 / (sigma * view.ranges) ** 2  # (N, n, m)
-        fix = np.einsum("cjk,Nkj,Nkjab->Ncjab", member, w, proj)
-        fix = np.where((member.sum(axis=-1) >= 2.0)[None, :, :, None, None], fix, 0.0)
-        prior = (3.0 / np.maximum(view.sigma, 1e-9) ** 2)[:, None, :, None, None] * np.eye(3)
-        _, logdet = np.linalg.slogdet(prior + fix)  # (N, C, m)
+        info = np.einsum("cjk,Nkj,Nkjab->Ncjab", member, w, proj)
+        pair = (member.sum(axis=-1) >= 2.0)[None]  # (1, C, m)
+        sign, logdet = np.linalg.slogdet(np.where(pair[..., None, None], info, np.eye(3)))
+        logdet = np.where(pair & (sign > 0.0), logdet, -self.no_fix_cost)
         objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
