@@ -84,14 +84,9 @@ def cv_prior(position: ArrayLike, velocity: ArrayLike, sigma_p: float, sigma_v: 
 
 def cv_predict(track: CVTrack, dt: float, q: float) -> CVTrack:
     """Predictor: ``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q`` over ``dt`` seconds (``q`` in m²/s³)."""
-    F = np.eye(6)
-    F[:3, 3:] = dt * np.eye(3)
-    Q = q * np.block(
-        [
-            [dt**3 / 3.0 * np.eye(3), dt**2 / 2.0 * np.eye(3)],
-            [dt**2 / 2.0 * np.eye(3), dt * np.eye(3)],
-        ]
-    )
+    # F = [[I, dt I], [0, I]],  Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]
+    F = np.kron([[1.0, dt], [0.0, 1.0]], np.eye(3))
+    Q = np.kron(q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]), np.eye(3))
     x = track.x @ F.T
     # P⁻ = F P Fᵀ + Q
     P = F @ track.P @ F.T + Q
