@@ -13,6 +13,12 @@ _ENVS = [
         "vector_entry_point": "sensorgym.envs.bearings_maneuver:BearingsManeuverVectorEnv",
         "max_episode_steps": 30,
     },
+    {
+        "id": "sensorgym/StereoPointing-v0",
+        "entry_point": "sensorgym.envs.stereo_pointing:StereoPointingEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_pointing:StereoPointingVectorEnv",
+        "max_episode_steps": 150,
+    },
 ]
 
 for _spec in _ENVS:
