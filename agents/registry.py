@@ -9,6 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from . import pointing_rules
 from .maneuver_rules import GreedyInformation, Paper002Maneuver, StraightCourse
 from .protocol import PolicyPredictor
 
@@ -19,6 +20,12 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "straight-course": lambda params: StraightCourse(),
         "paper002": lambda params: Paper002Maneuver(params),
         "greedy-information": lambda params: GreedyInformation(params),
+    },
+    "sensorgym/StereoPointing-v0": {
+        "hold-still": pointing_rules.HoldStill,
+        "track-nearest": pointing_rules.TrackNearest,
+        "orthogonal-pairs": pointing_rules.OrthogonalPairs,
+        "greedy-information": pointing_rules.GreedyInformation,
     },
 }
 

@@ -2,16 +2,16 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.vector import AutoresetMode, VectorEnv
-from gymnasium.vector.utils import batch_space
+from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from . import stereo_pointing_core as core
+from .core_shells import CoreEnv, CoreVectorEnv
 from .stereo_pointing_core import OBS_CLIP, PointingParams, PointingState
 
 FloatArray = NDArray[np.float64]
@@ -24,17 +24,32 @@ def _spaces(params: PointingParams) -> tuple[spaces.Box, spaces.Box]:
     return obs, act
 
 
-def _action(action: Any, shape: tuple[int, ...]) -> FloatArray:
-    """The action as float64 of ``shape``; wrong shapes and NaN raise ``ValueError``."""
-    try:
-        a = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"action: cannot be read as floats ({exc})") from None
-    if a.shape != shape:
-        raise ValueError(f"action: expected shape {shape}, got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError("action: contains NaN or infinite values")
-    return a
+@dataclass(frozen=True)
+class StereoPointingCore:
+    """:mod:`.stereo_pointing_core` as the shells step it."""
+
+    params: PointingParams
+
+    def reset(
+        self, rng: np.random.Generator, batch: int, like: PointingState | None = None
+    ) -> PointingState:
+        return core.reset(self.params, rng, batch)
+
+    def step(self, state: PointingState, action: FloatArray, rng: np.random.Generator) -> tuple:
+        new, reward = core.step(self.params, state, action, rng)
+        # nothing physical ends an episode: only the time limit (truncation)
+        return new, reward, np.zeros(state.batch_size, dtype=bool)
+
+    def observe(self, state: PointingState) -> NDArray[np.float32]:
+        return core.observe(self.params, state)
+
+    def where(
+        self, mask: NDArray[np.bool_], new: PointingState, old: PointingState
+    ) -> PointingState:
+        return core.where(mask, new, old)
+
+    def info(self, state: PointingState) -> dict[str, FloatArray]:
+        return _info(state)
 
 
 def _info(state: PointingState) -> dict[str, FloatArray]:
@@ -47,7 +62,7 @@ def _info(state: PointingState) -> dict[str, FloatArray]:
     }
 
 
-class StereoPointingEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
+class StereoPointingEnv(CoreEnv):
     """Point narrow-field receivers so that their stereo fixes locate several drones.
 
     ## Description
@@ -114,66 +129,21 @@ class StereoPointingEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
 
     def __init__(self, params: PointingParams | None = None, render_mode: str | None = None):
-        self.params = PointingParams() if params is None else params
-        if render_mode not in (None, *self.metadata["render_modes"]):
-            raise ValueError(
-                f"render_mode: one of {self.metadata['render_modes']}, got {render_mode!r}"
-            )
-        self.render_mode = render_mode
-        self.observation_space, self.action_space = _spaces(self.params)
-        self._state: PointingState | None = None
-        self._history: list[PointingState] = []
+        params = PointingParams() if params is None else params
+        super().__init__(StereoPointingCore(params), *_spaces(params), render_mode)
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        super().reset(seed=seed)
-        self._state = core.reset(self.params, self.np_random, 1)
-        self._history = [self._state]
-        return core.observe(self.params, self._state)[0], self._single_info()
-
-    def step(
-        self, action: NDArray[np.float32]
-    ) -> tuple[NDArray[np.float32], float, bool, bool, dict[str, Any]]:
-        if self._state is None:
-            raise RuntimeError("step: call reset() first")
-        a = _action(action, self.action_space.shape)
-        self._state, reward = core.step(self.params, self._state, a[None], self.np_random)
-        if self.render_mode is not None:
-            self._history.append(self._state)
-        # terminated=False: nothing physical ends an episode; truncation=False: the time limit
-        # is the TimeLimit wrapper added by gym.make
-        obs = core.observe(self.params, self._state)[0]
-        return obs, float(reward[0]), False, False, self._single_info()
-
-    def _single_info(self) -> dict[str, Any]:
-        return {k: float(v[0]) for k, v in _info(self._state).items()}
-
-    def render(self) -> NDArray[np.uint8] | None:
-        if self.render_mode is None:
-            gym.logger.warn("render: no render_mode was given to the environment")
-            return None
-        if self._state is None:
-            raise RuntimeError("render: call reset() first")
+    def draw(self, history: list[PointingState]) -> NDArray[np.uint8]:
         from .stereo_pointing_render import draw
 
-        return draw(self.params, self._history)
+        return draw(self.params, history)
 
 
-class StereoPointingVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarray]):
+class StereoPointingVectorEnv(CoreVectorEnv):
     """``num_envs`` independent :class:`StereoPointingEnv` scenarios in one batched core.
 
-    Same spaces and rewards as the single env (its docstring is the spec); truncation after
-    ``max_episode_steps`` is done here. Autoreset is ``NEXT_STEP`` (Gymnasium's default): the
-    step after an episode ends returns the first observation of the next one, with reward 0 and
-    both flags False. With ``num_envs=1`` and one seed it produces exactly the single env's
-    episodes.
+    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes as
+    :class:`~sensorgym.envs.core_shells.CoreVectorEnv`.
     """
-
-    metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": [],
-        "autoreset_mode": AutoresetMode.NEXT_STEP,
-    }
 
     def __init__(
         self,
@@ -181,62 +151,14 @@ class StereoPointingVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32]
         params: PointingParams | None = None,
         max_episode_steps: int | None = 150,
         render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
     ):
-        if num_envs < 1:
-            raise ValueError(f"num_envs: must be >= 1, got {num_envs}")
-        if render_mode is not None:
-            raise ValueError("render_mode: the vector env does not render (use the single env)")
-        if max_episode_steps is not None and max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps: must be >= 1 or None, got {max_episode_steps}")
-        self.num_envs = num_envs
-        self.params = PointingParams() if params is None else params
-        self.max_episode_steps = max_episode_steps
-        self.render_mode = render_mode
-        self.single_observation_space, self.single_action_space = _spaces(self.params)
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self._state: PointingState | None = None
-        self._steps = np.zeros(num_envs, dtype=np.int64)
-        self._done = np.zeros(num_envs, dtype=bool)
-
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
-        super().reset(seed=seed)
-        self._state = core.reset(self.params, self.np_random, self.num_envs)
-        self._steps[:] = 0
-        self._done[:] = False
-        return core.observe(self.params, self._state), self._infos(self._state)
-
-    def step(
-        self, actions: NDArray[np.float32]
-    ) -> tuple[NDArray[np.float32], FloatArray, NDArray[np.bool_], NDArray[np.bool_], dict]:
-        if self._state is None:
-            raise RuntimeError("step: call reset() first")
-        a = _action(actions, self.action_space.shape)
-        done = self._done
-        if done.all():
-            new, reward = (
-                core.reset(self.params, self.np_random, self.num_envs),
-                np.zeros(self.num_envs),
-            )
-        else:
-            new, reward = core.step(self.params, self._state, a, self.np_random)
-            if done.any():
-                fresh = core.reset(self.params, self.np_random, self.num_envs)
-                new = core.where(done, fresh, new)
-                reward = np.where(done, 0.0, reward)
-        self._steps = np.where(done, 0, self._steps + 1)
-        terminated = np.zeros(self.num_envs, dtype=bool)
-        truncated = np.zeros(self.num_envs, dtype=bool)
-        if self.max_episode_steps is not None:
-            truncated = (self._steps >= self.max_episode_steps) & ~done
-        self._state, self._done = new, truncated
-        return core.observe(self.params, new), reward, terminated, truncated, self._infos(new)
-
-    def _infos(self, state: PointingState) -> dict[str, Any]:
-        # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them
-        infos: dict[str, Any] = {}
-        for key, value in _info(state).items():
-            infos[key], infos[f"_{key}"] = value, np.ones(self.num_envs, dtype=bool)
-        return infos
+        params = PointingParams() if params is None else params
+        super().__init__(
+            StereoPointingCore(params),
+            num_envs,
+            *_spaces(params),
+            max_episode_steps,
+            render_mode,
+            autoreset_mode,
+        )
