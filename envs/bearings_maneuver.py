@@ -35,7 +35,8 @@ def _one_platform(params: ManeuverParams | None) -> ManeuverParams:
 
 @dataclass(frozen=True)
 class BearingsManeuverCore:
-    """The one-platform view of :mod:`.bearings_maneuver_core` that the shells step."""
+    """:mod:`.bearings_maneuver_core` as the shells step it (``observe``: the one platform of
+    the Gymnasium envs; ``observe_agents``: every platform, for PettingZoo)."""
 
     params: ManeuverParams
 
@@ -49,7 +50,10 @@ class BearingsManeuverCore:
         return core.step(self.params, state, action, rng)
 
     def observe(self, state: ManeuverState) -> NDArray[np.float32]:
-        return core.observe(self.params, state)[:, 0]
+        return core.observe(self.params, state)[:, 0]  # the Gymnasium envs fly one platform
+
+    def observe_agents(self, state: ManeuverState) -> NDArray[np.float32]:
+        return core.observe(self.params, state)  # (B, K, obs_dim): one row per platform
 
     def where(
         self, mask: NDArray[np.bool_], new: ManeuverState, old: ManeuverState

@@ -26,7 +26,7 @@ def _spaces(params: PointingParams) -> tuple[spaces.Box, spaces.Box]:
 
 @dataclass(frozen=True)
 class StereoPointingCore:
-    """:mod:`.stereo_pointing_core` as the shells step it."""
+    """:mod:`.stereo_pointing_core` as the shells step it (``observe_agents`` for PettingZoo)."""
 
     params: PointingParams
 
@@ -42,6 +42,14 @@ class StereoPointingCore:
 
     def observe(self, state: PointingState) -> NDArray[np.float32]:
         return core.observe(self.params, state)
+
+    def observe_agents(self, state: PointingState) -> NDArray[np.float32]:
+        """``(B, n, obs_dim + n)``: the shared observation and a one-hot of the receiver."""
+        obs = core.observe(self.params, state)
+        n = self.params.n_receivers
+        shared = np.broadcast_to(obs[:, None, :], (obs.shape[0], n, obs.shape[1]))
+        one_hot = np.broadcast_to(np.eye(n, dtype=np.float32), (obs.shape[0], n, n))
+        return np.concatenate([shared, one_hot], axis=-1)
 
     def where(
         self, mask: NDArray[np.bool_], new: PointingState, old: PointingState
