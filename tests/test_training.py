@@ -107,3 +107,40 @@ def test_benchmark_command_scores_every_rule(tmp_path, capsys):
 def test_autoreset_mode_is_validated():
     with pytest.raises(ValueError, match="autoreset_mode"):
         BearingsManeuverVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
+
+
+def test_parameter_sharing_slots_follow_the_agents_and_restart_together():
+    from sensorgym.envs import bearings_maneuver_pz
+    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
+
+    venv = ParameterSharingVecEnv(
+        [lambda: bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)] * 2
+    )
+    assert venv.num_envs == 4
+    venv.seed(7)
+    obs = venv.reset()
+    pz = bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)
+    first, _ = pz.reset(seed=7)
+    np.testing.assert_array_equal(obs[0], first["platform_0"])  # slot 0 = copy 0, agent 0
+    np.testing.assert_array_equal(obs[1], first["platform_1"])
+    for _ in range(3):
+        obs, reward, dones, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
+        assert reward[0] == reward[1]  # one team reward per copy
+    assert dones.all()
+    assert all(i["TimeLimit.truncated"] and i["terminal_observation"].shape == (12,) for i in infos)
+
+
+def test_ppo_trains_one_shared_policy_on_every_receiver():
+    from stable_baselines3 import PPO
+
+    from sensorgym.envs import stereo_pointing_pz
+    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
+
+    venv = ParameterSharingVecEnv(
+        [lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20)]
+    )
+    venv.seed(0)
+    model = PPO("MlpPolicy", venv, n_steps=32, batch_size=48, n_epochs=1, seed=0, device="cpu")
+    model.learn(96)
+    action, _ = model.predict(venv.reset(), deterministic=True)
+    assert action.shape == (3, 2)
