@@ -30,6 +30,7 @@ One step (``params.dt`` seconds):
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -86,7 +87,12 @@ class PointingParams:
     max_elevation: float = float(np.deg2rad(85.0))
     """Gimbal elevation limit ``|ε| ≤ max_elevation``, rad."""
     initial_elevation: tuple[float, float] = (0.0, 0.3)
-    """Initial boresight elevation, drawn uniformly, rad (azimuth uniform over all directions)."""
+    """Initial boresight elevation, drawn uniformly, rad (azimuth uniform over all directions);
+    used when ``cued_start`` is False."""
+    cued_start: bool = True
+    """Gimbals start on the cue: receiver ``k`` points at drone ``k mod m``'s cued position (the
+    tracker's prior), as a cueing radar would hand over. False: random initial pointing, where
+    most episodes begin with no drone in any field of view (a hard exploration problem)."""
     sigma_ang: float = 1e-3
     """Isotropic angular noise of a measured direction (σ across the line of sight in each of
     the two directions), rad. 0 gives noise-free measurements."""
@@ -260,7 +266,16 @@ def reset(params: PointingParams, rng: np.random.Generator, batch: int) -> Point
     el = rng.uniform(*params.initial_elevation, (batch, n))
     p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
     v = np.stack([speed * np.sin(heading), climb, speed * np.cos(heading)], -1)
-    return start(params, p, v, az, el, rng)
+    state = start(params, p, v, az, el, rng)
+    if not params.cued_start:
+        return state
+    # receiver k on drone k mod m's cued position
+    cue = state.track.position[:, np.arange(n) % m]  # (B, n, 3)
+    d = cue - params.receiver_positions[None]
+    az, el = angles_from_unit(d / np.linalg.norm(d, axis=-1, keepdims=True))
+    return dataclasses.replace(
+        state, azimuth=az, elevation=np.clip(el, -params.max_elevation, params.max_elevation)
+    )
 
 
 def crlb_sigma(params: PointingParams, G: FloatArray, ok: BoolArray) -> FloatArray:
