@@ -12,14 +12,18 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+from typing import Any
 
 HELP = "Score the heuristic rules (and trained models) on an environment, seeded."
 
-DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
+    parser.add_argument(
+        "--env",
+        action="append",
+        default=None,
+        help="env id; repeatable (default: every env with registered rules)",
+    )
     parser.add_argument("--episodes", type=int, default=64, help="episodes per policy")
     parser.add_argument("--n-envs", type=int, default=16, help="scenarios stepped at once")
     parser.add_argument("--seed", type=int, default=0)
@@ -35,28 +39,39 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
-    from rich.table import Table
 
-    from sensorgym.agents.registry import rules_for
-    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
-    from sensorgym.train.models import load_model
+    from sensorgym.agents.registry import RULES
 
     if args.n_envs < 1 or args.episodes < args.n_envs:
         raise SystemExit(
             "--episodes must be >= --n-envs >= 1 (every scenario slot ends an episode)"
         )
-    env = make_sb3_env(args.env, args.n_envs, args.seed)
-    policies = dict(rules_for(args.env, env_params(env)))
-    for path in args.model:
-        policies[f"model:{path}"] = load_model(path, env)
     console = Console()
+    for env_id in args.env or list(RULES):
+        _benchmark(env_id, args, console)
+    return 0
+
+
+def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
+    from rich.table import Table
+
+    from sensorgym.agents.registry import rules_for
+    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
+    from sensorgym.train.models import load_model, read_config
+
+    env = make_sb3_env(env_id, args.n_envs, args.seed)
+    policies = dict(rules_for(env_id, env_params(env)))
+    for path in args.model:
+        run_dir = path.parent if path.suffix == ".zip" else path
+        if read_config(run_dir)["env"] == env_id:
+            policies[f"model:{run_dir.name}"] = load_model(path, env)
     results = {}
-    with console.status(f"evaluating {len(policies)} policies on {args.env}"):
+    with console.status(f"evaluating {len(policies)} policies on {env_id}"):
         for name, policy in policies.items():
             results[name] = evaluate(policy, env, args.episodes, args.seed).as_dict()
     env.close()
 
-    table = Table(title=f"{args.env}: episode return ({args.episodes} episodes, seed {args.seed})")
+    table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
     for column in ("policy", "mean", "std", "±95 %", "mean length"):
         table.add_column(column, justify="left" if column == "policy" else "right")
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
@@ -69,13 +84,7 @@ def run(args: argparse.Namespace) -> int:
         )
     console.print(table)
     args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / f"{args.env.replace('/', '__')}.json"
-    settings = {
-        "env": args.env,
-        "episodes": args.episodes,
-        "n_envs": args.n_envs,
-        "seed": args.seed,
-    }
+    path = args.out / f"{env_id.replace('/', '__')}.json"
+    settings = {"env": env_id, "episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
     path.write_text(json.dumps({"settings": settings, "results": results}, indent=2) + "\n")
     console.print(f"wrote {path}")
-    return 0

@@ -96,7 +96,8 @@ def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
 
 
 def test_benchmark_command_scores_every_rule(tmp_path, capsys):
-    assert main(["benchmark", "--episodes", "8", "--n-envs", "4", "--out", str(tmp_path)]) == 0
+    args = ["--env", ENV_ID, "--episodes", "8", "--n-envs", "4", "--out", str(tmp_path)]
+    assert main(["benchmark", *args]) == 0
     doc = json.loads((tmp_path / "sensorgym__BearingsManeuver-v0.json").read_text())
     results = doc["results"]
     assert set(results) == {"straight-course", "paper002", "greedy-information"}

@@ -76,7 +76,7 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
     return EpisodeStats(
         mean=float(r.mean()),
         std=std,
-        ci95=1.96 * std / np.sqrt(r.size),
+        ci95=float(1.96 * std / np.sqrt(r.size)),
         episodes=int(r.size),
         mean_length=float(np.mean(lengths)),
     )
