@@ -56,11 +56,11 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
     from rich.table import Table
 
     from sensorgym.agents.registry import rules_for
-    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
+    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
     from sensorgym.train.models import load_model, read_config
 
     env = make_sb3_env(env_id, args.n_envs, args.seed)
-    policies = dict(rules_for(env_id, env_params(env)))
+    policies = dict(rules_for(env_id, env_params(env), simulator_state(env)))
     for path in args.model:
         run_dir = path.parent if path.suffix == ".zip" else path
         if read_config(run_dir)["env"] == env_id:

@@ -7,6 +7,7 @@ seed, so that two policies evaluated with one seed meet the same scenarios.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -57,6 +58,13 @@ def make_sb3_env(env_id: str, n_envs: int, seed: int, **env_kwargs: Any) -> VecE
 def env_params(env: VecEnv) -> Any:
     """The parameters dataclass of the vector env under an SB3 wrapper stack."""
     return env.get_attr("params")[0]
+
+
+def simulator_state(env: VecEnv) -> Callable[[], Any]:
+    """A function returning the current state of the simulation core under ``env`` (for
+    oracle rules, which plan on the truth; the vector env is the one :func:`make_sb3_env`
+    builds, whose batch matches the observations)."""
+    return lambda: env.get_attr("_state")[0]
 
 
 def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats:

@@ -21,7 +21,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from sensorgym.agents.registry import RULES, rules_for
 
 from .config import ALGORITHMS, load_hyperparams, split_run_settings
-from .evaluation import env_params, evaluate, make_sb3_env
+from .evaluation import env_params, evaluate, make_sb3_env, simulator_state
 from .models import CONFIG_FILE, MODEL_FILE
 
 #: evaluation scenarios come from this offset of the training seed
@@ -105,7 +105,7 @@ def train(
     eval_seed = seed + EVAL_SEED_OFFSET
     policies: dict[str, Any] = {"trained": model}
     if env_id in RULES:
-        policies.update(rules_for(env_id, env_params(eval_env)))
+        policies.update(rules_for(env_id, env_params(eval_env), simulator_state(eval_env)))
     evaluation = {
         name: evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
         for name, policy in policies.items()
