@@ -83,27 +83,39 @@ def _assignments(params: PointingParams) -> NDArray[np.int64]:
     return np.array(list(itertools.product(range(m), repeat=n)), dtype=np.int64)
 
 
-def _predict(
-    rule: Any, params: PointingParams, observation: NDArray[Any]
-) -> tuple[NDArray[np.float32], None]:
-    obs, single = as_batch(observation, params.obs_dim)
-    view = _view(params, obs)
-    action = _slew_to(params, view, rule.choose(view)).astype(np.float32)
-    return (action[0] if single else action), None
-
-
-def _assign(rule: Any, params: PointingParams, observation: NDArray[Any]) -> NDArray[np.int64]:
-    obs, single = as_batch(observation, params.obs_dim)
-    choice = rule.choose(_view(params, obs))
-    return choice[0] if single else choice
-
-
 def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
     """``bonus`` times the number of receivers each candidate leaves on a drone they see
     ``(N, C)``: hysteresis, so that near-ties do not make receivers slew back and forth."""
     n = cand.shape[1]
     kept = view.seen[:, np.arange(n)[None, :], cand]  # (N, C, n)
     return bonus * kept.sum(axis=-1)
+
+
+class _AssignAndSlew:
+    """SB3's ``predict`` for rules that pick a drone per receiver (``choose``) and slew to it."""
+
+    params: PointingParams
+
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        raise NotImplementedError
+
+    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
+        obs, single = as_batch(observation, self.params.obs_dim)
+        choice = self.choose(_view(self.params, obs))
+        return choice[0] if single else choice
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: Any = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], None]:
+        obs, single = as_batch(observation, self.params.obs_dim)
+        view = _view(self.params, obs)
+        action = _slew_to(self.params, view, self.choose(view)).astype(np.float32)
+        return (action[0] if single else action), None
 
 
 @dataclass(frozen=True)
@@ -126,7 +138,7 @@ class HoldStill:
 
 
 @dataclass(frozen=True)
-class TrackNearest:
+class TrackNearest(_AssignAndSlew):
     """Each receiver slews to the drone whose predicted position is nearest to it (the naive
     rule OC-1 improves on: nearby receivers end up on one drone with near-parallel sight lines)."""
 
@@ -137,22 +149,9 @@ class TrackNearest:
         """Drone index per receiver ``(N, n)``."""
         return np.argmin(view.ranges, axis=-1)
 
-    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
-        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
-        return _assign(self, self.params, observation)
-
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        return _predict(self, self.params, observation)
-
 
 @dataclass(frozen=True)
-class OrthogonalPairs:
+class OrthogonalPairs(_AssignAndSlew):
     """Assign receivers to drones so that each drone's lines of sight are closest to orthogonal
     (SPEC §7 OC-1): minimise ``Σ_j ln score_j`` with ``score_j = σ / √(Σ_{k∈S_j} sin²γ_k)``,
     ``γ_k`` the angle between receiver ``k``'s line of sight and the reference receiver's
@@ -181,22 +180,9 @@ class OrthogonalPairs:
         objective = objective + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
-    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
-        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
-        return _assign(self, self.params, observation)
-
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        return _predict(self, self.params, observation)
-
 
 @dataclass(frozen=True)
-class GreedyInformation:
+class GreedyInformation(_AssignAndSlew):
     """Choose the assignment that maximises ``Σ_j ln det I_j`` of the position information the
     assigned receivers would give at the predicted positions (one-step D-optimal sensor
     selection, SPEC §7 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
@@ -229,16 +215,3 @@ class GreedyInformation:
         logdet = np.where(pair & (sign > 0.0), logdet, -self.no_fix_cost)
         objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
-
-    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
-        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
-        return _assign(self, self.params, observation)
-
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        return _predict(self, self.params, observation)
