@@ -75,7 +75,7 @@ class CirclePlacement:
     ``|det[a_1, P_2 a_2, P_3 a_3]|`` (= 1), the conditioning of the velocity-aware conjugation
     (OC-3: non-coplanar lines of sight). The angle-noise CRLB alone, at fixed altitude, would
     prefer a smaller circle, ``ρ ≈ 0.69 h`` (ranges shrink faster than the angles degrade,
-    OC-1's fixed-baseline caveat; ``σ_pos`` 12 % lower there): :class:`GreedyInformation`
+    OC-1's fixed-baseline caveat; ``σ_pos`` 23 % lower there): :class:`GreedyInformation`
     follows the bound instead. The circle leads the drone by one period of its estimated
     velocity; the slot assignment (which receiver goes where, and the circle's phase) is the
     one that minimises the longest drive; slots outside the permitted disc are pulled inside.

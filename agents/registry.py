@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from . import pointing_rules
+from . import placement_rules, pointing_rules
 from .maneuver_rules import GreedyInformation, Paper002Maneuver, StraightCourse
 from .protocol import PolicyPredictor
 
@@ -26,6 +26,11 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "track-nearest": pointing_rules.TrackNearest,
         "orthogonal-pairs": pointing_rules.OrthogonalPairs,
         "greedy-information": pointing_rules.GreedyInformation,
+    },
+    "sensorgym/StereoPlacement-v0": {
+        "hold-position": placement_rules.HoldPosition,
+        "circle-placement": placement_rules.CirclePlacement,
+        "greedy-information": placement_rules.GreedyInformation,
     },
 }
 

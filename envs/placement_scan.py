@@ -67,6 +67,9 @@ class ScanGeometry:
     """(B, n, 3) true unit lines of sight at the fix times, world frame."""
     ranges: FloatArray = field(repr=False)
     """(B, n) true ranges at the fix times, m."""
+    degenerate: BoolArray = field(repr=False)
+    """(B,) True where the noise-free conjugation of this geometry needs the pseudo-inverse
+    (coplanar or parallel lines of sight, equal delays): no noise draw can be trusted there."""
 
 
 def boresight_rotations(origins: FloatArray, aim: FloatArray, max_elevation: float) -> FloatArray:
@@ -115,6 +118,11 @@ def scan(
     local = np.einsum("bkji,bkj->bki", layout.rotations, measured)
     # σ_e = 1 here; Q is rescaled below by σ_e² = (σ_ang · mean r̂)² (module docstring)
     sol = solve_conjugation(local[:, 0], local[:, 1:], P, b, d[1:] - d[0], order=1)
+    if sigma_ang > 0.0:  # the same system without noise: is the geometry itself degenerate?
+        exact = np.einsum("bkji,bkj->bki", layout.rotations, los)
+        true = solve_conjugation(exact[:, 0], exact[:, 1:], P, b, d[1:] - d[0], order=1)
+    else:
+        true = sol
     n = d.shape[0]
     sigma_e = sigma_ang * np.mean(np.abs(sol.ranges), axis=-1)
     Q = sigma_e[:, None, None] ** 2 * sol.covariance
@@ -132,4 +140,5 @@ def scan(
         condition=np.asarray(sol.condition, dtype=np.float64),
         degenerate=np.asarray(sol.used_pinv, dtype=bool),
     )
-    return fix, ScanGeometry(origins=origins, los=los, ranges=ranges)
+    geometry = ScanGeometry(origins, los, ranges, np.asarray(true.used_pinv, dtype=bool))
+    return fix, geometry

@@ -21,7 +21,10 @@ straight level line. One step is one scan period ``τ``:
    angle-noise Cramér–Rao bound of the period's true geometry,
    ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` (``u_k``, ``r_k`` the lines of sight and ranges
    at the fix times, :func:`~sensorgym.trackers.stereo_accuracy.position_crlb`); ``−R`` when
-   the conjugation was degenerate or the information is singular.
+   the information is singular or the conjugation degenerate: the tracker's solve took the
+   pseudo-inverse fallback (``used_pinv``), or the noise-free solve of the true geometry would
+   (coplanar lines of sight, equal delays — the bound of the position alone cannot see that
+   the velocity-aware system is singular there, and noise only hides it).
 
 Why the bound and not the tracker's covariance: the bound holds no noise draw, so the reward
 depends on the placement alone (a low-variance signal for learning), and it is the accuracy an
@@ -295,7 +298,7 @@ def step(
     new = PlacementState(
         state.t + params.period, end, p, state.drone_velocity, fix, estimate, geometry, bound
     )
-    return new, reward_of(params, bound, fix.degenerate)
+    return new, reward_of(params, bound, fix.degenerate | geometry.degenerate)
 
 
 def where(mask: ArrayLike, new: PlacementState, old: PlacementState) -> PlacementState:
