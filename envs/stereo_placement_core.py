@@ -236,8 +236,10 @@ def start(
     o = _in_arena(params, o * np.array([1.0, 0.0, 1.0]))
     sp, sv = params.cue_sigma
     cue_p = p + sp * rng.standard_normal(p.shape)
-    cue = np.concatenate([cue_p, v + sv * rng.standard_normal(v.shape)], -1)
-    fix, estimate, geometry, bound = _period(params, o, o, p, v, cue, rng)
+    cue_v = v + sv * rng.standard_normal(v.shape)
+    # the cue at t = 0, carried back to the start of the first period (t = −τ)
+    before = np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
+    fix, estimate, geometry, bound = _period(params, o, o, p, v, before, rng)
     return PlacementState(np.zeros(B), o, p, v, fix, estimate, geometry, bound)
 
 
