@@ -11,7 +11,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from . import pointing_rules
+from . import placement_rules, pointing_rules
 from .maneuver_oracle import OracleLookahead
 from .maneuver_rules import GreedyInformation, Paper002Maneuver, StraightCourse
 from .protocol import PolicyPredictor
@@ -31,6 +31,11 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "track-nearest": lambda params, _: pointing_rules.TrackNearest(params),
         "orthogonal-pairs": lambda params, _: pointing_rules.OrthogonalPairs(params),
         "greedy-information": lambda params, _: pointing_rules.GreedyInformation(params),
+    },
+    "sensorgym/StereoPlacement-v0": {
+        "hold-position": lambda params, _: placement_rules.HoldPosition(params),
+        "circle-placement": lambda params, _: placement_rules.CirclePlacement(params),
+        "greedy-information": lambda params, _: placement_rules.GreedyInformation(params),
     },
 }
 

@@ -19,6 +19,12 @@ _ENVS = [
         "vector_entry_point": "sensorgym.envs.stereo_pointing:StereoPointingVectorEnv",
         "max_episode_steps": 150,
     },
+    {
+        "id": "sensorgym/StereoPlacement-v0",
+        "entry_point": "sensorgym.envs.stereo_placement:StereoPlacementEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_placement:StereoPlacementVectorEnv",
+        "max_episode_steps": 60,
+    },
 ]
 
 for _spec in _ENVS:

@@ -349,6 +349,23 @@ def test_batched_equals_looped(rng, n, order):
         assert batch.used_pinv[i] == one.used_pinv
 
 
+def test_exactly_parallel_lines_of_sight_in_rotated_frames_are_flagged():
+    """Regression: three parallel lines of sight seen from differently rotated frames make the
+    n = 3 closed form's Cramer determinant and cofactors both rounding noise (~1e-18); their
+    ratio gave a finite, small κ_F and a garbage solution reported as regular. The element
+    must take the pseudo-inverse path like the SVD solver says (two zero singular values)."""
+    from sensorgym.envs.scanning import ReceiverLayout
+
+    o = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [20.0, 0.0, 0.0]])
+    layout = ReceiverLayout.looking_at(o, [50.0, 30.0, -20.0])
+    u = np.array([1.0, 0.0, 0.0])  # the object far along the receivers' line
+    a = np.einsum("kji,j->ki", layout.rotations, u)
+    P, b = layout.relative
+    sol = solve_conjugation(a[0], a[1:], P, b, [0.25, 0.6], order=1)
+    assert sol.used_pinv and sol.condition > 1e7
+    assert np.all(np.isfinite(sol.ranges)) and np.all(np.isfinite(sol.covariance))
+
+
 def test_batch_mixing_degenerate_and_regular_problems(rng):
     """A degenerate element in a batch takes the fallback without disturbing the others."""
     scene, a, dt, _, _ = random_moving_scene(rng, 3, 6, order=1)

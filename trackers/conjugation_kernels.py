@@ -28,6 +28,10 @@ UNIT_ATOL = 1e-6
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
+#: n = 3 closed form: ``|det M|`` below this fraction of ``‖u_1‖‖u_2‖‖u_3‖`` (the volume of the
+#: unit-scaled columns; then ``κ₂(M) ≳ 1e10`` > any sensible ``cond_max``) is left to the SVD
+SINGULAR_VOLUME = 1e-10
+
 
 @njit(inline="always")
 def _dot(u, v):
@@ -186,7 +190,15 @@ def triple_velocity_kernel(
         u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
         # rows of M⁻¹ = (u_2×u_3, u_3×u_1, u_1×u_2) / det M   (Cramer), det M = u_1·(u_2×u_3)
         x23 = _cross(u2, u3)
-        inv_det = 1.0 / _dot(u1, x23)
+        det = _dot(u1, x23)
+        # (near-)coplanar columns: det M is rounding noise and so is the Cramer inverse, whose
+        # κ_F can then look small (parallel unit vectors give u_2×u_3 ~ det ~ 1e-18). κ_F = inf
+        # hands the element to the caller's SVD path, which measures κ_F properly.
+        scale = np.sqrt(_dot(u1, u1) * _dot(u2, u2) * _dot(u3, u3))
+        if not np.abs(det) > SINGULAR_VOLUME * scale:
+            kappa[i] = np.inf
+            continue
+        inv_det = 1.0 / det
         x31 = _cross(u3, u1)
         x12 = _cross(u1, u2)
         Mi = (
