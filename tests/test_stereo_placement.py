@@ -53,7 +53,7 @@ def test_registration_sets_the_time_limit_and_the_vector_entry_point():
     assert venv.unwrapped.max_episode_steps == 60
     obs, info = venv.reset(seed=1)
     assert obs.shape == (3, 27) and info["bound"].shape == (3,)
-    assert set(rules_for(ENV_ID, PlacementParams())) == {
+    assert set(rules_for(ENV_ID, PlacementParams(), lambda: None)) == {
         "hold-position",
         "circle-placement",
         "greedy-information",
