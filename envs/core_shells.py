@@ -238,3 +238,49 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         for key, value in self.core.info(state).items():
             infos[key], infos[f"_{key}"] = value, np.ones(self.num_envs, dtype=bool)
         return infos
+
+
+def receiver_spaces(obs_dim: int, n_receivers: int, clip: float) -> tuple[spaces.Box, spaces.Box]:
+    """Spaces of a receiver team: one observation ``Box(-clip, clip, (obs_dim,))`` and a
+    flattened ``(2n,)`` action in ``[-1, 1]`` (SB3 policies handle one-dimensional Box actions
+    everywhere)."""
+    obs = spaces.Box(-clip, clip, (obs_dim,), np.float32)
+    act = spaces.Box(-1.0, 1.0, (2 * n_receivers,), np.float32)
+    return obs, act
+
+
+class ReceiverTeamCore:
+    """:class:`BatchedCore` over a core module for a team of ``n`` receivers that share one
+    observation and never terminate (only the time limit ends an episode). The module (set as
+    ``functions`` by a subclass) provides ``reset(params, rng, batch)``, ``step(params, state,
+    action, rng) -> (state, reward)``, ``observe(params, state)`` and ``where``; subclasses add
+    ``info``. PettingZoo agents get the shared observation plus a one-hot of their index."""
+
+    functions: Any
+
+    def __init__(self, params: Any):
+        self.params = params
+
+    def reset(self, rng: np.random.Generator, batch: int, like: Any = None) -> Any:
+        return self.functions.reset(self.params, rng, batch)
+
+    def step(
+        self, state: Any, action: FloatArray, rng: np.random.Generator
+    ) -> tuple[Any, FloatArray, BoolArray]:
+        new, reward = self.functions.step(self.params, state, action, rng)
+        # nothing physical ends an episode: only the time limit (truncation)
+        return new, reward, np.zeros(reward.shape[0], dtype=bool)
+
+    def observe(self, state: Any) -> NDArray[np.float32]:
+        return self.functions.observe(self.params, state)
+
+    def observe_agents(self, state: Any) -> NDArray[np.float32]:
+        """``(B, n, obs_dim + n)``: the shared observation and a one-hot of the receiver."""
+        obs = self.observe(state)
+        n = self.params.n_receivers
+        shared = np.broadcast_to(obs[:, None, :], (obs.shape[0], n, obs.shape[1]))
+        one_hot = np.broadcast_to(np.eye(n, dtype=np.float32), (obs.shape[0], n, n))
+        return np.concatenate([shared, one_hot], axis=-1)
+
+    def where(self, mask: BoolArray, new: Any, old: Any) -> Any:
+        return self.functions.where(mask, new, old)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -11,50 +10,20 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from . import stereo_placement_core as core
-from .core_shells import CoreEnv, CoreVectorEnv
-from .stereo_placement_core import OBS_CLIP, PlacementParams, PlacementState
+from .core_shells import CoreEnv, CoreVectorEnv, ReceiverTeamCore, receiver_spaces
+from .stereo_placement_core import PlacementParams, PlacementState
 
 FloatArray = NDArray[np.float64]
 
 
 def _spaces(params: PlacementParams) -> tuple[spaces.Box, spaces.Box]:
-    obs = spaces.Box(-OBS_CLIP, OBS_CLIP, (params.obs_dim,), np.float32)
-    # flattened (2n,): SB3 policies handle one-dimensional Box actions everywhere
-    act = spaces.Box(-1.0, 1.0, (2 * params.n_receivers,), np.float32)
-    return obs, act
+    return receiver_spaces(params.obs_dim, params.n_receivers, core.OBS_CLIP)
 
 
-@dataclass(frozen=True)
-class StereoPlacementCore:
+class StereoPlacementCore(ReceiverTeamCore):
     """:mod:`.stereo_placement_core` as the shells step it (``observe_agents`` for PettingZoo)."""
 
-    params: PlacementParams
-
-    def reset(
-        self, rng: np.random.Generator, batch: int, like: PlacementState | None = None
-    ) -> PlacementState:
-        return core.reset(self.params, rng, batch)
-
-    def step(self, state: PlacementState, action: FloatArray, rng: np.random.Generator) -> tuple:
-        new, reward = core.step(self.params, state, action, rng)
-        # nothing physical ends an episode: only the time limit (truncation)
-        return new, reward, np.zeros(state.batch_size, dtype=bool)
-
-    def observe(self, state: PlacementState) -> NDArray[np.float32]:
-        return core.observe(self.params, state)
-
-    def observe_agents(self, state: PlacementState) -> NDArray[np.float32]:
-        """``(B, n, obs_dim + n)``: the shared observation and a one-hot of the receiver."""
-        obs = core.observe(self.params, state)
-        n = self.params.n_receivers
-        shared = np.broadcast_to(obs[:, None, :], (obs.shape[0], n, obs.shape[1]))
-        one_hot = np.broadcast_to(np.eye(n, dtype=np.float32), (obs.shape[0], n, n))
-        return np.concatenate([shared, one_hot], axis=-1)
-
-    def where(
-        self, mask: NDArray[np.bool_], new: PlacementState, old: PlacementState
-    ) -> PlacementState:
-        return core.where(mask, new, old)
+    functions = core
 
     def info(self, state: PlacementState) -> dict[str, FloatArray]:
         """Diagnostics (ground truth included: for evaluation, never for the policy)."""

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
@@ -11,50 +10,20 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from . import stereo_pointing_core as core
-from .core_shells import CoreEnv, CoreVectorEnv
-from .stereo_pointing_core import OBS_CLIP, PointingParams, PointingState
+from .core_shells import CoreEnv, CoreVectorEnv, ReceiverTeamCore, receiver_spaces
+from .stereo_pointing_core import PointingParams, PointingState
 
 FloatArray = NDArray[np.float64]
 
 
 def _spaces(params: PointingParams) -> tuple[spaces.Box, spaces.Box]:
-    obs = spaces.Box(-OBS_CLIP, OBS_CLIP, (params.obs_dim,), np.float32)
-    # flattened (n·2,): SB3 policies handle one-dimensional Box actions everywhere
-    act = spaces.Box(-1.0, 1.0, (2 * params.n_receivers,), np.float32)
-    return obs, act
+    return receiver_spaces(params.obs_dim, params.n_receivers, core.OBS_CLIP)
 
 
-@dataclass(frozen=True)
-class StereoPointingCore:
+class StereoPointingCore(ReceiverTeamCore):
     """:mod:`.stereo_pointing_core` as the shells step it (``observe_agents`` for PettingZoo)."""
 
-    params: PointingParams
-
-    def reset(
-        self, rng: np.random.Generator, batch: int, like: PointingState | None = None
-    ) -> PointingState:
-        return core.reset(self.params, rng, batch)
-
-    def step(self, state: PointingState, action: FloatArray, rng: np.random.Generator) -> tuple:
-        new, reward = core.step(self.params, state, action, rng)
-        # nothing physical ends an episode: only the time limit (truncation)
-        return new, reward, np.zeros(state.batch_size, dtype=bool)
-
-    def observe(self, state: PointingState) -> NDArray[np.float32]:
-        return core.observe(self.params, state)
-
-    def observe_agents(self, state: PointingState) -> NDArray[np.float32]:
-        """``(B, n, obs_dim + n)``: the shared observation and a one-hot of the receiver."""
-        obs = core.observe(self.params, state)
-        n = self.params.n_receivers
-        shared = np.broadcast_to(obs[:, None, :], (obs.shape[0], n, obs.shape[1]))
-        one_hot = np.broadcast_to(np.eye(n, dtype=np.float32), (obs.shape[0], n, n))
-        return np.concatenate([shared, one_hot], axis=-1)
-
-    def where(
-        self, mask: NDArray[np.bool_], new: PointingState, old: PointingState
-    ) -> PointingState:
-        return core.where(mask, new, old)
+    functions = core
 
     def info(self, state: PointingState) -> dict[str, FloatArray]:
         return _info(state)
