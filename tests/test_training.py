@@ -146,3 +146,15 @@ def test_ppo_trains_one_shared_policy_on_every_receiver():
     model.learn(96)
     action, _ = model.predict(venv.reset(), deterministic=True)
     assert action.shape == (3, 2)
+
+
+def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
+    args = ["--algo", "sac", "--timesteps", "300", "--n-envs", "2", "--eval-episodes", "2"]
+    assert main(["train", *args, "--out", str(tmp_path), "--no-progress"]) == 0
+    run_dir = tmp_path / "sensorgym__BearingsManeuver-v0" / "sac_seed0"
+    assert read_config(run_dir)["algo"] == "sac"
+    bench = ["--env", ENV_ID, "--episodes", "2", "--n-envs", "2", "--model", str(run_dir)]
+    assert main(["benchmark", *bench, "--out", str(tmp_path / "bench")]) == 0
+    results = json.loads((tmp_path / "bench" / "sensorgym__BearingsManeuver-v0.json").read_text())
+    assert "model:sac_seed0" in results["results"]
+    assert "trained" in capsys.readouterr().out
