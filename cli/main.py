@@ -18,6 +18,7 @@ COMMANDS: dict[str, str] = {
     "reproduce": "sensorgym.cli.reproduce",
     "benchmark": "sensorgym.cli.benchmark",
     "train": "sensorgym.cli.train",
+    "render": "sensorgym.cli.render",
 }
 
 #: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments

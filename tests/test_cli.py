@@ -67,3 +67,17 @@ def test_reproductions_are_discovered_with_their_interface():
         module = __import__(module_name, fromlist=["run"])
         assert isinstance(module.HELP, str) and module.HELP, name
         assert callable(module.add_arguments) and callable(module.run), name
+
+
+def test_render_writes_an_animated_episode(tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "episode.gif"
+    args = ["--rule", "paper002", "--every", "10", "--out", str(out)]
+    assert main(["render", *args]) == 0
+    with Image.open(out) as gif:
+        assert gif.n_frames == 4  # the reset frame, steps 10 and 20, the last step (30)
+        assert gif.size == (480, 480)
+    assert "return" in capsys.readouterr().out
+    with pytest.raises(SystemExit, match="rule"):
+        main(["render", "--rule", "nonsense", "--out", str(out)])
