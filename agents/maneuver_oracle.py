@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,11 +25,13 @@ from sensorgym.trackers.bearings_crlb import (
 )
 from sensorgym.trackers.bearings_models import cv_transition
 
-from .protocol import as_batch
+from .protocol import MemorylessRule
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class OracleLookahead:
+class OracleLookahead(MemorylessRule):
     """Hold each candidate action for ``horizon`` steps on the true, noise-free trajectory and
     take the first action of the plan with the smallest bound (receding horizon).
 
@@ -96,18 +97,11 @@ class OracleLookahead:
             bound = relative_range_bound(P, target[..., :2], pos)
         return np.where(too_close, np.inf, bound)
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         s = self.state_fn()
         if s.batch_size != obs.shape[0]:
             raise ValueError(
                 f"state_fn: simulator batch {s.batch_size} != {obs.shape[0]} observations"
             )
-        action = self.candidates()[np.argmin(self.plan_bounds(s), axis=1)].astype(np.float32)
-        return (action[0] if single else action), None
+        return self.candidates()[np.argmin(self.plan_bounds(s), axis=1)]

@@ -15,7 +15,7 @@ from numpy.typing import NDArray
 
 from sensorgym.envs.bearings_maneuver_core import OBS_DIM, ManeuverParams
 
-from .protocol import as_batch
+from .protocol import MemorylessRule, as_batch
 
 FloatArray = NDArray[np.float64]
 
@@ -34,19 +34,14 @@ def _turn_command(params: ManeuverParams, turn: FloatArray) -> FloatArray:
 
 
 @dataclass(frozen=True)
-class StraightCourse:
+class StraightCourse(MemorylessRule):
     """Hold course and speed: range stays unobservable (the baseline every rule must beat)."""
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, OBS_DIM)
-        action = np.zeros((obs.shape[0], 2), dtype=np.float32)
-        return (action[0] if single else action), None
+    obs_dim = OBS_DIM
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        return np.zeros((obs.shape[0], 2))
 
 
 @dataclass(frozen=True)
@@ -87,7 +82,7 @@ class Paper002Maneuver:
 
 
 @dataclass(frozen=True)
-class GreedyInformation:
+class GreedyInformation(MemorylessRule):
     """Take the action whose next bearing adds the most position information, by the tracker's
     own estimate (one-step D-optimal: maximise ``ln det(J + h hᵀ/σ²)``, i.e. ``hᵀ P h``).
 
@@ -105,14 +100,8 @@ class GreedyInformation:
     safety: float = 2.0
     """Candidates predicted within ``safety · min_range`` of the target are not taken."""
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, OBS_DIM)
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         p, w = self.params, self.params.world
         a_turn, a_speed = np.meshgrid(np.linspace(-1.0, 1.0, self.turns), self.speeds)
         cand = np.stack([a_turn.ravel(), a_speed.ravel()], -1)  # (C, 2)
@@ -138,5 +127,4 @@ class GreedyInformation:
         P = np.stack([np.stack([sd[:, 0] ** 2, cov], -1), np.stack([cov, sd[:, 1] ** 2], -1)], -2)
         gain = np.einsum("nci,nij,ncj->nc", normal, P, normal) / np.maximum(r, 1e-9) ** 2
         gain = np.where(r < self.safety * p.min_range, -np.inf, gain)
-        action = cand[np.argmax(gain, axis=-1)].astype(np.float32)
-        return (action[0] if single else action), None
+        return cand[np.argmax(gain, axis=-1)]

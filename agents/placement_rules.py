@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from sensorgym.envs.stereo_placement_core import PlacementParams, split_observation
 
-from .protocol import as_batch
+from .protocol import MemorylessRule, as_batch
 
 FloatArray = NDArray[np.float64]
 
@@ -40,31 +40,20 @@ def _in_disc(params: PlacementParams, points: FloatArray, margin: float = 1.0) -
     return points * np.minimum(1.0, limit / np.maximum(norm, 1e-12))[..., None]
 
 
-def _single(action: FloatArray, single: bool) -> NDArray[np.float32]:
-    a = action.astype(np.float32)
-    return a[0] if single else a
-
-
 @dataclass(frozen=True)
-class HoldPosition:
+class HoldPosition(MemorylessRule):
     """Never drive: the receivers stay clustered where they start (the baseline to beat)."""
 
     params: PlacementParams = field(default_factory=PlacementParams)
     """Env settings (observation layout, action size)."""
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
-        return _single(np.zeros((obs.shape[0], 2 * self.params.n_receivers)), single), None
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        return np.zeros((obs.shape[0], 2 * self.params.n_receivers))
 
 
 @dataclass(frozen=True)
-class CirclePlacement:
+class CirclePlacement(MemorylessRule):
     """Drive the receivers onto a circle around the estimated drone's ground point, spaced
     ``360°/n`` apart, of radius ``ρ = √2 ĥ`` with ``ĥ`` the estimated altitude (SPEC §7 OC-3
     "on a circle, not clustered", OC-1 "near-orthogonal lines of sight").
@@ -109,21 +98,14 @@ class CirclePlacement:
         best = np.argmin(cost, axis=-1)
         return goal.reshape(obs.shape[0], -1, n, 3)[np.arange(obs.shape[0]), best]
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         view = split_observation(self.params, obs)
-        action = _drive_to(self.params, view["receivers"], self.targets(obs))
-        return _single(action, single), None
+        return _drive_to(self.params, view["receivers"], self.targets(obs))
 
 
 @dataclass(frozen=True)
-class GreedyInformation:
+class GreedyInformation(MemorylessRule):
     """Move every receiver by the one-step candidate (stay, or full speed in one of
     ``headings`` directions) whose joint placement maximises ``ln det I`` of the predicted
     position information at the estimated drone position one period ahead,
@@ -146,14 +128,8 @@ class GreedyInformation:
         angle = 2.0 * np.pi * np.arange(self.headings) / self.headings
         return np.concatenate([np.zeros((1, 2)), np.stack([np.sin(angle), np.cos(angle)], -1)])
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         view = split_observation(self.params, obs)
         o, p, v = view["receivers"], view["position"], view["velocity"]
         n, N = self.params.n_receivers, obs.shape[0]
@@ -172,4 +148,4 @@ class GreedyInformation:
         sign, logdet = np.linalg.slogdet(info)
         score = np.where(sign > 0.0, logdet, -np.inf)
         best = np.argmax(score, axis=-1)
-        return _single(a[best].reshape(N, -1), single), None
+        return a[best].reshape(N, -1)

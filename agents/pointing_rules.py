@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from sensorgym.envs.stereo_pointing_core import PointingParams, split_observation
 from sensorgym.trackers.geometry import angles_from_unit, wrap_angle
 
-from .protocol import as_batch
+from .protocol import MemorylessRule, as_batch
 
 FloatArray = NDArray[np.float64]
 
@@ -91,8 +91,8 @@ def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArra
     return bonus * kept.sum(axis=-1)
 
 
-class _AssignAndSlew:
-    """SB3's ``predict`` for rules that pick a drone per receiver (``choose``) and slew to it."""
+class _AssignAndSlew(MemorylessRule):
+    """Rules that pick a drone per receiver (``choose``) and slew to it."""
 
     params: PointingParams
 
@@ -105,36 +105,22 @@ class _AssignAndSlew:
         choice = self.choose(_view(self.params, obs))
         return choice[0] if single else choice
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         view = _view(self.params, obs)
-        action = _slew_to(self.params, view, self.choose(view)).astype(np.float32)
-        return (action[0] if single else action), None
+        return _slew_to(self.params, view, self.choose(view))
 
 
 @dataclass(frozen=True)
-class HoldStill:
+class HoldStill(MemorylessRule):
     """Never slew: the receivers keep their starting directions (the baseline to beat)."""
 
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (observation layout, action size)."""
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.float32], None]:
-        obs, single = as_batch(observation, self.params.obs_dim)
-        action = np.zeros((obs.shape[0], 2 * self.params.n_receivers), dtype=np.float32)
-        return (action[0] if single else action), None
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        return np.zeros((obs.shape[0], 2 * self.params.n_receivers))
 
 
 @dataclass(frozen=True)

@@ -38,3 +38,27 @@ def as_batch(observation: NDArray[Any], obs_dim: int) -> tuple[NDArray[np.float6
     if not np.all(np.isfinite(obs)):
         raise ValueError("observation: contains NaN or infinite values")
     return obs, single
+
+
+class MemorylessRule:
+    """SB3's ``predict`` for rules without memory, written once: a subclass gives ``obs_dim``
+    and ``act(obs (N, obs_dim)) -> actions (N, ...)``; ``predict`` accepts one observation or a
+    batch and returns float32 actions and no state."""
+
+    @property
+    def obs_dim(self) -> int:
+        return self.params.obs_dim  # type: ignore[attr-defined]
+
+    def act(self, obs: NDArray[np.float64]) -> NDArray[Any]:
+        raise NotImplementedError
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: Any = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], None]:
+        obs, single = as_batch(observation, self.obs_dim)
+        action = np.asarray(self.act(obs), dtype=np.float32)
+        return (action[0] if single else action), None
