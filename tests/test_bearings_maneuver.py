@@ -7,8 +7,6 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
@@ -21,65 +19,6 @@ from sensorgym.envs.bearings_maneuver_core import ManeuverParams
 from sensorgym.envs.platform_world import PlatformWorldParams
 
 ENV_ID = "sensorgym/BearingsManeuver-v0"
-
-
-def test_gymnasium_and_sb3_checkers_pass():
-    check_env(gym.make(ENV_ID, render_mode="rgb_array").unwrapped, skip_render_check=False)
-    sb3_check_env(gym.make(ENV_ID), warn=True)
-
-
-def test_registration_sets_the_time_limit_and_the_vector_entry_point():
-    env = gym.make(ENV_ID)
-    assert env.spec.max_episode_steps == 30
-    venv = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point")
-    assert isinstance(venv.unwrapped, BearingsManeuverVectorEnv)
-    assert venv.unwrapped.max_episode_steps == 30
-    obs, info = venv.reset(seed=1)
-    assert obs.shape == (3, core.OBS_DIM) and info["range"].shape == (3,)
-
-
-def _episode(env, seed, actions):
-    obs, _ = env.reset(seed=seed)
-    out = [obs]
-    for a in actions:
-        obs, r, term, trunc, _ = env.step(a)
-        out.append(np.concatenate([obs, [r, term, trunc]]))
-        if term or trunc:
-            break
-    return np.concatenate(out)
-
-
-def test_same_seed_same_episode_other_seed_another():
-    actions = np.random.default_rng(0).uniform(-1, 1, (30, 2))
-    a = _episode(gym.make(ENV_ID), 7, actions)
-    b = _episode(gym.make(ENV_ID), 7, actions)
-    c = _episode(gym.make(ENV_ID), 8, actions)
-    np.testing.assert_array_equal(a, b)
-    assert a.shape != c.shape or not np.array_equal(a, c)
-
-
-def test_vector_env_of_one_reproduces_the_single_env_across_autoreset():
-    """Gymnasium's vector-equivalence pattern: same seed, same actions, step by step, over two
-    episodes (the NEXT_STEP autoreset step is matched by an explicit reset of the single env)."""
-    rng = np.random.default_rng(1)
-    single = gym.make(ENV_ID, max_episode_steps=6)
-    vector = BearingsManeuverVectorEnv(num_envs=1, max_episode_steps=6)
-    obs_s, _ = single.reset(seed=3)
-    obs_v, _ = vector.reset(seed=3)
-    np.testing.assert_array_equal(obs_v[0], obs_s)
-    done = False
-    for _ in range(15):
-        a = rng.uniform(-1, 1, 2).astype(np.float32)
-        obs_v, r_v, term_v, trunc_v, _ = vector.step(a[None])
-        if done:  # the vector env restarts on this step; the single env is reset by hand
-            obs_s, _ = single.reset()
-            assert r_v[0] == 0.0 and not term_v[0] and not trunc_v[0]
-            done = False
-        else:
-            obs_s, r_s, term_s, trunc_s, _ = single.step(a)
-            assert r_v[0] == r_s and term_v[0] == term_s and trunc_v[0] == trunc_s
-            done = term_s or trunc_s
-        np.testing.assert_array_equal(obs_v[0], obs_s)
 
 
 def test_vector_env_autoresets_only_the_finished_scenarios():
@@ -161,16 +100,6 @@ def test_relative_range_metric_rewards_the_range_bound():
     new, reward, _ = core.step(params, state, np.tile([1.0, 1.0], (4, 1)), np.random.default_rng(9))
     np.testing.assert_allclose(reward, np.log(state.accuracy / new.accuracy), rtol=1e-12)
     assert np.all(new.accuracy < 5.0)  # a relative bound, not metres
-
-
-def test_render_draws_the_episode():
-    env = BearingsManeuverEnv(render_mode="rgb_array")
-    env.reset(seed=0)
-    first = env.render()
-    env.step(np.array([1.0, 1.0], dtype=np.float32))
-    second = env.render()
-    assert first.shape == (480, 480, 3) and first.dtype == np.uint8
-    assert not np.array_equal(first, second)
 
 
 # --- heuristic rules ---------------------------------------------------------------------------

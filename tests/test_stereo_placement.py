@@ -4,14 +4,11 @@ reward, degenerate geometry, actions, rules, PettingZoo."""
 from __future__ import annotations
 
 import dataclasses
-import pickle
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
 from pettingzoo.test import parallel_api_test, parallel_seed_test
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
@@ -21,7 +18,7 @@ from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.agents.registry import rules_for
 from sensorgym.envs import stereo_placement_core as core
 from sensorgym.envs import stereo_placement_pz
-from sensorgym.envs.stereo_placement import StereoPlacementEnv, StereoPlacementVectorEnv
+from sensorgym.envs.stereo_placement import StereoPlacementVectorEnv
 from sensorgym.envs.stereo_placement_core import PlacementParams
 from sensorgym.trackers.stereo_accuracy import position_crlb
 
@@ -37,11 +34,6 @@ def _still_scene(params: PlacementParams, receivers, drone, velocity=(0.0, 0.0, 
 
 
 # --- API conformance ---------------------------------------------------------------------------
-
-
-def test_gymnasium_and_sb3_checkers_pass():
-    check_env(gym.make(ENV_ID, render_mode="rgb_array").unwrapped, skip_render_check=False)
-    sb3_check_env(gym.make(ENV_ID), warn=True)
 
 
 def test_registration_sets_the_time_limit_and_the_vector_entry_point():
@@ -60,52 +52,6 @@ def test_registration_sets_the_time_limit_and_the_vector_entry_point():
     }
 
 
-def _episode(env, seed, actions):
-    obs, _ = env.reset(seed=seed)
-    out = [obs]
-    for a in actions:
-        obs, r, term, trunc, _ = env.step(a)
-        out.append(np.concatenate([obs, [r, term, trunc]]))
-        if term or trunc:
-            break
-    return np.concatenate(out)
-
-
-def test_same_seed_same_episode_other_seed_another():
-    actions = np.random.default_rng(0).uniform(-1, 1, (30, 6))
-    a = _episode(gym.make(ENV_ID), 7, actions)
-    b = _episode(gym.make(ENV_ID), 7, actions)
-    c = _episode(gym.make(ENV_ID), 8, actions)
-    np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(a, c)
-
-
-def test_vector_env_of_one_reproduces_the_single_env_across_autoreset():
-    """Same seed, same actions (the circle rule), step by step over three episodes; the
-    NEXT_STEP autoreset step is matched by an explicit reset of the single env."""
-    rule = CirclePlacement()
-    single = gym.make(ENV_ID, max_episode_steps=10)
-    vector = StereoPlacementVectorEnv(num_envs=1, max_episode_steps=10)
-    obs_s, _ = single.reset(seed=3)
-    obs_v, _ = vector.reset(seed=3)
-    np.testing.assert_array_equal(obs_v[0], obs_s)
-    done, restarts = False, 0
-    for _ in range(32):
-        a, _ = rule.predict(obs_s)
-        obs_v, r_v, term_v, trunc_v, _ = vector.step(a[None])
-        assert not term_v[0]
-        if done:
-            obs_s, _ = single.reset()
-            assert r_v[0] == 0.0 and not trunc_v[0]
-            done, restarts = False, restarts + 1
-        else:
-            obs_s, r_s, term_s, trunc_s, _ = single.step(a)
-            assert r_v[0] == r_s and not term_s and trunc_v[0] == trunc_s
-            done = trunc_s
-        np.testing.assert_array_equal(obs_v[0], obs_s)
-    assert restarts == 2
-
-
 def test_where_swaps_only_the_masked_scenarios():
     params = PlacementParams()
     old = core.reset(params, np.random.default_rng(1), 5)
@@ -120,16 +66,6 @@ def test_where_swaps_only_the_masked_scenarios():
     np.testing.assert_array_equal(mixed.t, np.where(mask, 0.0, params.period))
     with pytest.raises(ValueError, match="mask"):
         core.where(mask[:3], new, old)
-
-
-def test_pickle_round_trip_mid_episode():
-    env = gym.make(ENV_ID)
-    env.reset(seed=5)
-    for a in np.random.default_rng(5).uniform(-1, 1, (4, 6)):
-        env.step(a)
-    clone = pickle.loads(pickle.dumps(env))
-    a = np.full(6, 0.3, dtype=np.float32)
-    np.testing.assert_array_equal(env.step(a)[0], clone.step(a)[0])
 
 
 # --- the conjugation tracker --------------------------------------------------------------------
@@ -292,16 +228,6 @@ def test_observation_layout_round_trips_through_split_observation():
     np.testing.assert_allclose(view["velocity"], state.estimate[:, 3:], rtol=1e-6, atol=1e-5)
     angles = core.los_angles(params, state.receivers, state.estimate[:, :3])
     np.testing.assert_allclose(view["angles"], angles, atol=1e-6)
-
-
-def test_render_draws_the_episode():
-    env = StereoPlacementEnv(render_mode="rgb_array")
-    env.reset(seed=0)
-    first = env.render()
-    env.step(np.ones(6, dtype=np.float32))
-    second = env.render()
-    assert first.shape == (480, 480, 3) and first.dtype == np.uint8
-    assert not np.array_equal(first, second)
 
 
 # --- PettingZoo ---------------------------------------------------------------------------------

@@ -4,13 +4,10 @@ tracker, rules."""
 from __future__ import annotations
 
 import dataclasses
-import pickle
 
 import gymnasium as gym
 import numpy as np
 import pytest
-from gymnasium.utils.env_checker import check_env
-from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
@@ -50,11 +47,6 @@ def _still(params: PointingParams, points, target, seed=0) -> core.PointingState
 # --- API conformance ---------------------------------------------------------------------------
 
 
-def test_gymnasium_and_sb3_checkers_pass():
-    check_env(gym.make(ENV_ID, render_mode="rgb_array").unwrapped, skip_render_check=False)
-    sb3_check_env(gym.make(ENV_ID), warn=True)
-
-
 def test_registration_sets_the_time_limit_and_the_vector_entry_point():
     env = gym.make(ENV_ID)
     assert env.spec.max_episode_steps == 150
@@ -64,26 +56,6 @@ def test_registration_sets_the_time_limit_and_the_vector_entry_point():
     assert venv.unwrapped.max_episode_steps == 150
     obs, info = venv.reset(seed=1)
     assert obs.shape == (3, 44) and info["position_error"].shape == (3,)
-
-
-def _episode(env, seed, actions):
-    obs, _ = env.reset(seed=seed)
-    out = [obs]
-    for a in actions:
-        obs, r, term, trunc, _ = env.step(a)
-        out.append(np.concatenate([obs, [r, term, trunc]]))
-        if term or trunc:
-            break
-    return np.concatenate(out)
-
-
-def test_same_seed_same_episode_other_seed_another():
-    actions = np.random.default_rng(0).uniform(-1, 1, (40, 8))
-    a = _episode(gym.make(ENV_ID), 7, actions)
-    b = _episode(gym.make(ENV_ID), 7, actions)
-    c = _episode(gym.make(ENV_ID), 8, actions)
-    np.testing.assert_array_equal(a, b)
-    assert not np.array_equal(a, c)
 
 
 def test_vector_env_of_one_reproduces_the_single_env_across_autoreset():
@@ -138,16 +110,6 @@ def test_where_swaps_only_the_masked_scenarios():
     np.testing.assert_array_equal(mixed.t, np.where(mask, 0.0, params.dt))
     with pytest.raises(ValueError, match="mask"):
         core.where(mask[:3], new, old)
-
-
-def test_pickle_round_trip_mid_episode():
-    env = gym.make(ENV_ID)
-    env.reset(seed=5)
-    for a in np.random.default_rng(5).uniform(-1, 1, (4, 8)):
-        env.step(a)
-    clone = pickle.loads(pickle.dumps(env))
-    a = np.full(8, 0.3, dtype=np.float32)
-    np.testing.assert_array_equal(env.step(a)[0], clone.step(a)[0])
 
 
 # --- geometry, measurement, reward --------------------------------------------------------------
@@ -319,16 +281,6 @@ def test_observation_holds_no_ground_truth():
     state = core.reset(params, np.random.default_rng(10), 1)
     moved = dataclasses.replace(state, drone_position=state.drone_position + 7.0)
     np.testing.assert_array_equal(core.observe(params, state), core.observe(params, moved))
-
-
-def test_render_draws_the_episode():
-    env = StereoPointingEnv(render_mode="rgb_array")
-    env.reset(seed=0)
-    first = env.render()
-    env.step(np.ones(8, dtype=np.float32))
-    second = env.render()
-    assert first.shape == (480, 480, 3) and first.dtype == np.uint8
-    assert not np.array_equal(first, second)
 
 
 # --- tracker ------------------------------------------------------------------------------------

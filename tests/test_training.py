@@ -20,29 +20,6 @@ from sensorgym.train.trainer import train
 ENV_ID = "sensorgym/BearingsManeuver-v0"
 
 
-def test_same_step_autoreset_is_next_step_shifted_by_one():
-    """SAME_STEP returns at the ending step what NEXT_STEP returns one step later, and keeps the
-    ending observation in ``final_obs``."""
-    same = BearingsManeuverVectorEnv(2, max_episode_steps=3, autoreset_mode="SameStep")
-    nxt = BearingsManeuverVectorEnv(2, max_episode_steps=3)
-    o_s, _ = same.reset(seed=2)
-    o_n, _ = nxt.reset(seed=2)
-    a = np.full((2, 2), 0.5)
-    for _ in range(2):
-        o_s, r_s, *_ = same.step(a)
-        o_n, r_n, *_ = nxt.step(a)
-        np.testing.assert_array_equal(o_s, o_n)
-        np.testing.assert_array_equal(r_s, r_n)
-    o_s, r_s, term_s, trunc_s, info_s = same.step(a)
-    o_n, r_n, _, trunc_n, _ = nxt.step(a)
-    np.testing.assert_array_equal(r_s, r_n)
-    assert trunc_s.all() and trunc_n.all() and not term_s.any()
-    np.testing.assert_array_equal(info_s["final_obs"], o_n)  # the ending observation
-    assert info_s["_final_obs"].all()
-    o_n, *_ = nxt.step(a)  # NEXT_STEP restarts now
-    np.testing.assert_array_equal(o_s, o_n)
-
-
 def test_sb3_adapter_reports_terminal_observations_and_time_limits():
     venv = SB3VecEnv(BearingsManeuverVectorEnv(3, max_episode_steps=4, autoreset_mode="SameStep"))
     venv.seed(5)
