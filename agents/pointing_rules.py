@@ -11,6 +11,7 @@ receiver straight at the predicted position of its drone.
 from __future__ import annotations
 
 import itertools
+from abc import abstractmethod
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -96,8 +97,9 @@ class _AssignAndSlew(MemorylessRule):
 
     params: PointingParams
 
+    @abstractmethod
     def choose(self, view: _View) -> NDArray[np.int64]:
-        raise NotImplementedError
+        """Drone index per receiver ``(N, n)``."""
 
     def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from abc import ABC, abstractmethod
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -40,7 +41,7 @@ def as_batch(observation: NDArray[Any], obs_dim: int) -> tuple[NDArray[np.float6
     return obs, single
 
 
-class MemorylessRule:
+class MemorylessRule(ABC):
     """SB3's ``predict`` for rules without memory, written once: a subclass gives ``obs_dim``
     and ``act(obs (N, obs_dim)) -> actions (N, ...)``; ``predict`` accepts one observation or a
     batch and returns float32 actions and no state."""
@@ -49,8 +50,9 @@ class MemorylessRule:
     def obs_dim(self) -> int:
         return self.params.obs_dim  # type: ignore[attr-defined]
 
+    @abstractmethod
     def act(self, obs: NDArray[np.float64]) -> NDArray[Any]:
-        raise NotImplementedError
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
 
     def predict(
         self,
