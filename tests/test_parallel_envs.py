@@ -8,8 +8,9 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.envs import bearings_maneuver_pz, stereo_pointing_pz
+from sensorgym.envs import bearings_maneuver_pz, stereo_placement_pz, stereo_pointing_pz
 from sensorgym.envs.bearings_maneuver_core import ManeuverParams
+from sensorgym.envs.stereo_placement_core import PlacementParams
 from sensorgym.envs.stereo_pointing_core import PointingParams
 
 
@@ -20,6 +21,7 @@ from sensorgym.envs.stereo_pointing_core import PointingParams
         lambda: bearings_maneuver_pz.parallel_env(platforms=3, max_episode_steps=10),
         lambda: stereo_pointing_pz.parallel_env(max_episode_steps=40),
         lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20),
+        lambda: stereo_placement_pz.parallel_env(max_episode_steps=30),
     ],
 )
 def test_pettingzoo_api_and_seed_tests_pass(make):
@@ -45,10 +47,20 @@ def test_one_platform_parallel_env_is_the_gymnasium_env():
         pz.step({"platform_0": a})
 
 
-def test_receiver_agents_see_the_single_env_observation_and_their_index():
-    params = PointingParams(n_receivers=3, n_drones=2)
-    pz = stereo_pointing_pz.parallel_env(params=params)
-    env = gym.make("sensorgym/StereoPointing-v0", params=params)
+@pytest.mark.parametrize(
+    "make_pz, env_id, params",
+    [
+        (
+            stereo_pointing_pz.parallel_env,
+            "sensorgym/StereoPointing-v0",
+            PointingParams(n_receivers=3, n_drones=2),
+        ),
+        (stereo_placement_pz.parallel_env, "sensorgym/StereoPlacement-v0", PlacementParams()),
+    ],
+)
+def test_receiver_agents_see_the_single_env_observation_and_their_index(make_pz, env_id, params):
+    pz = make_pz(params=params)
+    env = gym.make(env_id, params=params)
     obs_pz, _ = pz.reset(seed=4)
     obs_g, _ = env.reset(seed=4)
     actions = np.random.default_rng(1).uniform(-1, 1, (3, 2)).astype(np.float32)

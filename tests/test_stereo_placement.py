@@ -8,7 +8,6 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
-from pettingzoo.test import parallel_api_test, parallel_seed_test
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
@@ -231,28 +230,6 @@ def test_observation_layout_round_trips_through_split_observation():
 
 
 # --- PettingZoo ---------------------------------------------------------------------------------
-
-
-def test_pettingzoo_api_and_seed_tests_pass():
-    parallel_api_test(stereo_placement_pz.parallel_env(max_episode_steps=30), num_cycles=40)
-    parallel_seed_test(lambda: stereo_placement_pz.parallel_env(max_episode_steps=30), num_cycles=40)  # fmt: skip
-
-
-def test_receiver_agents_see_the_single_env_observation_and_their_index():
-    params = PlacementParams()
-    pz = stereo_placement_pz.parallel_env(params=params)
-    env = gym.make(ENV_ID, params=params)
-    obs_pz, _ = pz.reset(seed=4)
-    obs_g, _ = env.reset(seed=4)
-    actions = np.random.default_rng(1).uniform(-1, 1, (3, 2)).astype(np.float32)
-    obs_pz, r_pz, *_ = pz.step({f"receiver_{k}": actions[k] for k in range(3)})
-    obs_g, r_g, *_ = env.step(actions.reshape(-1))
-    for k in range(3):
-        o = obs_pz[f"receiver_{k}"]
-        np.testing.assert_array_equal(o[: params.obs_dim], obs_g)
-        np.testing.assert_array_equal(o[params.obs_dim :], np.eye(3)[k])
-        assert r_pz[f"receiver_{k}"] == r_g
-    assert pz.state().shape == (3 * (params.obs_dim + 3),)
 
 
 # --- rules --------------------------------------------------------------------------------------
