@@ -1,0 +1,134 @@
+"""Seeded episodes of every env and every reproduction's report, recorded before a refactor.
+
+``python tests/golden_record.py`` rewrites ``tests/golden/``; ``tests/test_golden.py`` replays
+the same calls and demands identical observations, rewards and printed numbers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import re
+import sys
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+GOLDEN = Path(__file__).parent / "golden"
+SEEDS = (0, 7)
+SINGLE_STEPS = 40
+VECTOR_ENVS, VECTOR_STEPS = 3, 35
+PARALLEL_STEPS = 20
+REPRODUCTIONS = ("paper000", "paper001", "paper002", "paper003", "paper004", "bot-benchmark")
+REPRODUCTION_RUNS = 4
+
+
+def _actions(seed: int, steps: int, shape: tuple[int, ...]) -> np.ndarray:
+    # beyond the Box on purpose: the clipping is part of the behaviour
+    return np.random.default_rng(1000 + seed).uniform(-1.2, 1.2, (steps, *shape))
+
+
+def single_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
+    """Reset with ``seed``, then seeded actions; a new episode (reset, no seed) after an end."""
+    env = gym.make(env_id)
+    obs, _ = env.reset(seed=seed)
+    out = {"obs": [obs], "reward": [], "terminated": [], "truncated": []}
+    for a in _actions(seed, SINGLE_STEPS, env.action_space.shape):
+        obs, reward, terminated, truncated, _ = env.step(a)
+        if terminated or truncated:
+            obs, _ = env.reset()
+        out["obs"].append(obs)
+        out["reward"].append(reward)
+        out["terminated"].append(terminated)
+        out["truncated"].append(truncated)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def vector_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
+    """``VECTOR_ENVS`` scenarios of the native vector env (NEXT_STEP autoreset)."""
+    env = gym.make_vec(env_id, num_envs=VECTOR_ENVS, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=seed)
+    out = {"obs": [obs], "reward": [], "terminated": [], "truncated": []}
+    for a in _actions(seed, VECTOR_STEPS, env.action_space.shape):
+        obs, reward, terminated, truncated, _ = env.step(a)
+        out["obs"].append(obs)
+        out["reward"].append(reward)
+        out["terminated"].append(terminated)
+        out["truncated"].append(truncated)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def parallel_episodes(factory, seed: int) -> dict[str, np.ndarray]:
+    """The PettingZoo env: joint observations ``(steps + 1, n_agents, obs)`` and team rewards."""
+    env = factory()
+    obs, _ = env.reset(seed=seed)
+    agents = list(env.possible_agents)
+    shape = env.action_space(agents[0]).shape
+    out = {"obs": [np.stack([obs[a] for a in agents])], "reward": []}
+    for joint in _actions(seed, PARALLEL_STEPS, (len(agents), *shape)):
+        obs, rewards, _, _, _ = env.step(dict(zip(agents, joint, strict=True)))
+        out["obs"].append(np.stack([obs[a] for a in agents]))
+        out["reward"].append(rewards[agents[0]])
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
+def normalised_report(text: str) -> str:
+    """A reproduction's printed report without what may change between identical runs: run
+    times, the files it wrote and the wording of document references."""
+    lines = []
+    timing_table = False
+    for line in text.splitlines():
+        if line.startswith("wrote ") or re.fullmatch(r"\s*[\d.]+ s", line):
+            continue
+        line = re.sub(r"took [\d.]+ s", "took _ s", line)
+        line = re.sub(r"\((SPEC|theory) §[^)]*\)", "(ref)", line)
+        if "time (s)" in line:
+            timing_table = True
+        elif not line.strip():
+            timing_table = False
+        elif timing_table:
+            line = line.rsplit(None, 1)[0]
+        lines.append(line.rstrip())
+    return "\n".join(lines) + "\n"
+
+
+def reproduction_report(name: str, out: Path) -> str:
+    """The normalised report of ``sensorgym reproduce NAME --runs 4`` (no plots)."""
+    from sensorgym.cli.main import main
+
+    argv = ["reproduce", name, "--runs", str(REPRODUCTION_RUNS), "--out", str(out / name)]
+    if name in ("paper001", "paper004"):
+        argv.append("--no-plots")
+    buffer = io.StringIO()
+    with contextlib.redirect_stdout(buffer):
+        main(argv)
+    return normalised_report(buffer.getvalue())
+
+
+def record() -> None:
+    import tempfile
+
+    import sensorgym.envs as envs
+    from tests.test_golden import PARALLEL_FACTORIES
+
+    GOLDEN.mkdir(exist_ok=True)
+    arrays: dict[str, np.ndarray] = {}
+    for env_id in envs.ENV_IDS:
+        name = env_id.split("/")[1]
+        for seed in SEEDS:
+            for kind, fn in (("single", single_episodes), ("vector", vector_episodes)):
+                for key, value in fn(env_id, seed).items():
+                    arrays[f"{name}/{kind}/{seed}/{key}"] = value
+            for key, value in parallel_episodes(PARALLEL_FACTORIES[env_id], seed).items():
+                arrays[f"{name}/parallel/{seed}/{key}"] = value
+    np.savez_compressed(GOLDEN / "episodes.npz", **arrays)
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in REPRODUCTIONS:
+            (GOLDEN / f"{name}.txt").write_text(reproduction_report(name, Path(tmp)))
+    print(f"recorded {len(arrays)} arrays and {len(REPRODUCTIONS)} reports in {GOLDEN}")
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).parent.parent))
+    record()

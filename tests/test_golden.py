@@ -1,0 +1,74 @@
+"""Behaviour kept: seeded episodes and reproduction reports equal the recorded ones.
+
+The recordings in ``tests/golden/`` were made before the package was reorganised
+(``tests/golden_record.py``); any change of an env's observations, rewards or episode ends, or
+of a number a reproduction prints, fails here. Re-record only for an intended behaviour change,
+and say so in the commit.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+import sensorgym.envs as envs
+from sensorgym.envs.bearings_maneuver_pz import parallel_env as maneuver_parallel
+from sensorgym.envs.stereo_placement_pz import parallel_env as placement_parallel
+from sensorgym.envs.stereo_pointing_pz import parallel_env as pointing_parallel
+from tests.golden_record import (
+    GOLDEN,
+    REPRODUCTIONS,
+    SEEDS,
+    parallel_episodes,
+    reproduction_report,
+    single_episodes,
+    vector_episodes,
+)
+
+PARALLEL_FACTORIES = {
+    "sensorgym/BearingsManeuver-v0": functools.partial(maneuver_parallel, platforms=2),
+    "sensorgym/StereoPointing-v0": pointing_parallel,
+    "sensorgym/StereoPlacement-v0": placement_parallel,
+}
+
+
+@pytest.fixture(scope="module")
+def recorded() -> dict[str, np.ndarray]:
+    with np.load(GOLDEN / "episodes.npz") as data:
+        return dict(data)
+
+
+def _assert_same(recorded: dict[str, np.ndarray], prefix: str, got: dict[str, np.ndarray]):
+    for key, value in got.items():
+        np.testing.assert_array_equal(value, recorded[f"{prefix}/{key}"], err_msg=f"{prefix}/{key}")
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_single_env_episodes_unchanged(recorded, env_id, seed):
+    name = env_id.split("/")[1]
+    _assert_same(recorded, f"{name}/single/{seed}", single_episodes(env_id, seed))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_vector_env_episodes_unchanged(recorded, env_id, seed):
+    name = env_id.split("/")[1]
+    _assert_same(recorded, f"{name}/vector/{seed}", vector_episodes(env_id, seed))
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+def test_parallel_env_episodes_unchanged(recorded, env_id, seed):
+    name = env_id.split("/")[1]
+    got = parallel_episodes(PARALLEL_FACTORIES[env_id], seed)
+    _assert_same(recorded, f"{name}/parallel/{seed}", got)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", REPRODUCTIONS)
+def test_reproduction_report_unchanged(name, tmp_path):
+    expected = (GOLDEN / f"{name}.txt").read_text()
+    assert reproduction_report(name, tmp_path) == expected
