@@ -11,10 +11,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from . import placement_rules, pointing_rules
-from .maneuver_oracle import OracleLookahead
-from .maneuver_rules import GreedyInformation, Paper002Maneuver, StraightCourse
-from .protocol import PolicyPredictor
+from sensorgym.agents import stereo_placement as placement_rules
+from sensorgym.agents import stereo_pointing as pointing_rules
+from sensorgym.agents.bearings_maneuver import GreedyInformation, Paper002Maneuver, StraightCourse
+from sensorgym.agents.bearings_maneuver_oracle import OracleLookahead
+from sensorgym.agents.protocol import PolicyPredictor
 
 StateFn = Callable[[], Any]
 RuleFactory = Callable[[Any, StateFn], PolicyPredictor]

@@ -16,11 +16,11 @@ import argparse
 import numpy as np
 from timing import RESULTS, best_rate, write_results
 
-from sensorgym.envs.gimbal_world import StraightTrajectory
-from sensorgym.envs.imaging_world import ImagingScene
-from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
-from sensorgym.trackers.angle_prediction import ABCPredictor
-from sensorgym.trackers.fusion_tracker import FusionTracker
+from sensorgym.envs.worlds.gimbal import StraightTrajectory
+from sensorgym.envs.worlds.imaging import ImagingScene
+from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
+from sensorgym.trackers.angles.prediction import ABCPredictor
+from sensorgym.trackers.fusion.tracker import FusionTracker
 
 BATCHES = (1, 64, 1024)
 

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 from timing import RESULTS, best_rate, write_results
 
-from sensorgym.envs.platform_world import PlatformWorldParams, PlatformWorldState, step
-from sensorgym.trackers.bearings_crlb import (
+from sensorgym.envs.worlds.platform import PlatformWorldParams, PlatformWorldState, step
+from sensorgym.trackers.bearings.crlb import (
     add_bearing_information,
     batch_information,
     crlb,
@@ -25,7 +25,7 @@ from sensorgym.trackers.bearings_crlb import (
     predict_information,
     range_bound,
 )
-from sensorgym.trackers.bearings_filter import (
+from sensorgym.trackers.bearings.filters import (
     bearing_prior,
     ckf_update,
     ekf_update,
@@ -33,7 +33,7 @@ from sensorgym.trackers.bearings_filter import (
     range_bank_prior,
     range_bank_update,
 )
-from sensorgym.trackers.bearings_models import predict
+from sensorgym.trackers.bearings.models import predict
 
 SIGMA = np.deg2rad(1.5)
 Q_TILDE = 9e-6

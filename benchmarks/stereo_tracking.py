@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 from timing import RESULTS, write_results
 
-from sensorgym.envs.drones import GroupSpec, random_group
-from sensorgym.envs.scanning import FixedDelay, RasterScan
-from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate
-from sensorgym.trackers.stereo_detector003 import AlgorithmicParams, detect_algorithmic
-from sensorgym.trackers.stereo_tracker000 import track_alternative, track_proposed
+from sensorgym.envs.worlds.drones import GroupSpec, random_group
+from sensorgym.envs.worlds.scanning import FixedDelay, RasterScan
+from sensorgym.envs.worlds.stereo import NoiseModel, ReceiverLayout, simulate
+from sensorgym.trackers.stereo.algorithmic_detection import AlgorithmicParams, detect_algorithmic
+from sensorgym.trackers.stereo.period_tracking import track_alternative, track_proposed
 
 LAYOUT = ReceiverLayout.on_circle(120.0, [0.0, 90.0, 270.0], aim=(0.0, 40.0, 0.0))
 SPEC = GroupSpec(

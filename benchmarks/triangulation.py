@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 from timing import RESULTS, best_rate, write_results
 
-from sensorgym.trackers.conjugation import solve_conjugation
 from sensorgym.trackers.geometry import look_at_rotation, relative_pose
+from sensorgym.trackers.stereo.conjugation import solve_conjugation
 
 TARGETS = {"n=2 order 0": 10e6, "n=3 order 1": 2e6}
 

@@ -1,7 +1,7 @@
 """``sensorgym triangulate-demo``: two-receiver range accuracy, closed form beside Monte Carlo.
 
 For a few angles ``γ`` between the lines of sight it prints, under both noise models of
-:mod:`sensorgym.trackers.stereo_accuracy`:
+:mod:`sensorgym.trackers.stereo.accuracy`:
 
 * papers' model (i.i.d. conjugation error ``σ_e``): ``σ[r̂_1] = σ_e/sin γ`` (000 eq. 12) and
   the standard deviation of ``r̂_1`` over seeded Monte Carlo draws;
@@ -18,14 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorgym.envs.stereo_scene import pair_scene, perturb_directions
-from sensorgym.trackers.conjugation import solve_pair
-from sensorgym.trackers.stereo_accuracy import (
+from sensorgym.envs.worlds.stereo_scene import pair_scene, perturb_directions
+from sensorgym.trackers.stereo.accuracy import (
     pair_range_sigma,
     pair_range_sigma_angle_noise,
     position_crlb,
     triangulate_ml,
 )
+from sensorgym.trackers.stereo.conjugation import solve_pair
 
 HELP = "Two-receiver range error: closed forms beside seeded Monte Carlo, for several angles γ."
 

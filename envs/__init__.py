@@ -9,20 +9,20 @@ from gymnasium.envs.registration import register, registry
 _ENVS = [
     {
         "id": "sensorgym/BearingsManeuver-v0",
-        "entry_point": "sensorgym.envs.bearings_maneuver:BearingsManeuverEnv",
-        "vector_entry_point": "sensorgym.envs.bearings_maneuver:BearingsManeuverVectorEnv",
+        "entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverEnv",
+        "vector_entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverVectorEnv",
         "max_episode_steps": 30,
     },
     {
         "id": "sensorgym/StereoPointing-v0",
-        "entry_point": "sensorgym.envs.stereo_pointing:StereoPointingEnv",
-        "vector_entry_point": "sensorgym.envs.stereo_pointing:StereoPointingVectorEnv",
+        "entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingVectorEnv",
         "max_episode_steps": 150,
     },
     {
         "id": "sensorgym/StereoPlacement-v0",
-        "entry_point": "sensorgym.envs.stereo_placement:StereoPlacementEnv",
-        "vector_entry_point": "sensorgym.envs.stereo_placement:StereoPlacementVectorEnv",
+        "entry_point": "sensorgym.envs.stereo_placement.env:StereoPlacementEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_placement.env:StereoPlacementVectorEnv",
         "max_episode_steps": 60,
     },
 ]

@@ -10,9 +10,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorgym.envs.gimbal_world import StraightTrajectory
-
-from ._common import save_figure
+from sensorgym.envs.worlds.gimbal import StraightTrajectory
+from sensorgym.reproduce._common import save_figure
 
 
 def write_figures(result: dict, out: Path) -> list[Path]:

@@ -11,12 +11,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from sensorgym.envs.drones import GroupSpec, Trajectories, random_group
-from sensorgym.envs.scanning import RasterScan
-from sensorgym.envs.stereo_world import NoiseModel, ReceiverLayout, simulate
+from sensorgym.envs.worlds.drones import GroupSpec, Trajectories, random_group
+from sensorgym.envs.worlds.scanning import RasterScan
+from sensorgym.envs.worlds.stereo import NoiseModel, ReceiverLayout, simulate
 from sensorgym.trackers.geometry import look_at_rotation
-from sensorgym.trackers.stereo_algebraic003 import algebraic_single, economical
-from sensorgym.trackers.stereo_detector003 import AlgorithmicParams, detect_algorithmic
+from sensorgym.trackers.stereo.algebraic_detection import algebraic_single, economical
+from sensorgym.trackers.stereo.algorithmic_detection import AlgorithmicParams, detect_algorithmic
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import save_figure
+from sensorgym.reproduce._common import save_figure
 
 FORMS = ("mixture", "information")
 

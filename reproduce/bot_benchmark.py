@@ -28,27 +28,26 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from scipy.stats import chi2
 
-from sensorgym.envs.platform_world import (
+from sensorgym.envs.worlds.platform import (
     PlatformTrajectory,
     PlatformWorldParams,
     PlatformWorldState,
     rollout,
     true_bearings,
 )
-from sensorgym.trackers.bearings_crlb import (
+from sensorgym.reproduce._common import add_common_arguments, write_json
+from sensorgym.trackers.bearings.crlb import (
     batch_information,
     bearing_information,
     crlb,
     position_rms_bound,
     posterior_information,
 )
-from sensorgym.trackers.bearings_filter import bearing_prior, range_bank_prior, run_filter
-from sensorgym.trackers.bearings_ml import ml_estimate
-from sensorgym.trackers.bearings_models import KNOT
-from sensorgym.trackers.bearings_pseudolinear import pseudolinear_estimate
+from sensorgym.trackers.bearings.filters import bearing_prior, range_bank_prior, run_filter
+from sensorgym.trackers.bearings.maximum_likelihood import ml_estimate
+from sensorgym.trackers.bearings.models import KNOT
+from sensorgym.trackers.bearings.pseudolinear import pseudolinear_estimate
 from sensorgym.trackers.geometry import wrap_angle
-
-from ._common import add_common_arguments, write_json
 
 HELP = "Textbook bearings-only benchmark (Ristic et al. ch. 6): EKF, CKF, RP-EKF, ML vs CRLB."
 DIVERGENCE_FACTOR = 5.0

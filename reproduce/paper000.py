@@ -14,7 +14,7 @@ Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (S
 * receiver k fixes every object ``Δt_k`` after receiver 1 (same delay for all objects);
 * the papers' noise, σ_x = 0.1 m on each coordinate of the position vector M(i, j), realised in
   the world as one apparent-position error per object and period seen by every receiver
-  (:class:`~sensorgym.envs.stereo_world.NoiseModel`);
+  (:class:`~sensorgym.envs.worlds.stereo.NoiseModel`);
 * N = 5 periods of τ = 1 s; d = distance between each object's estimate in period N and its
   true position at that estimate's time; Pr_m = fraction of runs in which every object is
   identified (one-to-one) with a found track within 4 m (SPEC §2.6 hypothesis).
@@ -29,17 +29,16 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from sensorgym.envs.drones import GroupSpec, random_group
-from sensorgym.envs.stereo_world import FixedDelay, NoiseModel, ReceiverLayout, simulate
-from sensorgym.trackers.association import match_tracks
-from sensorgym.trackers.stereo_tracker000 import (
+from sensorgym.envs.worlds.drones import GroupSpec, random_group
+from sensorgym.envs.worlds.stereo import FixedDelay, NoiseModel, ReceiverLayout, simulate
+from sensorgym.reproduce._common import add_common_arguments, format_checks, publish
+from sensorgym.trackers.stereo.association import match_tracks
+from sensorgym.trackers.stereo.period_tracking import (
     AlternativeParams,
     ProposedParams,
     track_alternative,
     track_proposed,
 )
-
-from ._common import add_common_arguments, format_checks, publish
 
 HELP = "Paper 000 Tables 1-2: alternative (n=2) vs proposed velocity-aware (n=3) stereo tracking."
 

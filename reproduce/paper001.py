@@ -25,12 +25,11 @@ import time
 
 import numpy as np
 
-from sensorgym.envs.gimbal_world import StraightTrajectory, TurningTrajectory, measure_angles
-from sensorgym.trackers.angle_baselines import AngleKalmanPredictor, LineFitPredictor
-from sensorgym.trackers.angle_prediction import ABCPredictor
-
-from ._common import add_common_arguments, format_checks, publish
-from ._paper001_plots import write_figures
+from sensorgym.envs.worlds.gimbal import StraightTrajectory, TurningTrajectory, measure_angles
+from sensorgym.reproduce._common import add_common_arguments, format_checks, publish
+from sensorgym.reproduce._paper001_plots import write_figures
+from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
+from sensorgym.trackers.angles.prediction import ABCPredictor
 
 HELP = "Paper 001: azimuth/elevation prediction through target loss (A-B-C vs LS fit vs Kalman)."
 

@@ -26,24 +26,23 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from sensorgym.envs.platform_world import (
+from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
     PlatformWorldState,
     step,
     true_bearings,
 )
-from sensorgym.trackers.bearings_crlb import batch_information, crlb, position_rms_bound
-from sensorgym.trackers.bearings_ml import ml_estimate
-from sensorgym.trackers.bearings_paper002 import (
+from sensorgym.reproduce._common import add_common_arguments, write_json
+from sensorgym.trackers.bearings.crlb import batch_information, crlb, position_rms_bound
+from sensorgym.trackers.bearings.four_bearings import (
     block_base_bearings,
     fictitious_bearing_fix,
     fictitious_relative_track,
     literal_refinement,
     state_error,
 )
+from sensorgym.trackers.bearings.maximum_likelihood import ml_estimate
 from sensorgym.trackers.geometry import wrap_angle
-
-from ._common import add_common_arguments, write_json
 
 HELP = "Paper 002: fictitious-bearing method, noise-free (RT-8) and block-smoothed noisy (RT-9)."
 KMH = 1.0 / 3.6

@@ -30,8 +30,8 @@ from dataclasses import asdict
 
 import numpy as np
 
-from ._common import add_common_arguments, format_checks, publish
-from ._paper003_experiments import (
+from sensorgym.reproduce._common import add_common_arguments, format_checks, publish
+from sensorgym.reproduce._paper003_experiments import (
     Scenario003,
     algebraic_accuracy,
     algorithmic_cell,

@@ -6,8 +6,8 @@
   detection probability P at several ranges (θ₀ = 5 mrad, R_λ = 0.99, F = 0.01; the paper
   gives no range values, ours are ``--ranges``), plus eq. (12) for an object of ``g × v``.
 * §6.5 claim 4 — "several mediocre channels track what one sensor cannot": seeded closed-loop
-  Monte Carlo of :class:`~sensorgym.trackers.fusion_tracker.FusionTracker` on the default
-  :class:`~sensorgym.envs.imaging_world.ImagingScene` (four channels of q ≈ 3.3, each showing
+  Monte Carlo of :class:`~sensorgym.trackers.fusion.tracker.FusionTracker` on the default
+  :class:`~sensorgym.envs.worlds.imaging.ImagingScene` (four channels of q ≈ 3.3, each showing
   background 23 % of the time), fused versus each channel alone versus one channel of twice the
   contrast (q ≈ 6.5, the root-sum-square (10) of the four) with the same visibility.
 
@@ -23,24 +23,23 @@ from dataclasses import replace
 
 import numpy as np
 
-from sensorgym.envs.imaging_world import ImagingScene, simulate_closed_loop
-from sensorgym.trackers.detection_probability import (
+from sensorgym.envs.worlds.imaging import ImagingScene, simulate_closed_loop
+from sensorgym.reproduce._common import add_common_arguments, format_checks, publish
+from sensorgym.reproduce._paper004_plots import write_figures
+from sensorgym.trackers.fusion.detection_probability import (
     axis_holding_probability,
     combined_detection_parameter,
     detection_parameter,
     detection_probability,
 )
-from sensorgym.trackers.fusion_tracker import FusionTracker
-from sensorgym.trackers.fusion_variance import (
+from sensorgym.trackers.fusion.tracker import FusionTracker
+from sensorgym.trackers.fusion.variance import (
     generalised_detection_parameter_sq,
     relative_variance_history,
     stationary_relative_variance,
     steps_to_stationarity,
     tracking_error,
 )
-
-from ._common import add_common_arguments, format_checks, publish
-from ._paper004_plots import write_figures
 
 HELP = "Paper 004: detection probability, variance recurrence, Fig. 2 and fused tracking."
 

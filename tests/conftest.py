@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorgym.envs.scanning import ReceiverLayout
-from sensorgym.envs.stereo_scene import StereoScene
+from sensorgym.envs.worlds.scanning import ReceiverLayout
+from sensorgym.envs.worlds.stereo_scene import StereoScene
 from sensorgym.trackers.geometry import look_at_rotation
 
 

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .validation import finite_array, unit_vectors
+from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
 

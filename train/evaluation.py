@@ -18,8 +18,7 @@ from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-
-from .sb3_vec_env import SB3VecEnv
+from sensorgym.train.sb3_vec_env import SB3VecEnv
 
 
 @dataclass(frozen=True)

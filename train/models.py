@@ -12,7 +12,7 @@ from typing import Any
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from .config import ALGORITHMS
+from sensorgym.train.config import ALGORITHMS
 
 MODEL_FILE = "model.zip"
 CONFIG_FILE = "config.yaml"

@@ -19,10 +19,9 @@ from rich.progress import Progress
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES, rules_for
-
-from .config import ALGORITHMS, load_hyperparams, split_run_settings
-from .evaluation import env_params, evaluate, make_sb3_env, simulator_state
-from .models import CONFIG_FILE, MODEL_FILE
+from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
+from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
+from sensorgym.train.models import CONFIG_FILE, MODEL_FILE
 
 #: evaluation scenarios come from this offset of the training seed
 EVAL_SEED_OFFSET = 10_000

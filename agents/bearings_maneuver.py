@@ -1,0 +1,129 @@
+"""Heuristic manoeuvre rules for ``sensorgym/BearingsManeuver-v0`` (SPEC §7 OC-5).
+
+Each rule reads only the observation (the tracker's view, see
+:func:`sensorgym.envs.bearings_maneuver.simulation.observe`) and implements SB3's ``predict``, so
+``stable_baselines3.common.evaluation.evaluate_policy`` scores it like a trained model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.agents.protocol import MemorylessRule, as_batch
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM, ManeuverParams
+
+FloatArray = NDArray[np.float64]
+
+
+def _relative_bearing(obs: FloatArray) -> FloatArray:
+    """Last bearing relative to the heading (rad, starboard > 0) from obs 0, 1."""
+    return np.arctan2(obs[:, 0], obs[:, 1])
+
+
+def _turn_command(params: ManeuverParams, turn: FloatArray) -> FloatArray:
+    """Normalised turn action that changes the heading by ``turn`` (rad) within one step."""
+    w = params.world
+    if w.max_turn_rate == 0.0:
+        return np.zeros_like(turn)
+    return np.clip(turn / (w.dt * w.max_turn_rate), -1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class StraightCourse(MemorylessRule):
+    """Hold course and speed: range stays unobservable (the baseline every rule must beat)."""
+
+    obs_dim = OBS_DIM
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        return np.zeros((obs.shape[0], 2))
+
+
+@dataclass(frozen=True)
+class Paper002Maneuver:
+    """Move along the first bearing for two more bearings, then turn perpendicular to the
+    bearing and speed up (paper 002, SPEC §7 OC-5).
+
+    The rule needs the step count, kept as its ``state`` (an int array per env, reset by
+    ``episode_start``), as SB3 does for recurrent policies. The perpendicular is taken to the
+    latest bearing, on the side that needs the smaller turn.
+    """
+
+    params: ManeuverParams = field(default_factory=ManeuverParams)
+    """Env settings (step length and turn limit scale the turn command)."""
+    run_in: int = 2
+    """Steps spent on the first bearing before the turn (bearings 2 and 3)."""
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: NDArray[np.int64] | None = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        obs, single = as_batch(observation, OBS_DIM)
+        n = obs.shape[0]
+        k = np.zeros(n, dtype=np.int64) if state is None else np.asarray(state, dtype=np.int64)
+        if episode_start is not None:
+            k = np.where(np.asarray(episode_start, dtype=bool), 0, k)
+        theta = _relative_bearing(obs)
+        # phase 1: head along the bearing; phase 2: put the target abeam, full speed
+        abeam = np.where(theta >= 0.0, 0.5 * np.pi, -0.5 * np.pi)
+        run_in = k < self.run_in
+        turn = np.where(run_in, theta, theta - abeam)
+        action = np.stack([_turn_command(self.params, turn), np.where(run_in, 0.0, 1.0)], -1)
+        action = action.astype(np.float32)
+        return (action[0] if single else action), k + 1
+
+
+@dataclass(frozen=True)
+class GreedyInformation(MemorylessRule):
+    """Take the action whose next bearing adds the most position information, by the tracker's
+    own estimate (one-step D-optimal: maximise ``ln det(J + h hᵀ/σ²)``, i.e. ``hᵀ P h``).
+
+    ``h = n̂/r`` is the bearing's gradient at the predicted relative position (``n̂`` normal to
+    the line of sight), ``P`` the estimate's position covariance from the observation. Candidate
+    actions form a grid; positions closer than ``safety · min_range`` are ruled out.
+    """
+
+    params: ManeuverParams = field(default_factory=ManeuverParams)
+    """Env settings (kinematics, normalisation scales, ``min_range``)."""
+    turns: int = 9
+    """Candidate turn actions, evenly spaced in ``[−1, 1]``."""
+    speeds: tuple[float, ...] = (-1.0, 0.0, 1.0)
+    """Candidate speed actions."""
+    safety: float = 2.0
+    """Candidates predicted within ``safety · min_range`` of the target are not taken."""
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        p, w = self.params, self.params.world
+        a_turn, a_speed = np.meshgrid(np.linspace(-1.0, 1.0, self.turns), self.speeds)
+        cand = np.stack([a_turn.ravel(), a_speed.ravel()], -1)  # (C, 2)
+        # platform frame (starboard, ahead); own velocity is (0, v)
+        v = obs[:, 2] * w.max_speed
+        d = obs[:, 3:5] * p.range_scale  # estimated target − platform
+        v_rel = obs[:, 5:7] * p.speed_scale
+        v_target = v_rel + np.stack([np.zeros_like(v), v], -1)
+        # candidate platform displacement: exact arc with ω = a₀ω_max, speed v + a₁Δv (clipped)
+        omega = cand[:, 0] * w.max_turn_rate
+        speed = np.clip(
+            v[:, None] + cand[None, :, 1] * w.max_speed_change, w.min_speed, w.max_speed
+        )
+        half = 0.5 * omega * w.dt
+        chord = speed * w.dt * np.sinc(half / np.pi)  # (n, C)
+        dp = chord[..., None] * np.stack([np.sin(half), np.cos(half)], -1)
+        d_next = (d + v_target * w.dt)[:, None, :] - dp  # (n, C, 2)
+        r = np.hypot(d_next[..., 0], d_next[..., 1])
+        normal = np.stack([d_next[..., 1], -d_next[..., 0]], -1) / np.maximum(r, 1e-9)[..., None]
+        # P from log standard deviations and correlation (obs 7–9)
+        sd = np.exp(obs[:, 7:9]) * p.range_scale
+        cov = sd[:, 0] * sd[:, 1] * obs[:, 9]
+        P = np.stack([np.stack([sd[:, 0] ** 2, cov], -1), np.stack([cov, sd[:, 1] ** 2], -1)], -2)
+        gain = np.einsum("nci,nij,ncj->nc", normal, P, normal) / np.maximum(r, 1e-9) ** 2
+        gain = np.where(r < self.safety * p.min_range, -np.inf, gain)
+        return cand[np.argmax(gain, axis=-1)]

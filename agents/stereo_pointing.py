@@ -1,0 +1,204 @@
+"""Heuristic pointing rules for ``sensorgym/StereoPointing-v0`` (SPEC §7 OC-1, OC-2).
+
+Each rule reads only the observation (own gimbal angles and the tracker's predictions, see
+:func:`sensorgym.envs.stereo_pointing.simulation.observe`) plus the fixed receiver layout from the
+env's params, and implements SB3's ``predict``, so
+``stable_baselines3.common.evaluation.evaluate_policy`` scores it like a trained model. The
+assignment rules enumerate every map of receivers to drones (``m^n`` of them) and slew each
+receiver straight at the predicted position of its drone.
+"""
+
+from __future__ import annotations
+
+import itertools
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.agents.protocol import MemorylessRule, as_batch
+from sensorgym.envs.stereo_pointing.simulation import PointingParams, split_observation
+from sensorgym.trackers.geometry import angles_from_unit, wrap_angle
+
+FloatArray = NDArray[np.float64]
+
+#: the assignment rules refuse layouts with more candidate assignments than this
+MAX_ASSIGNMENTS = 4096
+
+
+@dataclass(frozen=True)
+class _View:
+    """What a rule knows at one step: decoded observation and the geometry it implies."""
+
+    azimuth: FloatArray
+    """(N, n) boresight azimuths, rad."""
+    elevation: FloatArray
+    """(N, n) boresight elevations, rad."""
+    seen: FloatArray
+    """(N, n, m) 1.0 where receiver k saw drone j on the last step."""
+    position: FloatArray
+    """(N, m, 3) predicted drone positions, m."""
+    sigma: FloatArray
+    """(N, m) predicted position RMS, m."""
+    los: FloatArray
+    """(N, n, m, 3) unit lines of sight from the receivers to the predicted positions."""
+    ranges: FloatArray
+    """(N, n, m) ranges to the predicted positions, m."""
+
+
+def _view(params: PointingParams, obs: FloatArray) -> _View:
+    gimbals, pairs, drones = split_observation(params, obs)
+    position = drones[..., :3] * params.length_scale
+    d = position[:, None, :, :] - params.receiver_positions[None, :, None, :]
+    r = np.maximum(np.linalg.norm(d, axis=-1), 1e-9)
+    return _View(
+        azimuth=np.arctan2(gimbals[..., 0], gimbals[..., 1]),
+        elevation=gimbals[..., 2] * (np.pi / 2),
+        seen=pairs[..., 2],
+        position=position,
+        sigma=np.exp(drones[..., 3]) * params.sigma_ref,
+        los=d / r[..., None],
+        ranges=r,
+    )
+
+
+def _slew_to(params: PointingParams, view: _View, target: NDArray[np.int64]) -> FloatArray:
+    """Normalised actions ``(N, 2n)`` that slew receiver ``k`` at drone ``target[:, k]``."""
+    u = np.take_along_axis(view.los, target[:, :, None, None], axis=2)[:, :, 0]  # (N, n, 3)
+    az, el = angles_from_unit(u)
+    el = np.clip(el, -params.max_elevation, params.max_elevation)
+    step = max(params.slew_rate * params.dt, 1e-12)
+    d_az = wrap_angle(az - view.azimuth) / step
+    d_el = (el - view.elevation) / step
+    return np.clip(np.stack([d_az, d_el], -1), -1.0, 1.0).reshape(u.shape[0], -1)
+
+
+def _assignments(params: PointingParams) -> NDArray[np.int64]:
+    """Every map of the ``n`` receivers to the ``m`` drones, ``(m^n, n)``."""
+    n, m = params.n_receivers, params.n_drones
+    if m**n > MAX_ASSIGNMENTS:
+        raise ValueError(f"params: {m}^{n} receiver-to-drone assignments exceed {MAX_ASSIGNMENTS}")
+    return np.array(list(itertools.product(range(m), repeat=n)), dtype=np.int64)
+
+
+def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
+    """``bonus`` times the number of receivers each candidate leaves on a drone they see
+    ``(N, C)``: hysteresis, so that near-ties do not make receivers slew back and forth."""
+    n = cand.shape[1]
+    kept = view.seen[:, np.arange(n)[None, :], cand]  # (N, C, n)
+    return bonus * kept.sum(axis=-1)
+
+
+class _AssignAndSlew(MemorylessRule):
+    """Rules that pick a drone per receiver (``choose``) and slew to it."""
+
+    params: PointingParams
+
+    @abstractmethod
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)``."""
+
+    def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
+        obs, single = as_batch(observation, self.params.obs_dim)
+        choice = self.choose(_view(self.params, obs))
+        return choice[0] if single else choice
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        view = _view(self.params, obs)
+        return _slew_to(self.params, view, self.choose(view))
+
+
+@dataclass(frozen=True)
+class HoldStill(MemorylessRule):
+    """Never slew: the receivers keep their starting directions (the baseline to beat)."""
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (observation layout, action size)."""
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        return np.zeros((obs.shape[0], 2 * self.params.n_receivers))
+
+
+@dataclass(frozen=True)
+class TrackNearest(_AssignAndSlew):
+    """Each receiver slews to the drone whose predicted position is nearest to it (the naive
+    rule OC-1 improves on: nearby receivers end up on one drone with near-parallel sight lines)."""
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (receiver layout, slew limit, observation layout)."""
+
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)``."""
+        return np.argmin(view.ranges, axis=-1)
+
+
+@dataclass(frozen=True)
+class OrthogonalPairs(_AssignAndSlew):
+    """Assign receivers to drones so that each drone's lines of sight are closest to orthogonal
+    (SPEC §7 OC-1): minimise ``Σ_j ln score_j`` with ``score_j = σ / √(Σ_{k∈S_j} sin²γ_k)``,
+    ``γ_k`` the angle between receiver ``k``'s line of sight and the reference receiver's
+    (the member of ``S_j`` that gives the best score); fewer than two receivers: infinite.
+
+    The papers' score ignores ranges (their i.i.d. conjugation-error model); it ranks the
+    geometry of the crossing only.
+    """
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (receiver layout, slew limit, observation layout)."""
+    keep_bonus: float = 0.05
+    """Objective bonus per receiver left on a drone it sees (hysteresis against flapping)."""
+
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)``."""
+        cand = _assignments(self.params)  # (C, n)
+        m = self.params.n_drones
+        member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)  # (C, m, n)
+        cos = np.einsum("Nkji,Nlji->Njkl", view.los, view.los)
+        sin2 = np.clip(1.0 - cos**2, 0.0, 1.0)  # (N, m, n, n)
+        # Σ_{l∈S_j} sin²γ_{kl} for every reference k, then the best reference within S_j
+        total = np.einsum("cjl,Njkl->Ncjk", member, sin2)
+        total = np.where(member[None] > 0.0, total, 0.0).max(axis=-1)  # (N, C, m)
+        objective = 0.5 * np.log(np.maximum(total, 1e-300)).sum(axis=-1)
+        objective = objective + _keep_bonus(view, cand, self.keep_bonus)
+        return cand[np.argmax(objective, axis=-1)]
+
+
+@dataclass(frozen=True)
+class GreedyInformation(_AssignAndSlew):
+    """Choose the assignment that maximises ``Σ_j ln det I_j`` of the position information the
+    assigned receivers would give at the predicted positions (one-step D-optimal sensor
+    selection, SPEC §7 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
+
+    A drone given fewer than two receivers gets no fix (its ``I_j`` is singular, and the env's
+    reward for it is ``−R``); it scores ``−no_fix_cost`` instead of ``−∞``, so that when there
+    are too few receivers for all drones the rule still fixes as many as it can. Unlike
+    :class:`OrthogonalPairs` the score counts ranges (the angle-noise model of the reward).
+    """
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (receiver layout, noise, slew limit, observation layout)."""
+    keep_bonus: float = 0.05
+    """Objective bonus per receiver left on a drone it sees (hysteresis against flapping)."""
+    no_fix_cost: float = 1e3
+    """Score of a drone left without a pair of receivers (ln det units)."""
+
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)``."""
+        cand = _assignments(self.params)
+        m = self.params.n_drones
+        member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)  # (C, m, n)
+        sigma = max(self.params.sigma_ang, 1e-9)
+        u = view.los
+        proj = np.eye(3) - u[..., :, None] * u[..., None, :]  # (N, n, m, 3, 3)
+        w = 1.0 / (sigma * view.ranges) ** 2  # (N, n, m)
+        info = np.einsum("cjk,Nkj,Nkjab->Ncjab", member, w, proj)
+        pair = (member.sum(axis=-1) >= 2.0)[None]  # (1, C, m)
+        sign, logdet = np.linalg.slogdet(np.where(pair[..., None, None], info, np.eye(3)))
+        logdet = np.where(pair & (sign > 0.0), logdet, -self.no_fix_cost)
+        objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, self.keep_bonus)
+        return cand[np.argmax(objective, axis=-1)]

@@ -1,0 +1,109 @@
+"""The PettingZoo shell every multi-agent sensorgym env shares: agents over one batched core.
+
+The core steps one scenario (batch of one) with a joint action ``(1, n_agents, *action)``; the
+shell splits observations by agent, hands every agent the one team reward, and ends all agents
+together (the scenarios are cooperative: receivers or platforms serving one tracker).
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from numpy.typing import NDArray
+from pettingzoo import ParallelEnv
+
+from sensorgym.envs.shells.gym_env import BatchedCore, check_action
+
+
+class AgentCore(BatchedCore, Protocol):
+    """A :class:`~.core_shells.BatchedCore` that can also split its observation by agent."""
+
+    def observe_agents(self, state: Any) -> NDArray[np.float32]:
+        """Per-agent observations ``(B, n_agents, *observation shape)``."""
+        ...
+
+
+class CoreParallelEnv(ParallelEnv):
+    """Cooperative agents over an :class:`AgentCore`. Subclasses give the core, the agent
+    names and the per-agent spaces; ``state()`` concatenates every agent's observation."""
+
+    metadata: ClassVar[dict[str, Any]] = {"name": "sensorgym", "render_modes": []}
+
+    def __init__(
+        self,
+        core: AgentCore,
+        agents: list[str],
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        max_episode_steps: int,
+        render_mode: str | None = None,
+    ):
+        if max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps: must be >= 1, got {max_episode_steps}")
+        if render_mode is not None:
+            raise ValueError("render_mode: the PettingZoo envs do not render (use the single env)")
+        self.core = core
+        self.params = core.params
+        self.max_episode_steps = max_episode_steps
+        self.render_mode = render_mode
+        self.possible_agents = list(agents)
+        self.agents: list[str] = []
+        self._observation_space, self._action_space = observation_space, action_space
+        self._rng, _ = seeding.np_random(None)
+        self._state: Any = None
+        self._steps = 0
+
+    @functools.cache  # noqa: B019 - the same space object on every call, as PettingZoo asks
+    def observation_space(self, agent: str) -> spaces.Space:
+        return self._observation_space
+
+    @functools.cache  # noqa: B019
+    def action_space(self, agent: str) -> spaces.Space:
+        return self._action_space
+
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, NDArray[np.float32]], dict[str, dict[str, Any]]]:
+        if seed is not None:
+            self._rng, _ = seeding.np_random(seed)
+        self.agents = list(self.possible_agents)
+        self._state = self.core.reset(self._rng, 1)
+        self._steps = 0
+        return self._observations(), self._infos()
+
+    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        if self._state is None or not self.agents:
+            raise RuntimeError("step: call reset() first (the episode is over)")
+        missing = set(self.agents) - set(actions)
+        if missing:
+            raise ValueError(f"actions: no action for {sorted(missing)}")
+        shape = self._action_space.shape
+        joint = np.stack([check_action(actions[agent], shape) for agent in self.possible_agents])
+        self._state, reward, terminated = self.core.step(self._state, joint[None], self._rng)
+        self._steps += 1
+        ended, timed_out = bool(terminated[0]), self._steps >= self.max_episode_steps
+        rewards = {agent: float(reward[0]) for agent in self.agents}
+        terminations = {agent: ended for agent in self.agents}
+        truncations = {agent: timed_out and not ended for agent in self.agents}
+        obs, infos = self._observations(), self._infos()
+        if ended or timed_out:
+            self.agents = []
+        return obs, rewards, terminations, truncations, infos
+
+    def state(self) -> NDArray[np.float32]:
+        """Every agent's observation, concatenated in agent order (a centralised critic's view)."""
+        if self._state is None:
+            raise RuntimeError("state: call reset() first")
+        return self.core.observe_agents(self._state)[0].reshape(-1)
+
+    def _observations(self) -> dict[str, NDArray[np.float32]]:
+        obs = self.core.observe_agents(self._state)[0]
+        return {agent: obs[k] for k, agent in enumerate(self.possible_agents)}
+
+    def _infos(self) -> dict[str, dict[str, Any]]:
+        shared = {k: float(v[0]) for k, v in self.core.info(self._state).items()}
+        return {agent: dict(shared) for agent in self.possible_agents}

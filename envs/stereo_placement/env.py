@@ -1,0 +1,148 @@
+"""Receiver-placement environments over the velocity-aware conjugation tracker (Gymnasium and vector)."""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+from numpy.typing import NDArray
+
+from sensorgym.envs.shells.gym_env import CoreEnv, CoreVectorEnv, ReceiverTeamCore, receiver_spaces
+from sensorgym.envs.stereo_placement import simulation as core
+from sensorgym.envs.stereo_placement.simulation import PlacementParams, PlacementState
+
+FloatArray = NDArray[np.float64]
+
+
+def _spaces(params: PlacementParams) -> tuple[spaces.Box, spaces.Box]:
+    return receiver_spaces(params.obs_dim, params.n_receivers, core.OBS_CLIP)
+
+
+class StereoPlacementCore(ReceiverTeamCore):
+    """:mod:`.stereo_placement_core` as the shells step it (``observe_agents`` for PettingZoo)."""
+
+    functions = core
+
+    def info(self, state: PlacementState) -> dict[str, FloatArray]:
+        """Diagnostics (ground truth included: for evaluation, never for the policy)."""
+        error = np.linalg.norm(state.estimate[:, :3] - state.drone_position, axis=-1)
+        angles = core.los_angles(self.params, state.receivers, state.drone_position)
+        return {
+            "position_error": error,
+            "bound": state.bound,
+            "condition": state.fix.condition,
+            "degenerate": state.fix.degenerate.astype(np.float64),
+            "min_los_angle": angles.min(axis=-1),
+        }
+
+
+class StereoPlacementEnv(CoreEnv):
+    """Drive ground receivers so that their scanned fixes locate a flying drone accurately.
+
+    ## Description
+
+    ``n = 3`` passive receivers ride ground vehicles (speed limit ``max_speed``) inside a
+    permitted disc of radius ``arena_radius``. They start clustered within ``cluster_radius``
+    of the origin — the layout SPEC §7 OC-3 calls unsatisfactory (baseline small against the
+    range). One drone flies a straight level line. Each step is one scan period ``τ``: receiver
+    ``k`` fixes the drone at its own delay ``d_k`` (SPEC §2.1, OC-4) with angular noise
+    ``σ_ang``, in its own frame (looking at the predicted drone), and the velocity-aware
+    conjugation tracker (SPEC §2.2, n = 3 closed form) solves the period for the ranges, the
+    position and the velocity. The agent drives the receivers; it is rewarded for the accuracy
+    their geometry allows: best with near-orthogonal lines of sight (OC-1) from receivers
+    spread around the drone (OC-3). Simulation core: :mod:`sensorgym.envs.stereo_placement.simulation`.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2n,), float32)``; values outside ``[-1, 1]`` are clipped, NaN raises.
+
+    | index  | action                      | scaled to                                  | unit |
+    |--------|-----------------------------|--------------------------------------------|------|
+    | 2k     | receiver k velocity, world X | ``a · max_speed``                         | m/s  |
+    | 2k + 1 | receiver k velocity, world Z | ``a · max_speed``                         | m/s  |
+
+    The speed ``‖(v_x, v_z)‖`` is capped at ``max_speed``; a receiver driving out of the
+    permitted disc is held on its edge.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (5n + 9 + n(n−1)/2,), float32)`` (27 for n = 3): own positions, and the
+    tracker's output only, no ground truth (table in
+    :func:`~sensorgym.envs.stereo_placement.simulation.observe`): the receivers relative to the
+    estimated drone ground point, the estimated position and velocity, the log range σ's of
+    ``σ_e² (AᵀA)⁻¹``, the log velocity σ, ``log10 κ_F``, the angles between the lines of sight
+    to the estimate, and whether the last solve was degenerate.
+
+    ## Rewards
+
+    ``clip(ln(σ_ref / σ_pos), −R, R)`` per step with ``σ_pos = √tr I⁻¹``,
+    ``I = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` the angle-noise Cramér–Rao bound of the true
+    geometry at the fix times (``position_crlb``; no noise draw in it, so the reward scores
+    the placement, not the luck of the period). A degenerate conjugation — the tracker's solve
+    took the pseudo-inverse fallback, or the noise-free solve of the true geometry would
+    (coplanar lines of sight, equal delays) — or singular information gives ``−R``.
+    Defaults ``σ_ref = 1 m``, ``R = 5``: +2.3 per step is a 10 cm bound.
+
+    ## Starting State
+
+    Receivers uniform in the disc of radius ``cluster_radius``; the drone at a uniform
+    horizontal distance in ``start_distance`` from the origin, uniform bearing, height in
+    ``start_altitude``, speed in ``drone_speed``, uniform heading. The tracker starts from a
+    cue (truth plus ``cue_sigma`` errors) and its first fix is one period of the receivers
+    standing still.
+
+    ## Episode End
+
+    * Termination: never (a drone flying away is still tracked, ever less accurately).
+    * Truncation: the time limit, ``max_episode_steps`` in the registration (60 periods of 1 s).
+
+    ## Arguments
+
+    ``gym.make("sensorgym/StereoPlacement-v0", params=PlacementParams(...), render_mode=None)``
+    — every setting is a field of :class:`~sensorgym.envs.stereo_placement.simulation.PlacementParams`
+    (units in its docstrings). ``render_mode="rgb_array"`` draws a top view: the permitted
+    disc, the receivers' tracks and lines of sight, the drone's track and the estimate.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+
+    def __init__(self, params: PlacementParams | None = None, render_mode: str | None = None):
+        params = PlacementParams() if params is None else params
+        super().__init__(StereoPlacementCore(params), *_spaces(params), render_mode)
+
+    def draw(self, history: list[PlacementState]) -> NDArray[np.uint8]:
+        from sensorgym.envs.stereo_placement.render import draw
+
+        return draw(self.params, history)
+
+
+class StereoPlacementVectorEnv(CoreVectorEnv):
+    """``num_envs`` independent :class:`StereoPlacementEnv` scenarios in one batched core.
+
+    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes as
+    :class:`~sensorgym.envs.shells.gym_env.CoreVectorEnv`.
+    """
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        params: PlacementParams | None = None,
+        max_episode_steps: int | None = 60,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+    ):
+        params = PlacementParams() if params is None else params
+        super().__init__(
+            StereoPlacementCore(params),
+            num_envs,
+            *_spaces(params),
+            max_episode_steps,
+            render_mode,
+            autoreset_mode,
+        )

@@ -1,0 +1,386 @@
+"""Simulation core of the receiver-placement environments (velocity-aware conjugation tracker).
+
+Pure functions over frozen, batched values (leading axis ``B`` = scenario), in the gymnax
+style: :func:`reset` draws ``B`` fresh scenarios (:func:`start` builds them from given
+receivers and drone), :func:`step` advances them under a normalised action, :func:`observe`
+makes the agent's observation, :func:`where` swaps fresh scenarios into a batch.
+
+World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (SPEC §1.2). ``n`` (default 3)
+receivers are ground vehicles (``y = 0``) inside a permitted disc of radius ``arena_radius``
+around the origin; they start clustered (SPEC §7 OC-3's unsatisfactory case). One drone flies a
+straight level line. One step is one scan period ``τ``:
+
+1. the action sets each receiver's planar velocity (``a · max_speed``, components clipped to
+   ``[−1, 1]``, speed capped at ``max_speed``); the receivers drive for ``τ`` (positions held
+   in the disc) and the drone flies on;
+2. during the period receiver ``k`` fixes the drone at its own delay ``d_k`` with angular
+   noise ``σ_ang``, and the velocity-aware conjugation tracker solves the period
+   (:mod:`.placement_scan`); a degenerate solve (pseudo-inverse fallback) is not trusted: the
+   tracker then coasts its previous estimate by ``τ``;
+3. the reward is ``clip(ln(σ_ref / σ_pos), −R, R)`` with ``σ_pos = √tr I(M)⁻¹`` the
+   angle-noise Cramér–Rao bound of the period's true geometry,
+   ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` (``u_k``, ``r_k`` the lines of sight and ranges
+   at the fix times, :func:`~sensorgym.trackers.stereo.accuracy.position_crlb`); ``−R`` when
+   the information is singular or the conjugation degenerate: the tracker's solve took the
+   pseudo-inverse fallback (``used_pinv``), or the noise-free solve of the true geometry would
+   (coplanar lines of sight, equal delays — the bound of the position alone cannot see that
+   the velocity-aware system is singular there, and noise only hides it).
+
+Why the bound and not the tracker's covariance: the bound holds no noise draw, so the reward
+depends on the placement alone (a low-variance signal for learning), and it is the accuracy an
+efficient estimator attains under angular noise; the tracker's ``σ_e² (AᵀA)⁻¹`` is the papers'
+i.i.d. model evaluated at noisy estimated ranges (optimistic away from orthogonal lines of
+sight, :mod:`sensorgym.trackers.stereo.accuracy`). The agent observes that covariance; the
+reward scores the geometry.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+#: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]``
+OBS_CLIP = 10.0
+
+
+@dataclass(frozen=True)
+class PlacementParams:
+    """Receivers, drone, scan timing, noise and reward of the receiver-placement environments."""
+
+    delays: tuple[float, ...] = (0.0, 0.25, 0.6)
+    """Fix time of each receiver after the period start, s; their number is ``n`` (≥ 3). Keep
+    them distinct (SPEC §7 OC-3): equal delays make the velocity unobservable (a degenerate
+    conjugation, reward ``−R``)."""
+    period: float = 1.0
+    """Scan period ``τ`` = one step, s."""
+    max_speed: float = 5.0
+    """Speed limit of a receiver vehicle, m/s."""
+    arena_radius: float = 200.0
+    """Radius of the permitted disc around the origin that receivers stay in, m."""
+    cluster_radius: float = 15.0
+    """Receivers start uniformly within this distance of the origin, m (OC-3: clustered)."""
+    start_distance: tuple[float, float] = (60.0, 150.0)
+    """Horizontal distance of the drone's start from the origin, drawn uniformly, m."""
+    start_altitude: tuple[float, float] = (20.0, 80.0)
+    """Height of the drone above the ground, drawn uniformly, m (level flight)."""
+    drone_speed: tuple[float, float] = (5.0, 15.0)
+    """Horizontal drone speed, drawn uniformly, m/s; heading uniform over all directions."""
+    sigma_ang: float = 1e-3
+    """Isotropic angular noise of each fixed direction, rad; 0 gives noise-free fixes."""
+    cue_sigma: tuple[float, float] = (5.0, 2.0)
+    """Errors (per axis, Gaussian) of the external cue in position (m) and velocity (m/s): the
+    tracker's estimate before its first fix, where the receivers' frames first look."""
+    max_boresight_elevation: float = float(np.deg2rad(80.0))
+    """Receiver frames look at the predicted drone with elevation held within this, rad."""
+    sigma_ref: float = 1.0
+    """Position accuracy that earns zero reward, m."""
+    reward_clip: float = 5.0
+    """``R``: the reward ``ln(σ_ref/σ_pos)`` is clipped to ``[−R, R]``; ``−R`` when degenerate."""
+
+    def __post_init__(self) -> None:
+        d = np.asarray(self.delays, dtype=np.float64)
+        if d.ndim != 1 or d.size < 3:
+            raise ValueError(f"delays: need at least 3 (velocity-aware n ≥ 3), got {self.delays}")
+        if not (np.all(np.isfinite(d)) and np.all(d >= 0.0) and np.all(d <= self.period)):
+            raise ValueError(f"delays: must lie in [0, period], got {self.delays}")
+        for name in ("period", "max_speed", "arena_radius", "cluster_radius"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: must be positive and finite, got {value}")
+        if self.cluster_radius > self.arena_radius:
+            raise ValueError("cluster_radius: must not exceed arena_radius")
+        for name in ("start_distance", "start_altitude", "drone_speed"):
+            lo, hi = getattr(self, name)
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo <= hi):
+                raise ValueError(f"{name}: need finite 0 <= low <= high, got {(lo, hi)}")
+        if self.start_altitude[0] <= 0.0:
+            raise ValueError(f"start_altitude: must be above the ground, got {self.start_altitude}")
+        if not (np.all(np.isfinite(self.cue_sigma)) and min(self.cue_sigma) >= 0.0):
+            raise ValueError(f"cue_sigma: need finite values >= 0, got {self.cue_sigma}")
+        if not (np.isfinite(self.sigma_ang) and self.sigma_ang >= 0.0):
+            raise ValueError(f"sigma_ang: must be finite and >= 0, got {self.sigma_ang}")
+        if not 0.0 < self.max_boresight_elevation < np.pi / 2:
+            raise ValueError("max_boresight_elevation: must lie in (0, π/2) rad")
+        if not (np.isfinite(self.sigma_ref) and self.sigma_ref > 0.0):
+            raise ValueError(f"sigma_ref: must be positive, got {self.sigma_ref}")
+        if not (np.isfinite(self.reward_clip) and self.reward_clip > 0.0):
+            raise ValueError(f"reward_clip: must be positive, got {self.reward_clip}")
+
+    @property
+    def n_receivers(self) -> int:
+        """Number of receivers ``n`` (one per delay)."""
+        return len(self.delays)
+
+    @property
+    def length_scale(self) -> float:
+        """Length (m) that normalises observed positions: half the permitted radius."""
+        return 0.5 * self.arena_radius
+
+    @property
+    def speed_scale(self) -> float:
+        """Speed (m/s) that normalises the observed velocity: the fastest drone or vehicle."""
+        return max(self.drone_speed[1], self.max_speed)
+
+    @property
+    def pairs(self) -> tuple[tuple[int, int], ...]:
+        """Receiver pairs ``(k, l)``, ``k < l``, in the order of the observed angles."""
+        return tuple(itertools.combinations(range(self.n_receivers), 2))
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation length ``5n + 9 + n(n−1)/2`` (27 for n = 3, see :func:`observe`)."""
+        return 5 * self.n_receivers + 9 + len(self.pairs)
+
+
+@dataclass(frozen=True)
+class PlacementState:
+    """``B`` scenarios at time ``t`` (the end of the last scan period)."""
+
+    t: FloatArray
+    """(B,) time since the episode start, s."""
+    receivers: FloatArray
+    """(B, n, 3) receiver positions (``y = 0``), world frame, m."""
+    drone_position: FloatArray = field(repr=False)
+    """(B, 3) true drone position, m (ground truth: never observed)."""
+    drone_velocity: FloatArray = field(repr=False)
+    """(B, 3) true drone velocity, m/s (ground truth)."""
+    fix: ScanFix = field(repr=False)
+    """The conjugation tracker's raw output for the last period."""
+    estimate: FloatArray = field(repr=False)
+    """(B, 6) the tracker's position (m) and velocity (m/s) at ``t``: the fix, or the previous
+    estimate coasted by ``τ`` where the fix was degenerate."""
+    geometry: ScanGeometry = field(repr=False)
+    """True geometry of the last period (reward, rendering)."""
+    bound: FloatArray = field(repr=False)
+    """(B,) CRLB position RMS ``σ_pos`` of the last period, m (inf: singular)."""
+
+    @property
+    def batch_size(self) -> int:
+        """Number of scenarios ``B``."""
+        return int(self.t.shape[0])
+
+
+def crlb_sigma(params: PlacementParams, geometry: ScanGeometry) -> FloatArray:
+    """``σ_pos = σ_ang √tr G⁻¹`` (m), ``G = Σ_k (I − u_k u_kᵀ)/r_k²`` (so ``I(M) = G/σ_ang²``);
+    ``inf`` where ``G`` is singular (parallel lines of sight, the test of ``position_crlb``)."""
+    u, r = geometry.los, np.maximum(geometry.ranges, 1e-9)
+    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
+    G = np.einsum("bk,bkij->bij", 1.0 / r**2, proj)
+    ok = np.linalg.det(G) > 1e-12 * np.trace(G, axis1=-2, axis2=-1) ** 3
+    tr = np.trace(np.linalg.inv(np.where(ok[:, None, None], G, np.eye(3))), axis1=-2, axis2=-1)
+    return np.where(ok, params.sigma_ang * np.sqrt(np.maximum(tr, 0.0)), np.inf)
+
+
+def reward_of(params: PlacementParams, bound: FloatArray, degenerate: BoolArray) -> FloatArray:
+    """``clip(ln(σ_ref / σ_pos), −R, R)`` ``(B,)``; ``−R`` where degenerate or singular,
+    ``+R`` for a noise-free bound ``σ_pos = 0``."""
+    R = params.reward_clip
+    positive = np.isfinite(bound) & (bound > 0.0)
+    log_ratio = np.log(params.sigma_ref) - np.log(np.where(positive, bound, 1.0))
+    value = np.where(positive, np.clip(log_ratio, -R, R), np.where(np.isfinite(bound), R, -R))
+    return np.where(degenerate, -R, value)
+
+
+def _period(
+    params: PlacementParams,
+    start: FloatArray,
+    end: FloatArray,
+    drone_end: FloatArray,
+    drone_velocity: FloatArray,
+    previous: FloatArray,
+    rng: np.random.Generator,
+) -> tuple[ScanFix, FloatArray, ScanGeometry, FloatArray]:
+    """One scan period ending at the drone's ``drone_end``: fix, estimate, geometry, bound."""
+    tau = params.period
+    # coasted previous estimate: the aim of the receivers' frames and the fallback estimate
+    coast = np.concatenate([previous[:, :3] + tau * previous[:, 3:], previous[:, 3:]], -1)
+    aim = previous[:, :3] + 0.5 * tau * previous[:, 3:]
+    fix, geometry = scan(
+        np.asarray(params.delays), tau, params.sigma_ang, params.max_boresight_elevation,
+        start, end, drone_end, drone_velocity, aim, rng,
+    )  # fmt: skip
+    estimate = np.where(
+        fix.degenerate[:, None], coast, np.concatenate([fix.position, fix.velocity], -1)
+    )
+    return fix, estimate, geometry, crlb_sigma(params, geometry)
+
+
+def start(
+    params: PlacementParams,
+    receivers: ArrayLike,
+    drone_position: ArrayLike,
+    drone_velocity: ArrayLike,
+    rng: np.random.Generator,
+) -> PlacementState:
+    """Scenarios from given receivers ``(B, n, 3)`` (``y`` set to 0, held in the disc) and drone
+    ``(B, 3)``. The tracker starts from the cue (truth plus ``cue_sigma`` errors) and its first
+    fix is one scan period of the receivers standing still, ending at ``t = 0``."""
+    n = params.n_receivers
+    o = finite_array(receivers, "receivers", tail=(n, 3))
+    p = finite_array(drone_position, "drone_position", tail=(3,))
+    v = finite_array(drone_velocity, "drone_velocity", tail=(3,))
+    B = p.shape[0]
+    if o.ndim != 3 or p.ndim != 2 or o.shape[0] != B or v.shape != p.shape:
+        raise ValueError(f"receivers/drone_position/drone_velocity: batch {B} shapes differ")
+    o = _in_arena(params, o * np.array([1.0, 0.0, 1.0]))
+    sp, sv = params.cue_sigma
+    cue_p = p + sp * rng.standard_normal(p.shape)
+    cue_v = v + sv * rng.standard_normal(v.shape)
+    # the cue at t = 0, carried back to the start of the first period (t = −τ)
+    before = np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
+    fix, estimate, geometry, bound = _period(params, o, o, p, v, before, rng)
+    return PlacementState(np.zeros(B), o, p, v, fix, estimate, geometry, bound)
+
+
+def reset(params: PlacementParams, rng: np.random.Generator, batch: int) -> PlacementState:
+    """``batch`` fresh scenarios: receivers clustered near the origin, a drone on a random line."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    n = params.n_receivers
+    # scenario draws, in a fixed order so that a seed fixes every scenario
+    radius = params.cluster_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, n)))
+    angle = rng.uniform(-np.pi, np.pi, (batch, n))
+    dist = rng.uniform(*params.start_distance, batch)
+    bearing = rng.uniform(-np.pi, np.pi, batch)
+    height = rng.uniform(*params.start_altitude, batch)
+    speed = rng.uniform(*params.drone_speed, batch)
+    heading = rng.uniform(-np.pi, np.pi, batch)
+    zero = np.zeros_like(radius)
+    o = np.stack([radius * np.sin(angle), zero, radius * np.cos(angle)], -1)
+    p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
+    v = np.stack([speed * np.sin(heading), np.zeros(batch), speed * np.cos(heading)], -1)
+    return start(params, o, p, v, rng)
+
+
+def _in_arena(params: PlacementParams, positions: FloatArray) -> FloatArray:
+    """Ground positions pulled radially back onto the permitted disc where outside it."""
+    norm = np.hypot(positions[..., 0], positions[..., 2])
+    scale = np.minimum(1.0, params.arena_radius / np.maximum(norm, 1e-12))
+    return positions * scale[..., None]
+
+
+def velocities(params: PlacementParams, action: ArrayLike, batch: int) -> FloatArray:
+    """World velocities ``(B, n, 3)`` of normalised actions ``(B, 2n)`` (``(x, z)`` per
+    receiver): components clipped to ``[−1, 1]``, times ``max_speed``, speed capped at it."""
+    n = params.n_receivers
+    a = finite_array(action, "action")
+    if a.size != batch * 2 * n:
+        raise ValueError(f"action: expected {batch * 2 * n} values (B, 2n), got shape {a.shape}")
+    a = np.clip(a.reshape(batch, n, 2), -1.0, 1.0)
+    norm = np.linalg.norm(a, axis=-1, keepdims=True)
+    a = a / np.maximum(norm, 1.0)
+    return params.max_speed * np.stack([a[..., 0], np.zeros((batch, n)), a[..., 1]], -1)
+
+
+def step(
+    params: PlacementParams, state: PlacementState, action: ArrayLike, rng: np.random.Generator
+) -> tuple[PlacementState, FloatArray]:
+    """Advance every scenario one scan period under ``action`` ``(B, 2n)``.
+
+    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError``. Returns
+    ``(state, reward (B,))``; nothing terminates (the time limit is the shell's business).
+    """
+    B = state.batch_size
+    end = _in_arena(params, state.receivers + params.period * velocities(params, action, B))
+    p = state.drone_position + params.period * state.drone_velocity
+    fix, estimate, geometry, bound = _period(
+        params, state.receivers, end, p, state.drone_velocity, state.estimate, rng
+    )
+    new = PlacementState(
+        state.t + params.period, end, p, state.drone_velocity, fix, estimate, geometry, bound
+    )
+    return new, reward_of(params, bound, fix.degenerate | geometry.degenerate)
+
+
+def where(mask: ArrayLike, new: PlacementState, old: PlacementState) -> PlacementState:
+    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old``."""
+    m = np.asarray(mask, dtype=bool)
+    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
+        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
+
+    def pick(a, b):
+        if dataclasses.is_dataclass(a):  # the nested tracker output and geometry
+            parts = {f.name: pick(getattr(a, f.name), getattr(b, f.name)) for f in fields(a)}
+            return type(a)(**parts)
+        return np.where(m.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
+
+    return pick(new, old)
+
+
+def los_angles(params: PlacementParams, receivers: FloatArray, point: FloatArray) -> FloatArray:
+    """Angles ``γ_kl`` ``(B, n(n−1)/2)`` between the lines of sight from receivers ``(B, n, 3)``
+    to ``point (B, 3)``, pairs in :attr:`PlacementParams.pairs` order, rad."""
+    d = point[:, None, :] - receivers
+    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+    k, l = np.array(params.pairs).T
+    cross = np.linalg.norm(np.cross(u[:, k], u[:, l]), axis=-1)
+    return np.arctan2(cross, np.sum(u[:, k] * u[:, l], axis=-1))
+
+
+def observe(params: PlacementParams, state: PlacementState) -> NDArray[np.float32]:
+    """The agent's observation ``(B, obs_dim)`` float32 — own positions and the tracker, no truth.
+
+    Blocks in this order (``L = length_scale``, ``S = speed_scale``, ``p̂``, ``v̂`` the tracker's
+    estimate, ``ĝ`` its ground point):
+
+    | block      | shape          | meaning                                                  |
+    |------------|----------------|----------------------------------------------------------|
+    | receivers  | ``(n, 2)``     | own ``(x, z) / L``, world                                |
+    | relative   | ``(n, 2)``     | ``(x_k − x̂, z_k − ẑ) / L``: receiver from ``ĝ``           |
+    | drone      | ``(3,)``       | ``p̂ / L``                                                |
+    | velocity   | ``(3,)``       | ``v̂ / S``                                                |
+    | ranges     | ``(n,)``       | ``ln(σ[r̂_k] / σ_ref)`` from ``σ_e² (AᵀA)⁻¹``               |
+    | vel. error | ``(1,)``       | ``ln(σ_V / (σ_ref/τ))``, ``σ_V = √tr Q_VV``              |
+    | condition  | ``(1,)``       | ``log10 κ_F``                                            |
+    | angles     | ``(n(n−1)/2,)``| ``γ_kl / (π/2)`` between lines of sight to ``p̂``           |
+    | degenerate | ``(1,)``       | 1.0 if the last fix was degenerate (the tracker coasted)  |
+
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
+    """
+    B, L = state.batch_size, params.length_scale
+    o, fix = state.receivers, state.fix
+    p_hat, v_hat = state.estimate[:, :3], state.estimate[:, 3:]
+    rel = o - p_hat[:, None, :]
+    tiny = 1e-12
+    blocks = [
+        o[..., [0, 2]].reshape(B, -1) / L,
+        rel[..., [0, 2]].reshape(B, -1) / L,
+        p_hat / L,
+        v_hat / params.speed_scale,
+        np.log(np.maximum(fix.range_sigma, tiny) / params.sigma_ref),
+        np.log(np.maximum(fix.velocity_sigma, tiny) * params.period / params.sigma_ref)[:, None],
+        np.log10(np.minimum(fix.condition, 1e300))[:, None],
+        los_angles(params, o, p_hat) / (np.pi / 2),
+        fix.degenerate[:, None].astype(np.float64),
+    ]
+    return np.clip(np.concatenate(blocks, -1), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+
+
+def split_observation(params: PlacementParams, obs: ArrayLike) -> dict[str, FloatArray]:
+    """Inverse of :func:`observe`'s layout for observations ``(N, obs_dim)``, in world units:
+    ``receivers (N, n, 3)``, ``position (N, 3)``, ``velocity (N, 3)``, ``angles (N, pairs)``."""
+    n, L = params.n_receivers, params.length_scale
+    o = np.asarray(obs, dtype=np.float64)
+    N = o.shape[0]
+    xz = o[:, : 2 * n].reshape(N, n, 2) * L
+    receivers = np.stack([xz[..., 0], np.zeros((N, n)), xz[..., 1]], -1)
+    i = 4 * n
+    position = o[:, i : i + 3] * L
+    velocity = o[:, i + 3 : i + 6] * params.speed_scale
+    j = i + 6 + n + 2
+    return {
+        "receivers": receivers,
+        "position": position,
+        "velocity": velocity,
+        "angles": o[:, j : j + len(params.pairs)] * (np.pi / 2),
+    }

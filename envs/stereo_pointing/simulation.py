@@ -1,0 +1,425 @@
+"""Simulation core of the receiver-pointing environments (multi-receiver stereo tracking).
+
+Pure functions over frozen, batched values (leading axis ``B`` = scenario), in the gymnax
+style: :func:`reset` draws ``B`` fresh scenarios (:func:`start` builds them from given drones
+and pointing), :func:`step` advances them under a normalised action, :func:`observe` makes the
+agent's observation, :func:`where` swaps fresh scenarios into a batch (vector-env autoreset).
+
+World frame: ``Y`` up, azimuth measured from ``+Z`` towards ``+X`` (SPEC §1.2, the 000/003
+convention applied to world axes). ``n`` gimballed receivers stand on a circle (SPEC §7 OC-3),
+each pointing its narrow field of view (a cone of half-angle ``fov``) at world azimuth and
+elevation ``(α_k, ε_k)``. ``m`` drones fly straight lines.
+
+One step (``params.dt`` seconds):
+
+1. the action ``a ∈ [−1, 1]^{n×2}`` slews each receiver by ``a · slew_rate · dt`` in azimuth
+   and elevation (elevation held within ``±max_elevation``); the drones move on;
+2. receiver ``k`` sees drone ``j`` if the line of sight ``u_kj`` lies inside its cone; it
+   measures ``u_kj`` with isotropic angular noise ``σ_ang``
+   (:func:`~sensorgym.envs.worlds.stereo_scene.perturb_directions`);
+3. the tracker (:mod:`sensorgym.trackers.stereo.kalman`) fixes each drone seen by at least two
+   receivers (weighted least squares, covariance ``σ² G⁻¹``) and updates its constant-velocity
+   Kalman filter with the fix; with fewer views it only predicts;
+4. the reward is the mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)`` with
+   ``σ_pos = √tr I(M)⁻¹`` the Cramér–Rao bound of the receivers that see the drone now, at the
+   true geometry: ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ² r_k²)``
+   (:func:`~sensorgym.trackers.stereo.accuracy.position_crlb`); fewer than two views (or
+   parallel lines of sight) give ``−R``. The bound has no noise draw in it: the reward depends
+   only on where the receivers point, and it favours near-orthogonal pairs (SPEC §7 OC-1).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.envs.worlds.stereo_scene import perturb_directions
+from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
+from sensorgym.trackers.stereo.kalman import (
+    CVTrack,
+    cv_predict,
+    cv_prior,
+    cv_update,
+    fix_geometry,
+    masked_fix,
+    observable,
+)
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+#: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]``
+OBS_CLIP = 10.0
+
+
+@dataclass(frozen=True)
+class PointingParams:
+    """Layout, drones, sensors, tracker and reward of the receiver-pointing environments."""
+
+    n_receivers: int = 4
+    """Number of gimballed receivers ``n``."""
+    circle_radius: float = 50.0
+    """Radius of the circle the receivers stand on, centred at the origin, m (SPEC §7 OC-3)."""
+    receiver_angles_deg: tuple[float, ...] | None = None
+    """Receiver places on the circle, degrees from ``+Z`` towards ``+X``; None spaces the ``n``
+    receivers evenly (90° apart for n = 4, the OC-3 example)."""
+    n_drones: int = 2
+    """Number of drones ``m``."""
+    start_distance: tuple[float, float] = (60.0, 150.0)
+    """Horizontal distance of a drone's start from the circle centre, drawn uniformly, m."""
+    start_altitude: tuple[float, float] = (30.0, 80.0)
+    """Height of a drone's start above the receivers, drawn uniformly, m."""
+    drone_speed: tuple[float, float] = (5.0, 15.0)
+    """Horizontal drone speed, drawn uniformly, m/s; heading uniform over all directions."""
+    climb_rate: tuple[float, float] = (-1.0, 1.0)
+    """Vertical drone speed, drawn uniformly, m/s."""
+    dt: float = 0.2
+    """Step length, s."""
+    fov: float = float(np.deg2rad(8.0))
+    """Half-angle of each receiver's field of view (a cone around the boresight), rad."""
+    slew_rate: float = float(np.pi / 2.0)
+    """Largest slew rate of a gimbal in azimuth and in elevation, rad/s."""
+    max_elevation: float = float(np.deg2rad(85.0))
+    """Gimbal elevation limit ``|ε| ≤ max_elevation``, rad."""
+    initial_elevation: tuple[float, float] = (0.0, 0.3)
+    """Initial boresight elevation, drawn uniformly, rad (azimuth uniform over all directions);
+    used when ``cued_start`` is False."""
+    cued_start: bool = True
+    """Gimbals start on the cue: receiver ``k`` points at drone ``k mod m``'s cued position (the
+    tracker's prior), as a cueing radar would hand over. False: random initial pointing, where
+    most episodes begin with no drone in any field of view (a hard exploration problem)."""
+    sigma_ang: float = 1e-3
+    """Isotropic angular noise of a measured direction (σ across the line of sight in each of
+    the two directions), rad. 0 gives noise-free measurements."""
+    cue_sigma: tuple[float, float] = (5.0, 2.0)
+    """The tracker starts from an external cue: truth plus Gaussian errors of these standard
+    deviations per axis in position (m) and velocity (m/s), with that covariance."""
+    process_noise: float = 1.0
+    """Spectral density ``q`` of the filter's white-noise acceleration, m²/s³."""
+    sigma_ref: float = 1.0
+    """Position accuracy that earns zero reward, m."""
+    reward_clip: float = 5.0
+    """``R``: the per-drone reward ``ln(σ_ref/σ_pos)`` is clipped to ``[−R, R]``; ``−R`` when a
+    drone is not fixed (fewer than two views)."""
+
+    def __post_init__(self) -> None:
+        if self.n_receivers < 2:
+            raise ValueError(f"n_receivers: need at least 2, got {self.n_receivers}")
+        if self.n_drones < 1:
+            raise ValueError(f"n_drones: need at least 1, got {self.n_drones}")
+        if not (np.isfinite(self.circle_radius) and self.circle_radius > 0.0):
+            raise ValueError(f"circle_radius: must be positive, got {self.circle_radius}")
+        angles = self.receiver_angles_deg
+        if angles is not None and (
+            len(angles) != self.n_receivers or not np.all(np.isfinite(angles))
+        ):
+            raise ValueError(
+                f"receiver_angles_deg: need {self.n_receivers} finite angles, got {angles}"
+            )
+        for name in ("start_distance", "start_altitude", "drone_speed", "climb_rate"):
+            lo, hi = getattr(self, name)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                raise ValueError(f"{name}: need finite low <= high, got {(lo, hi)}")
+        if self.start_distance[0] <= 0.0 or self.drone_speed[0] < 0.0:
+            raise ValueError("start_distance/drone_speed: must be positive / non-negative")
+        if not (np.isfinite(self.dt) and self.dt > 0.0):
+            raise ValueError(f"dt: must be positive, got {self.dt}")
+        if not 0.0 < self.fov < np.pi / 2:
+            raise ValueError(f"fov: half-angle must lie in (0, π/2) rad, got {self.fov}")
+        if not (np.isfinite(self.slew_rate) and self.slew_rate >= 0.0):
+            raise ValueError(f"slew_rate: must be finite and >= 0, got {self.slew_rate}")
+        if not 0.0 < self.max_elevation < np.pi / 2:
+            raise ValueError(f"max_elevation: must lie in (0, π/2) rad, got {self.max_elevation}")
+        lo, hi = self.initial_elevation
+        if not -self.max_elevation <= lo <= hi <= self.max_elevation:
+            raise ValueError(
+                f"initial_elevation: need a range within ±max_elevation, got {(lo, hi)}"
+            )
+        if not (np.isfinite(self.sigma_ang) and self.sigma_ang >= 0.0):
+            raise ValueError(f"sigma_ang: must be finite and >= 0, got {self.sigma_ang}")
+        if not (self.cue_sigma[0] > 0.0 and self.cue_sigma[1] > 0.0):
+            raise ValueError(f"cue_sigma: both must be positive, got {self.cue_sigma}")
+        if not (np.isfinite(self.process_noise) and self.process_noise >= 0.0):
+            raise ValueError(f"process_noise: must be finite and >= 0, got {self.process_noise}")
+        if not (np.isfinite(self.sigma_ref) and self.sigma_ref > 0.0):
+            raise ValueError(f"sigma_ref: must be positive, got {self.sigma_ref}")
+        if not (np.isfinite(self.reward_clip) and self.reward_clip > 0.0):
+            raise ValueError(f"reward_clip: must be positive, got {self.reward_clip}")
+
+    @property
+    def receiver_positions(self) -> FloatArray:
+        """``(n, 3)`` world positions of the receivers on the circle (height 0), m."""
+        if self.receiver_angles_deg is None:
+            ang = 2.0 * np.pi * np.arange(self.n_receivers) / self.n_receivers
+        else:
+            ang = np.deg2rad(np.asarray(self.receiver_angles_deg, dtype=np.float64))
+        r = self.circle_radius
+        return np.stack([r * np.sin(ang), np.zeros_like(ang), r * np.cos(ang)], -1)
+
+    @property
+    def length_scale(self) -> float:
+        """Length (m) that normalises observed positions: the far edge of the start distances."""
+        return self.start_distance[1]
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation length: ``3n + 3nm + 4m`` (see :func:`observe`)."""
+        n, m = self.n_receivers, self.n_drones
+        return 3 * n + 3 * n * m + 4 * m
+
+
+@dataclass(frozen=True)
+class PointingState:
+    """Batched episode state (leading axis ``B``)."""
+
+    t: FloatArray
+    """(B,) time since the episode start, s."""
+    azimuth: FloatArray
+    """(B, n) boresight world azimuths ``α_k``, rad in ``[−π, π)``."""
+    elevation: FloatArray
+    """(B, n) boresight elevations ``ε_k``, rad."""
+    drone_position: FloatArray = field(repr=False)
+    """(B, m, 3) true drone positions, m (ground truth: never observed)."""
+    drone_velocity: FloatArray = field(repr=False)
+    """(B, m, 3) true drone velocities, m/s."""
+    track: CVTrack = field(repr=False)
+    """The tracker the agent sees through: one CV Kalman filter per drone, batch ``(B, m)``."""
+    seen: BoolArray = field(repr=False)
+    """(B, n, m) which receiver saw which drone on the last step."""
+    fixed: BoolArray = field(repr=False)
+    """(B, m) which drones got a position fix on the last step."""
+    bound: FloatArray = field(repr=False)
+    """(B, m) CRLB position RMS ``σ_pos`` of the last step's views, m (inf: no fix)."""
+
+    @property
+    def batch_size(self) -> int:
+        """Number of scenarios ``B``."""
+        return int(self.t.shape[0])
+
+
+def boresights(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
+    """Unit boresight vectors ``(..., 3)`` of world azimuths and elevations (rad)."""
+    return unit_from_angles(azimuth, elevation)
+
+
+def lines_of_sight(params: PointingParams, points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Unit lines of sight ``(B, n, m, 3)`` and ranges ``(B, n, m)`` from each receiver to
+    each of ``points (B, m, 3)``."""
+    d = points[:, None, :, :] - params.receiver_positions[None, :, None, :]
+    r = np.linalg.norm(d, axis=-1)
+    return d / np.maximum(r, 1e-9)[..., None], r
+
+
+def start(
+    params: PointingParams,
+    drone_position: ArrayLike,
+    drone_velocity: ArrayLike,
+    azimuth: ArrayLike,
+    elevation: ArrayLike,
+    rng: np.random.Generator,
+) -> PointingState:
+    """Scenarios from given drones ``(B, m, 3)`` and pointing ``(B, n)``; the tracker starts
+    from the cue (truth plus ``cue_sigma`` errors, drawn from ``rng``)."""
+    n, m = params.n_receivers, params.n_drones
+    p = finite_array(drone_position, "drone_position", tail=(m, 3))
+    v = finite_array(drone_velocity, "drone_velocity", tail=(m, 3))
+    az = finite_array(azimuth, "azimuth", tail=(n,))
+    el = finite_array(elevation, "elevation", tail=(n,))
+    B = p.shape[0]
+    if p.ndim != 3 or v.shape != p.shape or az.shape != (B, n) or el.shape != (B, n):
+        raise ValueError(f"drone_position/velocity, azimuth/elevation: batch {B} shapes differ")
+    sp, sv = params.cue_sigma
+    cue_p = p + sp * rng.standard_normal(p.shape)
+    cue_v = v + sv * rng.standard_normal(v.shape)
+    return PointingState(
+        t=np.zeros(B),
+        azimuth=wrap_angle(az),
+        elevation=np.clip(el, -params.max_elevation, params.max_elevation),
+        drone_position=p,
+        drone_velocity=v,
+        track=cv_prior(cue_p, cue_v, sp, sv),
+        seen=np.zeros((B, n, m), dtype=bool),
+        fixed=np.zeros((B, m), dtype=bool),
+        bound=np.full((B, m), np.inf),
+    )
+
+
+def reset(params: PointingParams, rng: np.random.Generator, batch: int) -> PointingState:
+    """``batch`` fresh scenarios: drones at random places and courses, gimbals at random
+    azimuths, the tracker on its cue."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    n, m = params.n_receivers, params.n_drones
+    # scenario draws, in a fixed order so that a seed fixes every scenario
+    dist = rng.uniform(*params.start_distance, (batch, m))
+    bearing = rng.uniform(-np.pi, np.pi, (batch, m))
+    height = rng.uniform(*params.start_altitude, (batch, m))
+    speed = rng.uniform(*params.drone_speed, (batch, m))
+    heading = rng.uniform(-np.pi, np.pi, (batch, m))
+    climb = rng.uniform(*params.climb_rate, (batch, m))
+    az = rng.uniform(-np.pi, np.pi, (batch, n))
+    el = rng.uniform(*params.initial_elevation, (batch, n))
+    p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
+    v = np.stack([speed * np.sin(heading), climb, speed * np.cos(heading)], -1)
+    state = start(params, p, v, az, el, rng)
+    if not params.cued_start:
+        return state
+    # receiver k on drone k mod m's cued position
+    cue = state.track.position[:, np.arange(n) % m]  # (B, n, 3)
+    d = cue - params.receiver_positions[None]
+    az, el = angles_from_unit(d / np.linalg.norm(d, axis=-1, keepdims=True))
+    return dataclasses.replace(
+        state, azimuth=az, elevation=np.clip(el, -params.max_elevation, params.max_elevation)
+    )
+
+
+def crlb_sigma(params: PointingParams, G: FloatArray, ok: BoolArray) -> FloatArray:
+    """``σ_pos = σ √tr G⁻¹`` (m) where ``ok``, ``inf`` elsewhere (``I(M) = G/σ²``)."""
+    G_safe = np.where(ok[..., None, None], G, np.eye(3))
+    tr = np.trace(np.linalg.inv(G_safe), axis1=-2, axis2=-1)
+    return np.where(ok, params.sigma_ang * np.sqrt(np.maximum(tr, 0.0)), np.inf)
+
+
+def reward_of(params: PointingParams, sigma_pos: FloatArray) -> FloatArray:
+    """Mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)``: ``(B, m)`` → ``(B,)``."""
+    R = params.reward_clip
+    finite = np.isfinite(sigma_pos)
+    positive = finite & (sigma_pos > 0.0)
+    log_ratio = np.log(params.sigma_ref) - np.log(np.where(positive, sigma_pos, 1.0))
+    # σ_pos = 0 (noise-free) earns R, no fix (σ_pos = inf) earns −R
+    per_drone = np.where(positive, np.clip(log_ratio, -R, R), np.where(finite, R, -R))
+    return per_drone.mean(axis=-1)
+
+
+def step(
+    params: PointingParams, state: PointingState, action: ArrayLike, rng: np.random.Generator
+) -> tuple[PointingState, FloatArray]:
+    """Advance every scenario one step under ``action`` ``(B, n, 2)`` (or ``(B, 2n)``).
+
+    Actions outside ``[−1, 1]`` are clipped; NaN or infinite actions raise ``ValueError``.
+    Returns ``(state, reward (B,))``: the environment never terminates, truncation (the time
+    limit) is the shell's business.
+    """
+    n, B = params.n_receivers, state.batch_size
+    a = finite_array(action, "action")
+    if a.size != B * n * 2:
+        raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
+    a = np.clip(a.reshape(B, n, 2), -1.0, 1.0)
+    turn = a * (params.slew_rate * params.dt)
+    az = wrap_angle(state.azimuth + turn[..., 0])
+    el = np.clip(state.elevation + turn[..., 1], -params.max_elevation, params.max_elevation)
+    p = state.drone_position + state.drone_velocity * params.dt
+    u, r = lines_of_sight(params, p)  # (B, n, m, 3), (B, n, m)
+    bore = boresights(az, el)  # (B, n, 3)
+    seen = np.einsum("bki,bkji->bkj", bore, u) >= np.cos(params.fov)
+    # measure every pair (a fixed number of draws), use only what is seen
+    z = perturb_directions(u, params.sigma_ang, rng) if params.sigma_ang > 0.0 else u
+    # per drone: (B, m, n, ...) views
+    origins = np.broadcast_to(params.receiver_positions[None, None], (B, params.n_drones, n, 3))
+    fix, G_fix, ok_fix = masked_fix(origins, np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2))
+    track = cv_predict(state.track, params.dt, params.process_noise)
+    # R = σ² G⁻¹ at the fix's own ranges
+    R = params.sigma_ang**2 * np.linalg.inv(np.where(ok_fix[..., None, None], G_fix, np.eye(3)))
+    track = cv_update(track, fix, R, ok_fix)
+    # the reward's bound: true lines of sight and ranges of the receivers that see the drone
+    seen_t = np.swapaxes(seen, 1, 2)
+    G_true = fix_geometry(np.swapaxes(u, 1, 2), np.swapaxes(r, 1, 2), seen_t)
+    bound = crlb_sigma(params, G_true, observable(G_true, seen_t))
+    new = PointingState(
+        state.t + params.dt, az, el, p, state.drone_velocity, track, seen, ok_fix, bound
+    )
+    return new, reward_of(params, bound)
+
+
+def where(mask: ArrayLike, new: PointingState, old: PointingState) -> PointingState:
+    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old``."""
+    m = np.asarray(mask, dtype=bool)
+    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
+        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
+
+    def pick(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return np.where(m.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
+
+    return PointingState(
+        t=pick(new.t, old.t),
+        azimuth=pick(new.azimuth, old.azimuth),
+        elevation=pick(new.elevation, old.elevation),
+        drone_position=pick(new.drone_position, old.drone_position),
+        drone_velocity=pick(new.drone_velocity, old.drone_velocity),
+        track=CVTrack(pick(new.track.x, old.track.x), pick(new.track.P, old.track.P)),
+        seen=pick(new.seen, old.seen),
+        fixed=pick(new.fixed, old.fixed),
+        bound=pick(new.bound, old.bound),
+    )
+
+
+def predicted_track(params: PointingParams, state: PointingState) -> CVTrack:
+    """The tracker's prediction for the next measurement time ``t + dt`` (what the agent aims at)."""
+    return cv_predict(state.track, params.dt, params.process_noise)
+
+
+def pointing_offsets(
+    params: PointingParams, azimuth: FloatArray, elevation: FloatArray, points: FloatArray
+) -> FloatArray:
+    """World-angle offsets ``(B, n, m, 2)`` of ``points (B, m, 3)`` from each boresight, rad:
+    ``(wrap(α_kj − α_k), ε_kj − ε_k)`` with ``(α_kj, ε_kj)`` the direction of point ``j``
+    from receiver ``k``; slewing by exactly these offsets puts the point on the boresight."""
+    u, _ = lines_of_sight(params, points)
+    az, el = angles_from_unit(u)
+    return np.stack([wrap_angle(az - azimuth[..., None]), el - elevation[..., None]], -1)
+
+
+def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]:
+    """The agent's observation ``(B, obs_dim)`` float32 — own gimbals and the tracker, no truth.
+
+    Blocks in this order (``n`` receivers, ``m`` drones; ``p̂_j``, ``σ̂_j`` the tracker's
+    prediction of drone ``j`` for the next measurement, ``L = length_scale``):
+
+    | block       | shape        | meaning                                                  |
+    |-------------|--------------|----------------------------------------------------------|
+    | gimbals     | ``(n, 3)``   | ``sin α_k``, ``cos α_k``, ``ε_k / (π/2)``                |
+    | offsets     | ``(n, m, 3)``| direction of ``p̂_j`` from receiver ``k`` relative to its |
+    |             |              | boresight, ``(Δα, Δε) / fov``; and 1.0 if ``k`` saw ``j``|
+    |             |              | on the last step, else 0.0                               |
+    | drones      | ``(m, 4)``   | ``p̂_j / L`` (world, m) and ``ln(σ̂_j / σ_ref)``,          |
+    |             |              | ``σ̂ = √tr P_pp``                                         |
+
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]`` (an offset of more than ten
+    half-angles reads as ±10).
+    """
+    B = state.batch_size
+    pred = predicted_track(params, state)
+    gimbals = np.stack(
+        [np.sin(state.azimuth), np.cos(state.azimuth), state.elevation / (np.pi / 2)], -1
+    )
+    offsets = pointing_offsets(params, state.azimuth, state.elevation, pred.position) / params.fov
+    per_pair = np.concatenate([offsets, state.seen[..., None].astype(np.float64)], -1)
+    drones = np.concatenate(
+        [
+            pred.position / params.length_scale,
+            np.log(np.maximum(pred.position_sigma, 1e-12) / params.sigma_ref)[..., None],
+        ],
+        -1,
+    )
+    obs = np.concatenate(
+        [gimbals.reshape(B, -1), per_pair.reshape(B, -1), drones.reshape(B, -1)], -1
+    )
+    return np.clip(obs, -OBS_CLIP, OBS_CLIP).astype(np.float32)
+
+
+def split_observation(
+    params: PointingParams, obs: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Inverse of :func:`observe`'s layout: ``(gimbals (N, n, 3), pairs (N, n, m, 3), drones
+    (N, m, 4))`` of observations ``(N, obs_dim)``."""
+    n, m = params.n_receivers, params.n_drones
+    o = np.asarray(obs, dtype=np.float64)
+    N = o.shape[0]
+    g = o[:, : 3 * n].reshape(N, n, 3)
+    pairs = o[:, 3 * n : 3 * n + 3 * n * m].reshape(N, n, m, 3)
+    drones = o[:, 3 * n + 3 * n * m :].reshape(N, m, 4)
+    return g, pairs, drones

@@ -1,0 +1,297 @@
+"""A manoeuvring platform taking bearings on a moving target — the bearings-only world model.
+
+The simulation core the platform-manoeuvre environments wrap (Gymnasium, PettingZoo,
+heuristics). Pure functions over frozen, batched values: leading axis = scenario.
+
+Description
+-----------
+A 2-D platform (position, heading, speed) is commanded each step by a heading-rate and a
+speed change; a target moves with nearly constant velocity (continuous white-noise
+acceleration of intensity ``q̃``); the platform measures the absolute bearing of the target
+(from North clockwise) with Gaussian noise ``σ``. Range is observable only when the
+platform manoeuvres (SPEC §4, §7 OC-5).
+
+Frame: ``x`` East, ``y`` North (m); heading from North clockwise (rad), so the platform
+velocity is ``v (sin ψ, cos ψ)``.
+
+Action (per scenario, shape ``(B, 2)``)
+--------------------------------------
+| index | meaning              | unit  | clipped to                                   |
+|-------|----------------------|-------|----------------------------------------------|
+| 0     | heading-rate command | rad/s | ``[−max_turn_rate, max_turn_rate]``          |
+| 1     | speed change         | m/s   | ``[−max_speed_change, max_speed_change]``,   |
+|       |                      |       | then the speed to ``[min_speed, max_speed]`` |
+
+The speed change takes effect at the start of the step; the heading rate is held for the
+whole step, and the platform flies the exact circular arc.
+
+Step
+----
+``step(state, action, params, rng) -> state`` advances time by ``params.dt``. The target is
+propagated with the exact discretisation ``x' = F x + w``, ``w ~ N(0, Q)`` of the CWNA model
+(:mod:`sensorgym.trackers.bearings.models`); ``rng`` is needed only when ``q̃ > 0``.
+Bearings are drawn separately by :func:`measure_bearings` with an explicit generator.
+:func:`where` swaps freshly reset scenarios into a batch (each scenario keeps its own clock);
+:func:`rollout` records an open-loop trajectory for estimators and bounds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.trackers.bearings.models import (
+    STATE_DIM,
+    bearing,
+    cv_transition,
+    cwna_covariance,
+)
+from sensorgym.trackers.geometry import wrap_angle
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlatformWorldParams:
+    """Kinematic limits, sampling and noise of the bearings-only world."""
+
+    dt: float = 60.0
+    """Step and bearing sampling interval ``T`` (s)."""
+    max_turn_rate: float = np.deg2rad(1.0)
+    """Largest heading-rate command magnitude (rad/s); default 1°/s = 60°/min."""
+    min_speed: float = 0.0
+    """Lowest platform speed (m/s)."""
+    max_speed: float = 15.0
+    """Highest platform speed (m/s)."""
+    max_speed_change: float = 2.0
+    """Largest speed change per step (m/s)."""
+    q_tilde: float = 0.0
+    """Target acceleration noise intensity ``q̃`` (m²/s³) per axis; 0 = constant velocity."""
+    sigma_bearing: float = np.deg2rad(1.5)
+    """Bearing noise standard deviation ``σ`` (rad)."""
+
+    def __post_init__(self) -> None:
+        for name in ("dt", "max_turn_rate", "min_speed", "max_speed", "max_speed_change"):
+            value = getattr(self, name)
+            if not np.isfinite(value) or value < 0.0:
+                raise ValueError(f"{name}: must be finite and >= 0, got {value}")
+        if self.dt <= 0.0:
+            raise ValueError(f"dt: must be positive, got {self.dt}")
+        if self.min_speed > self.max_speed:
+            raise ValueError(f"min_speed {self.min_speed} exceeds max_speed {self.max_speed}")
+        if not np.isfinite(self.q_tilde) or self.q_tilde < 0.0:
+            raise ValueError(f"q_tilde: must be finite and >= 0, got {self.q_tilde}")
+        if not np.isfinite(self.sigma_bearing) or self.sigma_bearing <= 0.0:
+            raise ValueError(f"sigma_bearing: must be positive, got {self.sigma_bearing}")
+
+
+@dataclass(frozen=True)
+class PlatformWorldState:
+    """Batched world state; leading axis ``B`` = scenario."""
+
+    t: FloatArray
+    """Time ``(B,)`` (s) of each scenario (a scalar is broadcast). The dynamics are
+    time-invariant, so scenarios may run on their own clocks (vector-env autoreset)."""
+    platform_position: FloatArray
+    """Platform position ``(B, 2)`` East, North (m)."""
+    heading: FloatArray
+    """Platform heading ``(B,)`` from North clockwise (rad, wrapped to [−π, π))."""
+    speed: FloatArray
+    """Platform speed ``(B,)`` (m/s)."""
+    target: FloatArray
+    """Target state ``(B, 4)``: East, North (m), velocity (m/s)."""
+
+    def __post_init__(self) -> None:
+        p = finite_array(self.platform_position, "platform_position", tail=(2,))
+        if p.ndim != 2:
+            raise ValueError(f"platform_position: expected shape (B, 2), got {p.shape}")
+        B = p.shape[0]
+        h = finite_array(self.heading, "heading")
+        s = finite_array(self.speed, "speed")
+        x = finite_array(self.target, "target", tail=(STATE_DIM,))
+        if h.shape != (B,) or s.shape != (B,) or x.shape != (B, STATE_DIM):
+            raise ValueError(
+                f"heading/speed/target: expected (B,), (B,), (B, 4) with B={B}, "
+                f"got {h.shape}, {s.shape}, {x.shape}"
+            )
+        if np.any(s < 0.0):
+            raise ValueError("speed: must be >= 0")
+        t = finite_array(self.t, "t")
+        if t.ndim > 1 or (t.ndim == 1 and t.shape != (B,)):
+            raise ValueError(f"t: expected a scalar or shape ({B},), got {t.shape}")
+        object.__setattr__(self, "t", np.broadcast_to(t, (B,)).copy())
+        object.__setattr__(self, "platform_position", p)
+        object.__setattr__(self, "heading", wrap_angle(h))
+        object.__setattr__(self, "speed", s)
+        object.__setattr__(self, "target", x)
+
+    @property
+    def batch_size(self) -> int:
+        """Number of scenarios ``B``."""
+        return self.platform_position.shape[0]
+
+    @property
+    def platform_velocity(self) -> FloatArray:
+        """Platform velocity ``v (sin ψ, cos ψ)`` ``(B, 2)`` (m/s)."""
+        return self.speed[:, None] * np.stack([np.sin(self.heading), np.cos(self.heading)], -1)
+
+    @property
+    def relative_position(self) -> FloatArray:
+        """Target minus platform position ``(B, 2)`` (m)."""
+        return self.target[:, :2] - self.platform_position
+
+    @property
+    def range(self) -> FloatArray:
+        """Platform–target range ``(B,)`` (m)."""
+        return np.hypot(*self.relative_position.T)
+
+
+def clip_action(
+    action: ArrayLike, state: PlatformWorldState, params: PlatformWorldParams
+) -> FloatArray:
+    """Action ``(B, 2)`` clipped to the turn-rate, speed-change and speed limits.
+
+    Column 1 of the result is the speed change actually applied (after the speed limits).
+    """
+    a = finite_array(action, "action", tail=(2,))
+    a = np.broadcast_to(a, (state.batch_size, 2))
+    return _clip_command(a, state.speed, params)
+
+
+def _clip_command(a: FloatArray, speed: FloatArray, params: PlatformWorldParams) -> FloatArray:
+    omega = np.clip(a[..., 0], -params.max_turn_rate, params.max_turn_rate)
+    dv = np.clip(a[..., 1], -params.max_speed_change, params.max_speed_change)
+    new_speed = np.clip(speed + dv, params.min_speed, params.max_speed)
+    return np.stack([omega, new_speed - speed], axis=-1)
+
+
+def fly(
+    position: FloatArray,
+    heading: FloatArray,
+    speed: FloatArray,
+    command: ArrayLike,
+    params: PlatformWorldParams,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Platform kinematics over one step, for any leading shape ``(...)`` (e.g. ``(B, K)``
+    platforms): ``position (..., 2)``, ``heading``, ``speed`` ``(...)``, ``command (..., 2)``
+    (heading rate, speed change; clipped to the limits). Returns the new three."""
+    a = _clip_command(finite_array(command, "action", tail=(2,)), speed, params)
+    T = params.dt
+    omega = a[..., 0]
+    v = speed + a[..., 1]
+    # exact arc: Δp = v T sinc(ωT/2) (sin ψ_m, cos ψ_m), ψ_m = ψ₀ + ωT/2
+    half = 0.5 * omega * T
+    psi_mid = heading + half
+    chord = v * T * np.sinc(half / np.pi)
+    dp = chord[..., None] * np.stack([np.sin(psi_mid), np.cos(psi_mid)], axis=-1)
+    return position + dp, wrap_angle(heading + omega * T), v
+
+
+def propagate_target(
+    target: FloatArray, params: PlatformWorldParams, rng: np.random.Generator | None = None
+) -> FloatArray:
+    """Target states ``(B, 4)`` one step on: ``x' = F x + w``, ``w ~ N(0, Q)`` (CWNA)."""
+    T = params.dt
+    out = target @ cv_transition(T).T
+    if params.q_tilde > 0.0:
+        if rng is None:
+            raise ValueError("rng: a np.random.Generator is required when q_tilde > 0")
+        L = np.linalg.cholesky(cwna_covariance(T, params.q_tilde))
+        out = out + rng.standard_normal(target.shape) @ L.T
+    return out
+
+
+def step(
+    state: PlatformWorldState,
+    action: ArrayLike,
+    params: PlatformWorldParams,
+    rng: np.random.Generator | None = None,
+) -> PlatformWorldState:
+    """Advance every scenario by ``params.dt`` under ``action`` (see the module docstring)."""
+    a = np.broadcast_to(finite_array(action, "action", tail=(2,)), (state.batch_size, 2))
+    position, heading, speed = fly(state.platform_position, state.heading, state.speed, a, params)
+    return PlatformWorldState(
+        t=state.t + params.dt,
+        platform_position=position,
+        heading=heading,
+        speed=speed,
+        target=propagate_target(state.target, params, rng),
+    )
+
+
+def where(mask: ArrayLike, new: PlatformWorldState, old: PlatformWorldState) -> PlatformWorldState:
+    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old`` (autoreset)."""
+    m = np.asarray(mask, dtype=bool)
+    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
+        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
+    return PlatformWorldState(
+        t=np.where(m, new.t, old.t),
+        platform_position=np.where(m[:, None], new.platform_position, old.platform_position),
+        heading=np.where(m, new.heading, old.heading),
+        speed=np.where(m, new.speed, old.speed),
+        target=np.where(m[:, None], new.target, old.target),
+    )
+
+
+def true_bearings(state: PlatformWorldState) -> FloatArray:
+    """Noise-free absolute bearings ``(B,)`` (rad, from North clockwise)."""
+    return bearing(state.target[:, :2], state.platform_position)
+
+
+def measure_bearings(
+    state: PlatformWorldState, params: PlatformWorldParams, rng: np.random.Generator
+) -> FloatArray:
+    """Noisy bearings ``z = wrap(β + σ ε)``, ``ε ~ N(0, 1)``, shape ``(B,)`` (rad)."""
+    return noisy_bearings(state.target[:, :2], state.platform_position, params.sigma_bearing, rng)
+
+
+def noisy_bearings(
+    target_position: ArrayLike,
+    platform_position: ArrayLike,
+    sigma: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """``z = wrap(β + σ ε)`` for broadcasting positions ``(..., 2)`` → ``(...)`` (rad)."""
+    beta = bearing(target_position, platform_position)
+    return wrap_angle(beta + sigma * rng.standard_normal(beta.shape))
+
+
+@dataclass(frozen=True)
+class PlatformTrajectory:
+    """A recorded rollout: what estimators and bounds consume."""
+
+    t: FloatArray
+    """Sample times ``(K,)`` (s)."""
+    platform_position: FloatArray
+    """Platform positions ``(B, K, 2)`` (m)."""
+    platform_velocity: FloatArray
+    """Platform velocities ``(B, K, 2)`` (m/s) at the sample times (after the speed change)."""
+    target: FloatArray
+    """True target states ``(B, K, 4)``."""
+
+
+def rollout(
+    state: PlatformWorldState,
+    actions: ArrayLike,
+    params: PlatformWorldParams,
+    rng: np.random.Generator | None = None,
+) -> PlatformTrajectory:
+    """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)``, shared); record ``K`` states.
+
+    All scenarios must share one clock (``state.t`` constant over the batch).
+    """
+    acts = finite_array(actions, "actions", tail=(2,))
+    if np.ptp(state.t) > 0.0:
+        raise ValueError("state: rollout needs all scenarios on one clock (equal t)")
+    states = [state]
+    for k in range(acts.shape[0]):
+        states.append(step(states[-1], acts[k], params, rng))
+    return PlatformTrajectory(
+        t=np.array([s.t[0] for s in states]),
+        platform_position=np.stack([s.platform_position for s in states], axis=1),
+        platform_velocity=np.stack([s.platform_velocity for s in states], axis=1),
+        target=np.stack([s.target for s in states], axis=1),
+    )

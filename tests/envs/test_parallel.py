@@ -1,0 +1,117 @@
+"""PettingZoo envs: API and seed tests, and equality with the single-agent envs on one core."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from pettingzoo.test import parallel_api_test, parallel_seed_test
+
+import sensorgym.envs  # noqa: F401  (registers the ids)
+from sensorgym.envs.bearings_maneuver import parallel as bearings_maneuver_pz
+from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
+from sensorgym.envs.stereo_placement import parallel as stereo_placement_pz
+from sensorgym.envs.stereo_placement.simulation import PlacementParams
+from sensorgym.envs.stereo_pointing import parallel as stereo_pointing_pz
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: bearings_maneuver_pz.parallel_env(),
+        lambda: bearings_maneuver_pz.parallel_env(platforms=3, max_episode_steps=10),
+        lambda: stereo_pointing_pz.parallel_env(max_episode_steps=40),
+        lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20),
+        lambda: stereo_placement_pz.parallel_env(max_episode_steps=30),
+    ],
+)
+def test_pettingzoo_api_and_seed_tests_pass(make):
+    parallel_api_test(make(), num_cycles=60)
+    parallel_seed_test(make, num_cycles=60)
+
+
+def test_one_platform_parallel_env_is_the_gymnasium_env():
+    """Same core, same seed, same actions: the PettingZoo shell and the Gymnasium shell agree."""
+    pz = bearings_maneuver_pz.parallel_env(platforms=1, max_episode_steps=30)
+    env = gym.make("sensorgym/BearingsManeuver-v0")
+    obs_pz, _ = pz.reset(seed=11)
+    obs_g, _ = env.reset(seed=11)
+    np.testing.assert_array_equal(obs_pz["platform_0"], obs_g)
+    for a in np.random.default_rng(0).uniform(-1, 1, (30, 2)).astype(np.float32):
+        obs_pz, r_pz, term_pz, trunc_pz, _ = pz.step({"platform_0": a})
+        obs_g, r_g, term_g, trunc_g, _ = env.step(a)
+        np.testing.assert_array_equal(obs_pz["platform_0"], obs_g)
+        assert r_pz["platform_0"] == r_g
+        assert (term_pz["platform_0"], trunc_pz["platform_0"]) == (term_g, trunc_g)
+    assert trunc_g and pz.agents == []
+    with pytest.raises(RuntimeError, match="reset"):
+        pz.step({"platform_0": a})
+
+
+@pytest.mark.parametrize(
+    "make_pz, env_id, params",
+    [
+        (
+            stereo_pointing_pz.parallel_env,
+            "sensorgym/StereoPointing-v0",
+            PointingParams(n_receivers=3, n_drones=2),
+        ),
+        (stereo_placement_pz.parallel_env, "sensorgym/StereoPlacement-v0", PlacementParams()),
+    ],
+)
+def test_receiver_agents_see_the_single_env_observation_and_their_index(make_pz, env_id, params):
+    pz = make_pz(params=params)
+    env = gym.make(env_id, params=params)
+    obs_pz, _ = pz.reset(seed=4)
+    obs_g, _ = env.reset(seed=4)
+    actions = np.random.default_rng(1).uniform(-1, 1, (3, 2)).astype(np.float32)
+    obs_pz, r_pz, *_ = pz.step({f"receiver_{k}": actions[k] for k in range(3)})
+    obs_g, r_g, *_ = env.step(actions.reshape(-1))
+    for k in range(3):
+        o = obs_pz[f"receiver_{k}"]
+        np.testing.assert_array_equal(o[: params.obs_dim], obs_g)
+        np.testing.assert_array_equal(o[params.obs_dim :], np.eye(3)[k])
+        assert r_pz[f"receiver_{k}"] == r_g
+    assert pz.state().shape == (3 * (params.obs_dim + 3),)
+
+
+def _final_bound_straight(platforms: int, seed: int) -> float:
+    env = bearings_maneuver_pz.parallel_env(
+        params=ManeuverParams(platforms=platforms, formation_radius=5_000.0)
+    )
+    env.reset(seed=seed)
+    while env.agents:
+        _, _, _, _, infos = env.step({agent: np.zeros(2, np.float32) for agent in env.agents})
+    return infos["platform_0"]["bound"]
+
+
+def test_cross_bearings_make_range_observable_without_manoeuvres():
+    """On straight courses a lone platform leaves the position bound at kilometres (range is
+    unobservable); two separated platforms' crossing bearings pin it down."""
+    one = np.median([_final_bound_straight(1, s) for s in range(6)])
+    two = np.median([_final_bound_straight(2, s) for s in range(6)])
+    assert two < one / 3.0
+
+
+def test_observations_place_the_other_platforms_in_the_own_frame():
+    env = bearings_maneuver_pz.parallel_env(platforms=3)
+    obs, _ = env.reset(seed=2)
+    state = env._state
+    for k in range(3):
+        others = obs[f"platform_{k}"][10:].reshape(2, 2) * env.params.range_scale
+        dist = np.linalg.norm(others, axis=1)
+        j = [i for i in range(3) if i != k]
+        want = np.linalg.norm(state.platform_position[0, j] - state.platform_position[0, k], axis=1)
+        np.testing.assert_allclose(dist, want, rtol=1e-5)
+
+
+def test_bad_joint_actions_are_refused():
+    env = bearings_maneuver_pz.parallel_env()
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="no action"):
+        env.step({"platform_0": np.zeros(2)})
+    with pytest.raises(ValueError, match="NaN"):
+        env.step({"platform_0": np.zeros(2), "platform_1": np.array([np.nan, 0.0])})
+    with pytest.raises(ValueError, match="max_episode_steps"):
+        bearings_maneuver_pz.parallel_env(max_episode_steps=0)

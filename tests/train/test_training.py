@@ -1,0 +1,137 @@
+"""SB3 on the native vector envs: the adapter, YAML hyperparameters, train / benchmark commands."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+from sensorgym.agents.bearings_maneuver import StraightCourse
+from sensorgym.cli.main import main
+from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
+from sensorgym.train.config import load_hyperparams, split_run_settings
+from sensorgym.train.evaluation import evaluate, make_sb3_env
+from sensorgym.train.models import load_model, read_config
+from sensorgym.train.sb3_vec_env import SB3VecEnv
+from sensorgym.train.trainer import train
+
+ENV_ID = "sensorgym/BearingsManeuver-v0"
+
+
+def test_sb3_adapter_reports_terminal_observations_and_time_limits():
+    venv = SB3VecEnv(BearingsManeuverVectorEnv(3, max_episode_steps=4, autoreset_mode="SameStep"))
+    venv.seed(5)
+    venv.reset()
+    for _ in range(4):
+        obs, reward, dones, infos = venv.step(np.zeros((3, 2), dtype=np.float32))
+        assert obs.shape == (3, 10) and reward.dtype == np.float32
+        assert all(isinstance(i["range"], float) for i in infos)
+    assert dones.all()
+    for info in infos:
+        assert info["TimeLimit.truncated"] is True
+        assert info["terminal_observation"].shape == (10,)
+    with pytest.raises(ValueError, match="SAME_STEP"):
+        SB3VecEnv(BearingsManeuverVectorEnv(2))
+
+
+def test_evaluation_is_seeded_and_ranks_rules():
+    env = make_sb3_env(ENV_ID, 4, seed=0)
+    a = evaluate(StraightCourse(), env, 8, seed=3)
+    b = evaluate(StraightCourse(), env, 8, seed=3)
+    assert a == b and a.episodes == 8 and a.mean_length == 30.0
+
+
+def test_hyperparameters_come_from_yaml():
+    hp = load_hyperparams("ppo", ENV_ID)
+    run, kwargs = split_run_settings(hp)
+    assert run["policy"] == "MlpPolicy" and isinstance(run["n_timesteps"], int)
+    assert isinstance(kwargs["learning_rate"], float) and kwargs["policy_kwargs"]["net_arch"]
+    assert load_hyperparams("sac", ENV_ID)["policy"] == "MlpPolicy"
+    with pytest.raises(KeyError, match="known"):
+        load_hyperparams("ppo", "sensorgym/Nothing-v0")
+    with pytest.raises(KeyError, match="algo"):
+        load_hyperparams("dqn", ENV_ID)
+
+
+def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
+    result = train(
+        ENV_ID, "ppo", seed=1, timesteps=2048, out=tmp_path, eval_episodes=8, progress=False
+    )
+    assert (result.run_dir / "model.zip").is_file()
+    config = read_config(result.run_dir)
+    assert config["env"] == ENV_ID and config["hyperparams"]["n_timesteps"] == 2048
+    evaluation = json.loads((result.run_dir / "evaluation.json").read_text())["results"]
+    assert {"trained", "straight-course", "paper002", "greedy-information"} <= set(evaluation)
+    model = load_model(result.run_dir)
+    obs = np.random.default_rng(0).uniform(-1, 1, (5, 10)).astype(np.float32)
+    again = load_model(result.run_dir / "model.zip")
+    action = model.predict(obs, deterministic=True)[0]
+    np.testing.assert_array_equal(action, again.predict(obs, deterministic=True)[0])
+    assert np.all(np.abs(action) <= 1.0)
+
+
+def test_benchmark_command_scores_every_rule(tmp_path, capsys):
+    args = ["--env", ENV_ID, "--episodes", "8", "--n-envs", "4", "--out", str(tmp_path)]
+    assert main(["benchmark", *args]) == 0
+    doc = json.loads((tmp_path / "sensorgym__BearingsManeuver-v0.json").read_text())
+    results = doc["results"]
+    assert set(results) == {"straight-course", "paper002", "greedy-information", "oracle-lookahead"}
+    assert results["oracle-lookahead"]["mean"] > results["greedy-information"]["mean"]
+    assert results["greedy-information"]["mean"] > results["straight-course"]["mean"]
+    assert "greedy-information" in capsys.readouterr().out
+
+
+def test_autoreset_mode_is_validated():
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        BearingsManeuverVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
+
+
+def test_parameter_sharing_slots_follow_the_agents_and_restart_together():
+    from sensorgym.envs.bearings_maneuver import parallel as bearings_maneuver_pz
+    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
+
+    venv = ParameterSharingVecEnv(
+        [lambda: bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)] * 2
+    )
+    assert venv.num_envs == 4
+    venv.seed(7)
+    obs = venv.reset()
+    pz = bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)
+    first, _ = pz.reset(seed=7)
+    np.testing.assert_array_equal(obs[0], first["platform_0"])  # slot 0 = copy 0, agent 0
+    np.testing.assert_array_equal(obs[1], first["platform_1"])
+    for _ in range(3):
+        obs, reward, dones, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
+        assert reward[0] == reward[1]  # one team reward per copy
+    assert dones.all()
+    assert all(i["TimeLimit.truncated"] and i["terminal_observation"].shape == (12,) for i in infos)
+
+
+def test_ppo_trains_one_shared_policy_on_every_receiver():
+    from stable_baselines3 import PPO
+
+    from sensorgym.envs.stereo_pointing import parallel as stereo_pointing_pz
+    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
+
+    venv = ParameterSharingVecEnv(
+        [lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20)]
+    )
+    venv.seed(0)
+    model = PPO("MlpPolicy", venv, n_steps=32, batch_size=48, n_epochs=1, seed=0, device="cpu")
+    model.learn(96)
+    action, _ = model.predict(venv.reset(), deterministic=True)
+    assert action.shape == (3, 2)
+
+
+def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
+    args = ["--algo", "sac", "--timesteps", "300", "--n-envs", "2", "--eval-episodes", "2"]
+    assert main(["train", *args, "--out", str(tmp_path), "--no-progress"]) == 0
+    run_dir = tmp_path / "sensorgym__BearingsManeuver-v0" / "sac_seed0"
+    assert read_config(run_dir)["algo"] == "sac"
+    bench = ["--env", ENV_ID, "--episodes", "2", "--n-envs", "2", "--model", str(run_dir)]
+    assert main(["benchmark", *bench, "--out", str(tmp_path / "bench")]) == 0
+    results = json.loads((tmp_path / "bench" / "sensorgym__BearingsManeuver-v0.json").read_text())
+    assert "model:sac_seed0" in results["results"]
+    assert "trained" in capsys.readouterr().out

@@ -1,0 +1,370 @@
+"""Recursive bearings-only filters: Cartesian EKF and CKF, and the range-parameterised bank.
+
+Pure predict/update functions over frozen Gaussian values, batched over any leading axes.
+Target state and conventions: :mod:`sensorgym.trackers.bearings.models`.
+
+* :func:`ekf_update` — extended Kalman filter update (Joseph form)::
+
+      ν = wrap(z − β(x⁻)),  S = H P⁻ Hᵀ + σ²,  K = P⁻ Hᵀ S⁻¹,
+      x⁺ = x⁻ + K ν,        P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K σ² Kᵀ
+
+* :func:`ckf_update` — cubature Kalman filter update (Arasaratnam & Haykin 2009): 2n points
+  ``x ± √n L eᵢ``, ``L Lᵀ = P⁻``; angle differences wrapped about ``β(x⁻)``.
+* Range-parameterised bank (Peach 1995; Ristic, Arulampalam & Gordon 2004, §6.3.3):
+  ``N`` Cartesian filters initialised at geometrically spaced ranges ``r_i = r_min ρ^{i−½}``,
+  ``ρ = (r_max/r_min)^{1/N}``, each with range σ ``C r_i``, ``C = 2(ρ−1)/(√12 (ρ+1))``, so
+  each member's linearisation stays valid; member weights follow the bearing likelihood
+  ``w_i ∝ w_i N(ν_i; 0, S_i)`` and the output is the moment-matched mixture. On the textbook
+  scenario (``sensorgym reproduce bot-benchmark``, 1000 runs) a single Cartesian EKF with the
+  wide prior diverges in 5–7 % of runs (10–15 % in the literature, criterion-dependent) and
+  the CKF in 1–1.5 %; the 8-member bank in 0–0.2 %, with consistent NEES.
+
+The prior is built from the first bearing (:func:`bearing_prior`, Ristic §6.3.1): position
+``p + r (sin z, cos z)``, velocity ``s (sin c, cos c)`` with independent range r, bearing z,
+speed s and course c, summarised by their exact first two moments.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.trackers.bearings.models import (
+    STATE_DIM,
+    BearingsGaussian,
+    bearing,
+    bearing_jacobian,
+    bearing_sequence,
+    predict,
+)
+from sensorgym.trackers.geometry import wrap_angle
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+Component = Literal["ekf", "ckf"]
+
+
+def _sym(A: FloatArray) -> FloatArray:
+    return 0.5 * (A + np.swapaxes(A, -1, -2))
+
+
+def polar_moments(
+    magnitude_mean: ArrayLike,
+    magnitude_sigma: ArrayLike,
+    angle_mean: ArrayLike,
+    angle_sigma: ArrayLike,
+    angle_distribution: Literal["gaussian", "uniform"] = "gaussian",
+) -> tuple[FloatArray, FloatArray]:
+    """Exact mean ``(..., 2)`` and covariance ``(..., 2, 2)`` of ``m (sin a, cos a)``.
+
+    ``m ~ N(m̄, σ_m²)`` independent of the angle ``a`` (from North clockwise), which is Gaussian
+    ``N(ā, σ_a²)`` or uniform on ``ā ± √3 σ_a`` (same σ). With ``δ = a − ā``, ``u = (sin ā, cos ā)``
+    and ``t = (cos ā, −sin ā)``::
+
+        E = m̄ E[cos δ] u,   Cov = (m̄² + σ_m²)(E[cos²δ] u uᵀ + E[sin²δ] t tᵀ) − E Eᵀ
+
+    Gaussian: ``E[cos δ] = e^{−σ²/2}``, ``E[cos²δ] = (1 + e^{−2σ²})/2``; uniform half-width ``h``:
+    ``E[cos δ] = sin h / h``, ``E[cos²δ] = 1/2 + sin 2h / (4h)``. Exact moments keep wide course
+    priors consistent where first-order linearisation is badly overconfident.
+    """
+    m, sm = np.asarray(magnitude_mean, float), np.asarray(magnitude_sigma, float)
+    a, sa = np.asarray(angle_mean, float), np.asarray(angle_sigma, float)
+    if angle_distribution == "gaussian":
+        c1 = np.exp(-0.5 * sa**2)
+        c2 = 0.5 * (1.0 + np.exp(-2.0 * sa**2))
+    elif angle_distribution == "uniform":
+        h = np.sqrt(3.0) * sa
+        c1 = np.sinc(h / np.pi)
+        c2 = 0.5 + 0.5 * np.sinc(2.0 * h / np.pi)
+    else:
+        raise ValueError(f"angle_distribution: 'gaussian' or 'uniform', got {angle_distribution!r}")
+    u = np.stack([np.sin(a), np.cos(a)], -1)
+    t = np.stack([np.cos(a), -np.sin(a)], -1)
+    mean = (m * c1)[..., None] * u
+    second = (m**2 + sm**2)[..., None, None] * (
+        c2[..., None, None] * u[..., :, None] * u[..., None, :]
+        + (1.0 - c2)[..., None, None] * t[..., :, None] * t[..., None, :]
+    )
+    return mean, second - mean[..., :, None] * mean[..., None, :]
+
+
+def bearing_prior(
+    z: ArrayLike,
+    sigma: float,
+    platform_position: ArrayLike,
+    t: float,
+    *,
+    range_mean: ArrayLike,
+    range_sigma: ArrayLike,
+    speed_mean: ArrayLike,
+    speed_sigma: ArrayLike,
+    course_mean: ArrayLike,
+    course_sigma: ArrayLike,
+    course_distribution: Literal["gaussian", "uniform"] = "gaussian",
+) -> BearingsGaussian:
+    """Gaussian prior from the first bearing ``z`` (rad) and range/speed/course priors.
+
+    Position ``p + r (sin β, cos β)`` with ``r ~ N(r̄, σ_r²)``, ``β ~ N(z, σ²)``; velocity
+    ``s (sin c, cos c)`` with ``s ~ N(s̄, σ_s²)`` and the course Gaussian or uniform (Ristic §6.3.1
+    uses ``c̄ = z + π`` with σ_c = π/√12, i.e. uniform over the half plane heading towards the
+    platform). Mean and covariance are the exact moments (:func:`polar_moments`). All
+    arguments broadcast over leading batch axes.
+    """
+    z = finite_array(z, "z")
+    p = finite_array(platform_position, "platform_position", tail=(2,))
+    r, sr = finite_array(range_mean, "range_mean"), finite_array(range_sigma, "range_sigma")
+    s, ss = finite_array(speed_mean, "speed_mean"), finite_array(speed_sigma, "speed_sigma")
+    c, sc = finite_array(course_mean, "course_mean"), finite_array(course_sigma, "course_sigma")
+    if np.any(r <= 0.0) or np.any(sr <= 0.0) or sigma <= 0.0:
+        raise ValueError("range_mean, range_sigma and sigma must be positive")
+    if np.any(s < 0.0) or np.any(ss <= 0.0) or np.any(sc <= 0.0):
+        raise ValueError("speed_mean must be >= 0; speed_sigma, course_sigma positive")
+    shape = np.broadcast_shapes(z.shape, p.shape[:-1], r.shape, s.shape, c.shape)
+    z, r, sr, s, ss, c, sc = (np.broadcast_to(a, shape) for a in (z, r, sr, s, ss, c, sc))
+    pos, Ppos = polar_moments(r, sr, z, np.full(shape, sigma))
+    vel, Pvel = polar_moments(s, ss, c, sc, course_distribution)
+    x = np.concatenate([p + pos, vel], axis=-1)
+    P = np.zeros((*shape, STATE_DIM, STATE_DIM))
+    P[..., :2, :2] = Ppos
+    P[..., 2:, 2:] = Pvel
+    return BearingsGaussian(x, P, t)
+
+
+def _ekf_terms(
+    state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
+) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
+    H = bearing_jacobian(state.x, p)
+    # ν = wrap(z − β(x⁻))
+    nu = wrap_angle(z - bearing(state.x[..., :2], p))
+    PHt = np.einsum("...ij,...j->...i", state.P, H)
+    # S = H P Hᵀ + σ²
+    S = np.einsum("...i,...i->...", H, PHt) + sigma**2
+    # K = P Hᵀ S⁻¹
+    K = PHt / S[..., None]
+    x = state.x + K * nu[..., None]
+    IKH = np.eye(STATE_DIM) - K[..., :, None] * H[..., None, :]
+    # P⁺ = (I − K H) P (I − K H)ᵀ + K σ² Kᵀ   (Joseph form)
+    P = IKH @ state.P @ np.swapaxes(IKH, -1, -2) + sigma**2 * K[..., :, None] * K[..., None, :]
+    return BearingsGaussian(x, _sym(P), state.t), nu, S
+
+
+def _ckf_terms(
+    state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
+) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
+    n = STATE_DIM
+    L = np.linalg.cholesky(state.P + 1e-9 * np.eye(n) * np.max(np.abs(state.P)))
+    # cubature points X_i = x ± √n L e_i, weights 1/(2n)
+    offsets = np.sqrt(n) * np.concatenate([np.swapaxes(L, -1, -2), -np.swapaxes(L, -1, -2)], -2)
+    X = state.x[..., None, :] + offsets  # (..., 2n, 4)
+    z0 = bearing(state.x[..., :2], p)
+    dZ = wrap_angle(bearing(X[..., :2], p[..., None, :]) - z0[..., None])
+    zhat = z0 + dZ.mean(axis=-1)
+    dZc = dZ - dZ.mean(axis=-1, keepdims=True)
+    # P_zz = E[(Z − ẑ)²] + σ²,  P_xz = E[(X − x)(Z − ẑ)]
+    S = np.mean(dZc**2, axis=-1) + sigma**2
+    Pxz = np.einsum("...ki,...k->...i", X - state.x[..., None, :], dZc) / (2 * n)
+    K = Pxz / S[..., None]
+    nu = wrap_angle(z - zhat)
+    x = state.x + K * nu[..., None]
+    # P⁺ = P⁻ − K S Kᵀ
+    P = state.P - S[..., None, None] * K[..., :, None] * K[..., None, :]
+    return BearingsGaussian(x, _sym(P), state.t), nu, S
+
+
+def _checked(
+    state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
+) -> tuple[FloatArray, FloatArray]:
+    z = np.broadcast_to(finite_array(z, "z"), state.x.shape[:-1])
+    p = np.broadcast_to(
+        finite_array(platform_position, "platform_position", tail=(2,)), (*state.x.shape[:-1], 2)
+    )
+    if not np.isfinite(sigma) or sigma <= 0.0:
+        raise ValueError(f"sigma: must be positive, got {sigma}")
+    return z, p
+
+
+def ekf_update(
+    state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
+) -> BearingsGaussian:
+    """EKF update with bearing ``z`` (rad) taken from ``platform_position`` (see module doc)."""
+    z, p = _checked(state, z, platform_position, sigma)
+    return _ekf_terms(state, z, p, sigma)[0]
+
+
+def ckf_update(
+    state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
+) -> BearingsGaussian:
+    """Cubature Kalman filter update with bearing ``z`` (rad) (see module doc)."""
+    z, p = _checked(state, z, platform_position, sigma)
+    return _ckf_terms(state, z, p, sigma)[0]
+
+
+_TERMS = {"ekf": _ekf_terms, "ckf": _ckf_terms}
+
+
+@dataclass(frozen=True)
+class RangeBankState:
+    """Range-parameterised Gaussian mixture; member axis is the last batch axis."""
+
+    log_weights: FloatArray
+    """Normalised log member weights ``(..., N)``."""
+    members: BearingsGaussian
+    """Member estimates, batch shape ``(..., N)``."""
+
+    def __post_init__(self) -> None:
+        lw = np.asarray(self.log_weights, dtype=np.float64)
+        if lw.shape != self.members.x.shape[:-1]:
+            raise ValueError(
+                f"log_weights: shape {lw.shape} != members {self.members.x.shape[:-1]}"
+            )
+        if np.any(np.isnan(lw)):
+            raise ValueError("log_weights: contains NaN")
+        object.__setattr__(self, "log_weights", lw)
+
+    @property
+    def t(self) -> float:
+        """Time (s) of the estimate."""
+        return self.members.t
+
+    @property
+    def weights(self) -> FloatArray:
+        """Member weights ``(..., N)``, summing to one."""
+        return np.exp(self.log_weights)
+
+    def estimate(self) -> BearingsGaussian:
+        """Moment-matched Gaussian: ``x = Σ wᵢ xᵢ``, ``P = Σ wᵢ (Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ)``."""
+        w = self.weights
+        x = np.einsum("...n,...ni->...i", w, self.members.x)
+        d = self.members.x - x[..., None, :]
+        P = np.einsum("...n,...nij->...ij", w, self.members.P + d[..., :, None] * d[..., None, :])
+        return BearingsGaussian(x, _sym(P), self.t)
+
+
+def range_bank_prior(
+    z: ArrayLike,
+    sigma: float,
+    platform_position: ArrayLike,
+    t: float,
+    *,
+    range_min: ArrayLike,
+    range_max: ArrayLike,
+    n_members: int,
+    speed_mean: ArrayLike,
+    speed_sigma: ArrayLike,
+    course_mean: ArrayLike,
+    course_sigma: ArrayLike,
+    range_mean: ArrayLike | None = None,
+    range_sigma: ArrayLike | None = None,
+    course_distribution: Literal["gaussian", "uniform"] = "gaussian",
+) -> RangeBankState:
+    """Bank of ``n_members`` priors at geometric ranges in ``[range_min, range_max]`` (m).
+
+    Initial weights are uniform, or ``∝ N(r_i; range_mean, range_sigma²)·Δr_i`` when a Gaussian
+    range prior is given.
+    """
+    if n_members < 1:
+        raise ValueError(f"n_members: must be >= 1, got {n_members}")
+    rmin = finite_array(range_min, "range_min")
+    rmax = finite_array(range_max, "range_max")
+    if np.any(rmin <= 0.0) or np.any(rmax <= rmin):
+        raise ValueError("range_min must be positive and below range_max")
+    rho = (rmax / rmin) ** (1.0 / n_members)
+    i = np.arange(n_members) + 0.5
+    r = rmin[..., None] * rho[..., None] ** i  # (..., N)
+    C = 2.0 * (rho - 1.0) / (np.sqrt(12.0) * (rho + 1.0))
+    sr = C[..., None] * r
+    ex = (..., None)
+    members = bearing_prior(
+        np.asarray(z, dtype=np.float64)[ex],
+        sigma,
+        np.asarray(platform_position, dtype=np.float64)[..., None, :],
+        t,
+        range_mean=r,
+        range_sigma=sr,
+        speed_mean=np.asarray(speed_mean, dtype=np.float64)[ex],
+        speed_sigma=np.asarray(speed_sigma, dtype=np.float64)[ex],
+        course_mean=np.asarray(course_mean, dtype=np.float64)[ex],
+        course_sigma=np.asarray(course_sigma, dtype=np.float64)[ex],
+        course_distribution=course_distribution,
+    )
+    if range_mean is None or range_sigma is None:
+        lw = np.zeros(members.x.shape[:-1])
+    else:
+        rm = np.asarray(range_mean, dtype=np.float64)[ex]
+        rs = np.asarray(range_sigma, dtype=np.float64)[ex]
+        width = r * (rho[..., None] ** 0.5 - rho[..., None] ** -0.5)
+        lw = np.broadcast_to(-0.5 * ((r - rm) / rs) ** 2 + np.log(width), members.x.shape[:-1])
+    lw = lw - _logsumexp(lw)[..., None]
+    return RangeBankState(lw, members)
+
+
+def _logsumexp(a: FloatArray) -> FloatArray:
+    m = np.max(a, axis=-1)
+    return m + np.log(np.sum(np.exp(a - m[..., None]), axis=-1))
+
+
+def range_bank_predict(state: RangeBankState, t: float, q_tilde: float) -> RangeBankState:
+    """Predict every member to time ``t``; weights unchanged."""
+    return RangeBankState(state.log_weights, predict(state.members, t, q_tilde))
+
+
+def range_bank_update(
+    state: RangeBankState,
+    z: ArrayLike,
+    platform_position: ArrayLike,
+    sigma: float,
+    component: Component = "ekf",
+) -> RangeBankState:
+    """Update every member with bearing ``z``; ``log wᵢ += log N(νᵢ; 0, Sᵢ)``, renormalised."""
+    lead = state.log_weights.shape[:-1]
+    z = np.asarray(finite_array(z, "z"))
+    z = np.broadcast_to(z, lead)[..., None]
+    p = np.broadcast_to(
+        finite_array(platform_position, "platform_position", tail=(2,)), (*lead, 2)
+    )[..., None, :]
+    z, p = _checked(state.members, z, p, sigma)
+    members, nu, S = _TERMS[component](state.members, z, p, sigma)
+    lw = state.log_weights - 0.5 * (nu**2 / S + np.log(2.0 * np.pi * S))
+    lw = lw - _logsumexp(lw)[..., None]
+    return RangeBankState(lw, members)
+
+
+def run_filter(
+    prior: BearingsGaussian | RangeBankState,
+    z: ArrayLike,
+    times: ArrayLike,
+    platform_positions: ArrayLike,
+    sigma: float,
+    q_tilde: float,
+    component: Component = "ekf",
+) -> tuple[FloatArray, FloatArray]:
+    """Run a filter over ``K`` bearings; returns estimates ``(B, K, 4)`` and covariances.
+
+    ``prior`` refers to ``times[0]`` and already holds the first bearing ``z[:, 0]`` (as built by
+    :func:`bearing_prior` / :func:`range_bank_prior`), so updates start at ``k = 1`` and the
+    output at ``k = 0`` is the prior; ``z`` ``(B, K)``, ``platform_positions`` ``(B, K, 2)``.
+    A :class:`RangeBankState` prior runs the bank and returns its moment-matched output.
+    """
+    z, times, p = bearing_sequence(z, times, platform_positions)
+    K = times.shape[0]
+    state = prior
+    est = prior.estimate() if isinstance(prior, RangeBankState) else prior
+    xs, Ps = [est.x], [est.P]
+    for k in range(1, K):
+        if isinstance(state, RangeBankState):
+            state = range_bank_predict(state, times[k], q_tilde)
+        else:
+            state = predict(state, times[k], q_tilde)
+        if isinstance(state, RangeBankState):
+            state = range_bank_update(state, z[..., k], p[..., k, :], sigma, component)
+            est = state.estimate()
+        else:
+            update = ekf_update if component == "ekf" else ckf_update
+            state = update(state, z[..., k], p[..., k, :], sigma)
+            est = state
+        xs.append(est.x)
+        Ps.append(est.P)
+    return np.stack(xs, axis=-2), np.stack(Ps, axis=-3)

@@ -1,0 +1,168 @@
+"""Multi-receiver position fixes and a 3-D constant-velocity Kalman filter (batched).
+
+The tracker of the receiver-pointing environments (SPEC §2.2, §7 OC-1). Each step, for each
+object, the receivers that see it give unit lines of sight ``u_k`` from their origins ``o_k``;
+the *measurement model* turns them into one position fix, the *updater* fuses the fix into a
+constant-velocity track, the *predictor* carries the track when fewer than two receivers see it.
+
+Position fix (angle-noise model, :mod:`~.stereo_accuracy`): with isotropic angular noise ``σ``
+on every direction, the Fisher information of the position ``M`` is
+``I(M) = Σ_k s_k (I − u_k u_kᵀ) / (σ² r_k²)`` (``s_k`` = 1 if receiver ``k`` sees the object)
+and the weighted least-squares fix ``(Σ_k s_k Π_k / r_k²) M = Σ_k s_k Π_k o_k / r_k²`` attains
+``I(M)⁻¹`` to first order (it is :func:`~.stereo_accuracy.triangulate_ml` with a mask). The
+geometry part ``G = Σ_k s_k Π_k / r_k²`` is kept apart from ``σ²`` so that ``σ = 0``
+(noise-free measurements) gives the exact intersection and a zero covariance.
+
+Constant-velocity model (white-noise acceleration of spectral density ``q``, m²/s³), state
+``x = (p, v)`` in world metres and m/s::
+
+    F = [[I, dt I], [0, I]],   Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]
+    z = H x + w,  H = [I 0],   w ~ N(0, R),   R = σ² G⁻¹
+
+Every function takes leading batch axes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+#: a fix needs ``det G > CONDITION · (tr G)³`` (lines of sight not parallel, as
+#: :func:`~.stereo_accuracy.position_crlb` requires)
+CONDITION = 1e-12
+
+
+@dataclass(frozen=True)
+class CVTrack:
+    """Gaussian constant-velocity track: mean ``x (..., 6)`` = (p, v) and covariance ``P``."""
+
+    x: FloatArray
+    """(..., 6) position (m) and velocity (m/s), world frame."""
+    P: FloatArray
+    """(..., 6, 6) covariance (m², m²/s, m²/s²)."""
+
+    def __post_init__(self) -> None:
+        if self.x.shape[-1:] != (6,) or self.P.shape != (*self.x.shape, 6):
+            raise ValueError(
+                f"x/P: expected (..., 6) and (..., 6, 6), got {self.x.shape}, {self.P.shape}"
+            )
+
+    @property
+    def position(self) -> FloatArray:
+        """(..., 3) estimated position, m."""
+        return self.x[..., :3]
+
+    @property
+    def velocity(self) -> FloatArray:
+        """(..., 3) estimated velocity, m/s."""
+        return self.x[..., 3:]
+
+    @property
+    def position_sigma(self) -> FloatArray:
+        """(...) position RMS ``√tr P_pp``, m."""
+        return np.sqrt(np.maximum(np.trace(self.P[..., :3, :3], axis1=-2, axis2=-1), 0.0))
+
+
+def cv_prior(position: ArrayLike, velocity: ArrayLike, sigma_p: float, sigma_v: float) -> CVTrack:
+    """Track started from a cue: mean ``(position, velocity)``, covariance ``diag(σ_p², σ_v²)``."""
+    p = finite_array(position, "position", tail=(3,))
+    v = finite_array(velocity, "velocity", tail=(3,))
+    if p.shape != v.shape:
+        raise ValueError(f"position/velocity: shapes differ, {p.shape} vs {v.shape}")
+    if not (sigma_p > 0.0 and sigma_v > 0.0):
+        raise ValueError(f"sigma_p/sigma_v: must be positive, got {sigma_p}, {sigma_v}")
+    P = np.diag([sigma_p**2] * 3 + [sigma_v**2] * 3)
+    return CVTrack(np.concatenate([p, v], -1), np.broadcast_to(P, (*p.shape[:-1], 6, 6)).copy())
+
+
+def cv_predict(track: CVTrack, dt: float, q: float) -> CVTrack:
+    """Predictor: ``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q`` over ``dt`` seconds (``q`` in m²/s³)."""
+    # F = [[I, dt I], [0, I]],  Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]
+    F = np.kron([[1.0, dt], [0.0, 1.0]], np.eye(3))
+    Q = np.kron(q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]), np.eye(3))
+    x = track.x @ F.T
+    # P⁻ = F P Fᵀ + Q
+    P = F @ track.P @ F.T + Q
+    return CVTrack(x, P)
+
+
+def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CVTrack:
+    """Updater with a position fix ``z (..., 3)`` of covariance ``R (..., 3, 3)`` where ``mask``.
+
+    Tracks where ``mask`` is False are returned unchanged (no fix: predict only).
+    """
+    z = np.asarray(z, dtype=np.float64)
+    R = np.asarray(R, dtype=np.float64)
+    m = np.asarray(mask, dtype=bool)
+    Ppp = track.P[..., :3, :3]
+    # S = H P Hᵀ + R ;  K = P Hᵀ S⁻¹
+    S = Ppp + R
+    S = np.where(m[..., None, None], S, np.eye(3))  # untouched tracks: any invertible S
+    K = np.swapaxes(np.linalg.solve(S, track.P[..., :3, :]), -1, -2)
+    innovation = z - track.position
+    x = track.x + np.einsum("...ij,...j->...i", K, innovation)
+    # P = P − K S Kᵀ, symmetrised against round-off
+    P = track.P - K @ S @ np.swapaxes(K, -1, -2)
+    P = 0.5 * (P + np.swapaxes(P, -1, -2))
+    return CVTrack(np.where(m[..., None], x, track.x), np.where(m[..., None, None], P, track.P))
+
+
+def fix_geometry(los: ArrayLike, ranges: ArrayLike, seen: ArrayLike) -> FloatArray:
+    """``G = Σ_k s_k (I − u_k u_kᵀ) / r_k²`` ``(..., 3, 3)``, 1/m²: ``I(M) = G / σ²``.
+
+    ``los (..., n, 3)`` unit lines of sight, ``ranges (..., n)`` m, ``seen (..., n)`` bool.
+    """
+    u = np.asarray(los, dtype=np.float64)
+    w = np.asarray(seen, dtype=bool) / np.maximum(np.asarray(ranges, dtype=np.float64), 1e-9) ** 2
+    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
+    return np.einsum("...k,...kij->...ij", w, proj)
+
+
+def observable(G: ArrayLike, seen: ArrayLike) -> BoolArray:
+    """Where a fix exists: at least two views whose lines of sight are not parallel."""
+    G = np.asarray(G, dtype=np.float64)
+    views = np.sum(np.asarray(seen, dtype=bool), axis=-1)
+    tr = np.trace(G, axis1=-2, axis2=-1)
+    return (views >= 2) & (np.linalg.det(G) > CONDITION * tr**3)
+
+
+def masked_fix(
+    origins: ArrayLike, los: ArrayLike, seen: ArrayLike, iterations: int = 2
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Weighted least-squares position fix from the receivers that see the object.
+
+    ``origins (..., n, 3)`` m and ``los (..., n, 3)`` unit vectors in one frame, ``seen
+    (..., n)`` bool. Solves ``G M = Σ_k s_k Π_k o_k / r_k²`` with the ranges ``r_k`` starting at
+    1 (unweighted midpoint) and refreshed from the fix ``iterations − 1`` times. Returns
+    ``(M (..., 3), G (..., 3, 3), ok (...))``; where ``ok`` is False (fewer than two views or
+    parallel lines of sight) ``M`` is zero and must not be used. Noise-free directions give the
+    exact intersection whatever the weights.
+    """
+    o = np.asarray(origins, dtype=np.float64)
+    u = np.asarray(los, dtype=np.float64)
+    s = np.asarray(seen, dtype=bool)
+    if iterations < 1:
+        raise ValueError(f"iterations: must be at least 1, got {iterations}")
+    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
+    r = np.ones(s.shape)
+    M = np.zeros((*s.shape[:-1], 3))
+    ok = np.zeros(s.shape[:-1], dtype=bool)
+    G = np.zeros((*s.shape[:-1], 3, 3))
+    for _ in range(iterations):
+        G = fix_geometry(u, r, s)
+        ok = observable(G, s)
+        w = s / r**2
+        # (Σ w_k Π_k) M = Σ w_k Π_k o_k
+        rhs = np.einsum("...k,...kij,...kj->...i", w, proj, o)
+        M = np.linalg.solve(np.where(ok[..., None, None], G, np.eye(3)), rhs[..., None])[..., 0]
+        M = np.where(ok[..., None], M, 0.0)
+        r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), 1e-9)
+    G = fix_geometry(u, r, s)
+    return M, G, ok & observable(G, s)
