@@ -1,1 +1,45 @@
-"""Heuristic observation-control rules with SB3's ``predict`` interface."""
+"""Heuristic observation-control rules, one module per environment, all with SB3's ``predict``.
+
+| env | module | rules |
+|-----|--------|-------|
+| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | :class:`StraightCourse`, :class:`Paper002Maneuver`, :class:`GreedyManeuver`, :class:`OracleLookahead` (ceiling) |
+| ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | :class:`HoldStill`, :class:`TrackNearest`, :class:`OrthogonalPairs`, :class:`GreedyPointing` |
+| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement` |
+
+:mod:`.registry` maps env ids to rule factories (what ``sensorgym benchmark`` scores);
+:mod:`.protocol` is the ``predict`` interface they share with trained models.
+"""
+
+from sensorgym.agents.bearings_maneuver import (
+    GreedyManeuver,
+    OracleLookahead,
+    Paper002Maneuver,
+    StraightCourse,
+)
+from sensorgym.agents.protocol import MemorylessRule, PolicyPredictor
+from sensorgym.agents.registry import RULES, rules_for
+from sensorgym.agents.stereo_placement import CirclePlacement, GreedyPlacement, HoldPosition
+from sensorgym.agents.stereo_pointing import (
+    GreedyPointing,
+    HoldStill,
+    OrthogonalPairs,
+    TrackNearest,
+)
+
+__all__ = [
+    "RULES",
+    "CirclePlacement",
+    "GreedyManeuver",
+    "GreedyPlacement",
+    "GreedyPointing",
+    "HoldPosition",
+    "HoldStill",
+    "MemorylessRule",
+    "OracleLookahead",
+    "OrthogonalPairs",
+    "Paper002Maneuver",
+    "PolicyPredictor",
+    "StraightCourse",
+    "TrackNearest",
+    "rules_for",
+]

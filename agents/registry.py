@@ -2,8 +2,9 @@
 
 ``RULES[env_id][name](params, state_fn)`` builds the rule from the env's parameters (rules that
 plan with the env's kinematics need them) and a function returning the simulator's current
-state (only oracles use it: they are ceilings, not fieldable policies). Every rule implements
-:class:`~.protocol.PolicyPredictor`.
+state (only oracles use it: they are ceilings, not fieldable policies; pass
+``lambda: env.simulator_state``). Every rule implements
+:class:`~sensorgym.agents.protocol.PolicyPredictor`.
 """
 
 from __future__ import annotations
@@ -11,10 +12,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from sensorgym.agents import stereo_placement as placement_rules
-from sensorgym.agents import stereo_pointing as pointing_rules
-from sensorgym.agents.bearings_maneuver import GreedyInformation, Paper002Maneuver, StraightCourse
-from sensorgym.agents.bearings_maneuver_oracle import OracleLookahead
+from sensorgym.agents import bearings_maneuver as maneuver
+from sensorgym.agents import stereo_placement as placement
+from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents.protocol import PolicyPredictor
 
 StateFn = Callable[[], Any]
@@ -22,21 +22,21 @@ RuleFactory = Callable[[Any, StateFn], PolicyPredictor]
 
 RULES: dict[str, dict[str, RuleFactory]] = {
     "sensorgym/BearingsManeuver-v0": {
-        "straight-course": lambda params, _: StraightCourse(),
-        "paper002": lambda params, _: Paper002Maneuver(params),
-        "greedy-information": lambda params, _: GreedyInformation(params),
-        "oracle-lookahead": lambda params, state_fn: OracleLookahead(state_fn, params),
+        "straight-course": lambda params, _: maneuver.StraightCourse(),
+        "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
+        "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
+        "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
     },
     "sensorgym/StereoPointing-v0": {
-        "hold-still": lambda params, _: pointing_rules.HoldStill(params),
-        "track-nearest": lambda params, _: pointing_rules.TrackNearest(params),
-        "orthogonal-pairs": lambda params, _: pointing_rules.OrthogonalPairs(params),
-        "greedy-information": lambda params, _: pointing_rules.GreedyInformation(params),
+        "hold-still": lambda params, _: pointing.HoldStill(params),
+        "track-nearest": lambda params, _: pointing.TrackNearest(params),
+        "orthogonal-pairs": lambda params, _: pointing.OrthogonalPairs(params),
+        "greedy-information": lambda params, _: pointing.GreedyPointing(params),
     },
     "sensorgym/StereoPlacement-v0": {
-        "hold-position": lambda params, _: placement_rules.HoldPosition(params),
-        "circle-placement": lambda params, _: placement_rules.CirclePlacement(params),
-        "greedy-information": lambda params, _: placement_rules.GreedyInformation(params),
+        "hold-position": lambda params, _: placement.HoldPosition(params),
+        "circle-placement": lambda params, _: placement.CirclePlacement(params),
+        "greedy-information": lambda params, _: placement.GreedyPlacement(params),
     },
 }
 

@@ -16,11 +16,16 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
-from sensorgym.envs.stereo_placement.simulation import PlacementParams, split_observation
+from sensorgym.envs.stereo_placement.simulation import (
+    PlacementParams,
+    in_arena,
+    split_observation,
+)
+from sensorgym.trackers.stereo.information import position_information
 
 FloatArray = NDArray[np.float64]
 
-#: GreedyInformation refuses layouts with more joint candidate moves than this
+#: GreedyPlacement refuses layouts with more joint candidate moves than this
 MAX_CANDIDATES = 10_000
 
 
@@ -30,13 +35,6 @@ def _drive_to(params: PlacementParams, receivers: FloatArray, goal: FloatArray) 
     d = (goal - receivers)[..., [0, 2]] / (params.max_speed * params.period)
     norm = np.linalg.norm(d, axis=-1, keepdims=True)
     return (d / np.maximum(norm, 1.0)).reshape(d.shape[0], -1)
-
-
-def _in_disc(params: PlacementParams, points: FloatArray, margin: float = 1.0) -> FloatArray:
-    """Ground points pulled radially inside the permitted disc (less ``margin`` m)."""
-    limit = params.arena_radius - margin
-    norm = np.hypot(points[..., 0], points[..., 2])
-    return points * np.minimum(1.0, limit / np.maximum(norm, 1e-12))[..., None]
 
 
 @dataclass(frozen=True)
@@ -63,7 +61,7 @@ class CirclePlacement(MemorylessRule):
     ``|det[a_1, P_2 a_2, P_3 a_3]|`` (= 1), the conditioning of the velocity-aware conjugation
     (OC-3: non-coplanar lines of sight). The angle-noise CRLB alone, at fixed altitude, would
     prefer a smaller circle, ``ρ ≈ 0.69 h`` (ranges shrink faster than the angles degrade,
-    OC-1's fixed-baseline caveat; ``σ_pos`` 23 % lower there): :class:`GreedyInformation`
+    OC-1's fixed-baseline caveat; ``σ_pos`` 23 % lower there): :class:`GreedyPlacement`
     follows the bound instead. The circle leads the drone by one period of its estimated
     velocity; the slot assignment (which receiver goes where, and the circle's phase) is the
     one that minimises the longest drive; slots outside the permitted disc are pulled inside.
@@ -88,7 +86,7 @@ class CirclePlacement(MemorylessRule):
         phase = np.arctan2(rel[..., 0], rel[..., 2])  # (N, n)
         slot = phase[:, :, None] + 2.0 * np.pi * np.arange(n) / n  # (N, phase, slot)
         pts = np.stack([np.sin(slot), np.zeros_like(slot), np.cos(slot)], -1)
-        pts = _in_disc(self.params, centre[:, None, None, :] + rho[:, None, None, None] * pts)
+        pts = in_arena(self.params, centre[:, None, None, :] + rho[:, None, None, None] * pts, 1.0)
         perms = np.array(list(itertools.permutations(range(n))))  # (P, n): slot of receiver k
         goal = pts[:, :, perms]  # (N, phase, P, n, 3)
         dist = np.linalg.norm(goal - o[:, None, None], axis=-1)  # (N, phase, P, n)
@@ -104,7 +102,7 @@ class CirclePlacement(MemorylessRule):
 
 
 @dataclass(frozen=True)
-class GreedyInformation(MemorylessRule):
+class GreedyPlacement(MemorylessRule):
     """Move every receiver by the one-step candidate (stay, or full speed in one of
     ``headings`` directions) whose joint placement maximises ``ln det I`` of the predicted
     position information at the estimated drone position one period ahead,
@@ -137,13 +135,11 @@ class GreedyInformation(MemorylessRule):
         a = moves[joint]  # (C, n, 2)
         step = self.params.max_speed * self.params.period * a
         shift = np.stack([step[..., 0], np.zeros(step.shape[:-1]), step[..., 1]], -1)
-        cand = _in_disc(self.params, o[:, None] + shift[None], margin=0.0)  # (N, C, n, 3)
+        cand = in_arena(self.params, o[:, None] + shift[None])  # (N, C, n, 3)
         target = p + self.params.period * v
         d = target[:, None, None, :] - cand
-        r2 = np.maximum(np.sum(d**2, axis=-1), 1e-12)
-        u = d / np.sqrt(r2)[..., None]
-        proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-        info = np.einsum("Nck,Nckij->Ncij", 1.0 / r2, proj)  # σ_ang² I: same ranking
+        r = np.maximum(np.linalg.norm(d, axis=-1), 1e-6)
+        info = position_information(d / r[..., None], r)  # σ_ang² I: the same ranking
         sign, logdet = np.linalg.slogdet(info)
         score = np.where(sign > 0.0, logdet, -np.inf)
         best = np.argmax(score, axis=-1)

@@ -19,8 +19,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
-from sensorgym.envs.stereo_pointing.simulation import PointingParams, split_observation
-from sensorgym.trackers.geometry import angles_from_unit, wrap_angle
+from sensorgym.envs.stereo_pointing.simulation import (
+    PointingParams,
+    lines_of_sight,
+    pointing_offsets,
+    split_observation,
+)
+from sensorgym.trackers.stereo.information import position_information
 
 FloatArray = NDArray[np.float64]
 
@@ -51,28 +56,28 @@ class _View:
 def _view(params: PointingParams, obs: FloatArray) -> _View:
     gimbals, pairs, drones = split_observation(params, obs)
     position = drones[..., :3] * params.length_scale
-    d = position[:, None, :, :] - params.receiver_positions[None, :, None, :]
-    r = np.maximum(np.linalg.norm(d, axis=-1), 1e-9)
+    los, r = lines_of_sight(params, position)
     return _View(
         azimuth=np.arctan2(gimbals[..., 0], gimbals[..., 1]),
         elevation=gimbals[..., 2] * (np.pi / 2),
         seen=pairs[..., 2],
         position=position,
         sigma=np.exp(drones[..., 3]) * params.sigma_ref,
-        los=d / r[..., None],
-        ranges=r,
+        los=los,
+        ranges=np.maximum(r, 1e-9),
     )
 
 
 def _slew_to(params: PointingParams, view: _View, target: NDArray[np.int64]) -> FloatArray:
     """Normalised actions ``(N, 2n)`` that slew receiver ``k`` at drone ``target[:, k]``."""
-    u = np.take_along_axis(view.los, target[:, :, None, None], axis=2)[:, :, 0]  # (N, n, 3)
-    az, el = angles_from_unit(u)
-    el = np.clip(el, -params.max_elevation, params.max_elevation)
+    offsets = pointing_offsets(params, view.azimuth, view.elevation, view.position)
+    off = np.take_along_axis(offsets, target[:, :, None, None], axis=2)[:, :, 0]  # (N, n, 2)
+    # the gimbal stops at its elevation limit
+    lim = params.max_elevation
+    d_el = np.clip(view.elevation + off[..., 1], -lim, lim) - view.elevation
     step = max(params.slew_rate * params.dt, 1e-12)
-    d_az = wrap_angle(az - view.azimuth) / step
-    d_el = (el - view.elevation) / step
-    return np.clip(np.stack([d_az, d_el], -1), -1.0, 1.0).reshape(u.shape[0], -1)
+    action = np.stack([off[..., 0], d_el], -1) / step
+    return np.clip(action, -1.0, 1.0).reshape(off.shape[0], -1)
 
 
 def _assignments(params: PointingParams) -> NDArray[np.int64]:
@@ -169,7 +174,7 @@ class OrthogonalPairs(_AssignAndSlew):
 
 
 @dataclass(frozen=True)
-class GreedyInformation(_AssignAndSlew):
+class GreedyPointing(_AssignAndSlew):
     """Choose the assignment that maximises ``Σ_j ln det I_j`` of the position information the
     assigned receivers would give at the predicted positions (one-step D-optimal sensor
     selection, SPEC §7 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
@@ -193,10 +198,10 @@ class GreedyInformation(_AssignAndSlew):
         m = self.params.n_drones
         member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)  # (C, m, n)
         sigma = max(self.params.sigma_ang, 1e-9)
-        u = view.los
-        proj = np.eye(3) - u[..., :, None] * u[..., None, :]  # (N, n, m, 3, 3)
-        w = 1.0 / (sigma * view.ranges) ** 2  # (N, n, m)
-        info = np.einsum("cjk,Nkj,Nkjab->Ncjab", member, w, proj)
+        # per drone j: the lines of sight of the receivers candidate c assigns to it
+        u = np.swapaxes(view.los, 1, 2)[:, None]  # (N, 1, m, n, 3)
+        r = np.swapaxes(view.ranges, 1, 2)[:, None]  # (N, 1, m, n)
+        info = position_information(u, r, sigma, mask=member[None] > 0.0)  # (N, C, m, 3, 3)
         pair = (member.sum(axis=-1) >= 2.0)[None]  # (1, C, m)
         sign, logdet = np.linalg.slogdet(np.where(pair[..., None, None], info, np.eye(3)))
         logdet = np.where(pair & (sign > 0.0), logdet, -self.no_fix_cost)

@@ -68,7 +68,9 @@ def main(env_id: str, name: str, description: str) -> None:
     venv = gym.make_vec(env_id, num_envs=RULE_BATCH, vectorization_mode="vector_entry_point")
     obs, _ = venv.reset(seed=0)
     core_env = venv.unwrapped
-    for rule_name, rule in rules_for(env_id, core_env.params, lambda: core_env._state).items():
+    for rule_name, rule in rules_for(
+        env_id, core_env.params, lambda: core_env.simulator_state
+    ).items():
         rate = best_rate(lambda _, rule=rule: rule.predict(obs), RULE_BATCH, 5 * args.repeat)
         rows.append({"case": f"{rule_name}.predict, {RULE_BATCH}", "per_s": rate})
 

@@ -60,16 +60,25 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
     from sensorgym.train.models import load_model, read_config
 
     env = make_sb3_env(env_id, args.n_envs, args.seed)
-    policies = dict(rules_for(env_id, env_params(env), simulator_state(env)))
+    # name -> (policy, the SB3 env it acts on): rules and single-agent models on the joint
+    # view, parameter-sharing models on the per-agent view of the same scenarios
+    policies = {
+        name: (rule, env)
+        for name, rule in rules_for(env_id, env_params(env), simulator_state(env)).items()
+    }
     for path in args.model:
         run_dir = path.parent if path.suffix == ".zip" else path
-        if read_config(run_dir)["env"] == env_id:
-            policies[f"model:{run_dir.name}"] = load_model(path, env)
+        config = read_config(run_dir)
+        if config["env"] == env_id:
+            agents = bool(config.get("agents", False))
+            view = make_sb3_env(env_id, args.n_envs, args.seed, agents=True) if agents else env
+            policies[f"model:{run_dir.name}"] = (load_model(path, view), view)
     results = {}
     with console.status(f"evaluating {len(policies)} policies on {env_id}"):
-        for name, policy in policies.items():
-            results[name] = evaluate(policy, env, args.episodes, args.seed).as_dict()
-    env.close()
+        for name, (policy, view) in policies.items():
+            results[name] = evaluate(policy, view, args.episodes, args.seed).as_dict()
+    for _, view in policies.values():
+        view.close()
 
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
     for column in ("policy", "mean", "std", "±95 %", "mean length"):

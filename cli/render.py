@@ -41,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     if args.model is not None:
         policy, name = load_model(args.model), f"model {args.model}"
     else:
-        rules = rules_for(args.env, core_env.params, lambda: core_env._state)
+        rules = rules_for(args.env, core_env.params, lambda: core_env.simulator_state)
         name = args.rule or list(rules)[-1]
         if name not in rules:
             raise SystemExit(f"--rule: one of {sorted(rules)}, got {name!r}")

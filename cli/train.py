@@ -21,6 +21,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
     parser.add_argument("--timesteps", type=int, default=None, help="override the YAML's")
     parser.add_argument("--n-envs", type=int, default=None, help="override the YAML's")
+    parser.add_argument(
+        "--agents",
+        action="store_true",
+        help="parameter sharing: one policy drives every agent of the env's PettingZoo version",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-episodes", type=int, default=64)
     parser.add_argument("--out", type=Path, default=Path("results/train"))
@@ -42,6 +47,7 @@ def run(args: argparse.Namespace) -> int:
         out=args.out,
         eval_episodes=args.eval_episodes,
         progress=not args.no_progress,
+        agents=args.agents,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):

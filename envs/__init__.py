@@ -1,7 +1,17 @@
-"""Simulated worlds and the Gymnasium / PettingZoo environments built on them.
+"""sensorgym's environments, each a package over one simulation, and the worlds they simulate.
 
 Importing this package registers the environments with Gymnasium (``gym.make`` also imports it
-itself when given ``"sensorgym.envs:ID"``). Episode lengths live here, not in the envs.
+itself when given ``"sensorgym.envs:ID"``). The registration below is the one place an episode
+length is set; the vector and PettingZoo doors read it from there.
+
+| id | package | PettingZoo |
+|----|---------|------------|
+| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
+| ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
+| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |
+
+:mod:`.shells` holds the contract every simulation follows and the shells over it;
+:mod:`.worlds` the simulated worlds and sensors that are not envs (reproductions, benchmarks).
 """
 
 from gymnasium.envs.registration import register, registry
@@ -32,3 +42,46 @@ for _spec in _ENVS:
         register(**_spec)
 
 ENV_IDS = [spec["id"] for spec in _ENVS]
+
+from sensorgym.envs.bearings_maneuver import (  # noqa: E402  (registered first)
+    BearingsManeuverEnv,
+    BearingsManeuverParallelEnv,
+    BearingsManeuverVectorEnv,
+    ManeuverParams,
+)
+from sensorgym.envs.stereo_placement import (  # noqa: E402
+    PlacementParams,
+    StereoPlacementEnv,
+    StereoPlacementParallelEnv,
+    StereoPlacementVectorEnv,
+)
+from sensorgym.envs.stereo_pointing import (  # noqa: E402
+    PointingParams,
+    StereoPointingEnv,
+    StereoPointingParallelEnv,
+    StereoPointingVectorEnv,
+)
+
+#: env id -> its PettingZoo constructor (``parallel_env`` of the env's package)
+PARALLEL_ENVS = {
+    "sensorgym/BearingsManeuver-v0": BearingsManeuverParallelEnv,
+    "sensorgym/StereoPointing-v0": StereoPointingParallelEnv,
+    "sensorgym/StereoPlacement-v0": StereoPlacementParallelEnv,
+}
+
+__all__ = [
+    "ENV_IDS",
+    "PARALLEL_ENVS",
+    "BearingsManeuverEnv",
+    "BearingsManeuverParallelEnv",
+    "BearingsManeuverVectorEnv",
+    "ManeuverParams",
+    "PlacementParams",
+    "PointingParams",
+    "StereoPlacementEnv",
+    "StereoPlacementParallelEnv",
+    "StereoPlacementVectorEnv",
+    "StereoPointingEnv",
+    "StereoPointingParallelEnv",
+    "StereoPointingVectorEnv",
+]

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import sensorgym.envs as envs
-from sensorgym.envs.bearings_maneuver.parallel import parallel_env as maneuver_parallel
-from sensorgym.envs.stereo_placement.parallel import parallel_env as placement_parallel
-from sensorgym.envs.stereo_pointing.parallel import parallel_env as pointing_parallel
+from sensorgym.envs.bearings_maneuver import parallel_env as maneuver_parallel
+from sensorgym.envs.stereo_placement import parallel_env as placement_parallel
+from sensorgym.envs.stereo_pointing import parallel_env as pointing_parallel
 from tests.golden_record import (
     GOLDEN,
     REPRODUCTIONS,

@@ -1,15 +1,23 @@
-"""stable-baselines3 ``VecEnv`` over one of our native (batched) Gymnasium vector envs.
+"""stable-baselines3 ``VecEnv`` over one of our native (batched) vector envs: single-agent and
+parameter-sharing training through one adapter.
 
 SB3 trains on its own ``VecEnv`` API; ``DummyVecEnv`` steps ``n`` single envs one after another
-in Python, while our vector envs step all scenarios in one batched core call (tens of times
-faster, ``benchmarks/bearings_maneuver.py``). This adapter translates the vector env, run with
-``autoreset_mode=SAME_STEP``, to SB3's conventions:
+in Python, while our vector envs step all scenarios in one batched simulation call (tens of
+times faster, ``benchmarks/bearings_maneuver.py``). This adapter translates the vector env, run
+with ``autoreset_mode=SAME_STEP``, to SB3's conventions. Its slots are the vector env's
+scenarios, or — for a vector env with ``agent_view=True`` — every agent of every scenario
+(slot ``i`` = agent ``i mod n`` of scenario ``i div n``), so that one policy learns from every
+agent's experience (parameter sharing over the env's PettingZoo agents), still one simulation
+call per step:
 
 * ``dones = terminated | truncated``; an ending scenario's returned observation is already the
   next episode's first one, its last one is in ``infos[i]["terminal_observation"]``;
 * ``infos[i]["TimeLimit.truncated"]`` is True for a time-limit ending (not a termination), so
   SB3 bootstraps the value there and only there;
-* per-env info dicts hold the vector env's scalar diagnostics.
+* per-env info dicts hold the vector env's scalar diagnostics;
+* with agents as slots, every agent of a scenario gets the scenario's team reward and ends with
+  it; agents are told apart by their observation (our envs put the agent's index or own frame
+  in it).
 """
 
 from __future__ import annotations
@@ -24,7 +32,8 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnvStepReturn
 
 
 class SB3VecEnv(VecEnv):
-    """SB3 view of a native vector env (which must use ``AutoresetMode.SAME_STEP``)."""
+    """SB3 view of a native vector env (which must use ``AutoresetMode.SAME_STEP``); one slot
+    per scenario, or per agent of every scenario when the vector env has ``agent_view``."""
 
     def __init__(self, venv: VectorEnv):
         if venv.metadata.get("autoreset_mode") is not AutoresetMode.SAME_STEP:
@@ -33,8 +42,23 @@ class SB3VecEnv(VecEnv):
                 "autoreset_mode='SameStep')"
             )
         self.venv = venv
+        self.scenarios = venv.num_envs
+        self.agents_per_scenario = venv.n_agents if getattr(venv, "agent_view", False) else 1
         self._actions: np.ndarray | None = None
-        super().__init__(venv.num_envs, venv.single_observation_space, venv.single_action_space)
+        super().__init__(
+            self.scenarios * self.agents_per_scenario,
+            venv.single_observation_space,
+            venv.single_action_space,
+        )
+
+    def _slots(self, per_scenario: np.ndarray) -> np.ndarray:
+        """``(B, ...)`` per-scenario values (or ``(B, n, ...)`` per-agent ones) → per slot."""
+        if self.agents_per_scenario == 1:
+            return per_scenario
+        a = np.asarray(per_scenario)
+        if a.ndim >= 2 and a.shape[1] == self.agents_per_scenario and a.shape[0] == self.scenarios:
+            return a.reshape(self.num_envs, *a.shape[2:])
+        return np.repeat(a, self.agents_per_scenario, axis=0)
 
     def reset(self) -> np.ndarray:
         # SB3 gives each env its own seed (seed + i); one batched env takes the first
@@ -42,7 +66,7 @@ class SB3VecEnv(VecEnv):
         obs, _ = self.venv.reset(seed=seed)
         self._reset_seeds()
         self._reset_options()
-        return obs
+        return self._slots(obs)
 
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = np.asarray(actions)
@@ -50,24 +74,33 @@ class SB3VecEnv(VecEnv):
     def step_wait(self) -> VecEnvStepReturn:
         if self._actions is None:
             raise RuntimeError("step_wait: call step_async first")
-        obs, reward, terminated, truncated, infos = self.venv.step(self._actions)
+        actions = self._actions
+        if self.agents_per_scenario > 1:
+            actions = actions.reshape(self.scenarios, self.agents_per_scenario, *actions.shape[1:])
+        obs, reward, terminated, truncated, infos = self.venv.step(actions)
         self._actions = None
-        dones = np.logical_or(terminated, truncated)
+        dones = self._slots(np.logical_or(terminated, truncated))
+        time_limit = self._slots(truncated & ~terminated)
         per_env = self._split_infos(infos)
-        for i in np.flatnonzero(dones):
-            per_env[i]["terminal_observation"] = infos["final_obs"][i]
-            per_env[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-        return obs, reward.astype(np.float32), dones, per_env
+        if dones.any():
+            final = self._slots(infos["final_obs"])
+            for i in np.flatnonzero(dones):
+                per_env[i]["terminal_observation"] = final[i]
+                per_env[i]["TimeLimit.truncated"] = bool(time_limit[i])
+        return self._slots(obs), self._slots(reward).astype(np.float32), dones, per_env
 
     def _split_infos(self, infos: dict[str, Any]) -> list[dict[str, Any]]:
-        """Gymnasium's dict of arrays (with ``_key`` masks) → SB3's list of per-env dicts."""
+        """Gymnasium's dict of arrays (with ``_key`` masks) → SB3's list of per-slot dicts."""
         out: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        n = self.agents_per_scenario
         for key, value in infos.items():
             if key.startswith("_") or key in ("final_obs", "final_info"):
                 continue
-            mask = infos.get(f"_{key}", np.ones(self.num_envs, dtype=bool))
-            for i in np.flatnonzero(mask):
-                out[i][key] = value[i].item() if hasattr(value[i], "item") else value[i]
+            mask = infos.get(f"_{key}", np.ones(self.scenarios, dtype=bool))
+            for b in np.flatnonzero(mask):
+                item = value[b].item() if hasattr(value[b], "item") else value[b]
+                for i in range(b * n, (b + 1) * n):
+                    out[i][key] = item
         return out
 
     def close(self) -> None:

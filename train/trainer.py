@@ -49,9 +49,11 @@ class TrainResult:
     """Policy name → episode-return statistics (``"trained"`` and every rule)."""
 
 
-def run_dir_for(out: Path, env_id: str, algo: str, seed: int) -> Path:
-    """``out/<env id with / as __>/<algo>_seed<seed>``."""
-    return Path(out) / env_id.replace("/", "__") / f"{algo}_seed{seed}"
+def run_dir_for(out: Path, env_id: str, algo: str, seed: int, agents: bool = False) -> Path:
+    """``out/<env id with / as __>/<algo>[-shared]_seed<seed>`` (``-shared``: parameter
+    sharing over the env's agents)."""
+    name = f"{algo}-shared" if agents else algo
+    return Path(out) / env_id.replace("/", "__") / f"{name}_seed{seed}"
 
 
 def train(
@@ -64,9 +66,15 @@ def train(
     out: Path = Path("results/train"),
     eval_episodes: int = 64,
     progress: bool = True,
+    agents: bool = False,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
-    override them), save the run and evaluate it beside the rules."""
+    override them), save the run and evaluate it beside the rules.
+
+    ``agents=True`` trains one policy shared by every agent of the env's PettingZoo version
+    (parameter sharing): the slots of the SB3 env are scenarios × agents, each agent sees its
+    own observation, and all get the team reward; ``n_envs`` counts scenarios.
+    """
     hp = load_hyperparams(algo, env_id)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
@@ -75,20 +83,21 @@ def train(
     run, algo_kwargs = split_run_settings(hp)
     if run["n_timesteps"] < 1 or run["n_envs"] < 1:
         raise ValueError(f"timesteps and n_envs must be >= 1, got {run}")
-    env = make_sb3_env(env_id, run["n_envs"], seed)
+    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents)
     model = ALGORITHMS[algo](run["policy"], env, seed=seed, device="cpu", verbose=0, **algo_kwargs)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
         model.learn(run["n_timesteps"], callback=RichProgress(bar, task))
     env.close()
 
-    run_dir = run_dir_for(out, env_id, algo, seed)
+    run_dir = run_dir_for(out, env_id, algo, seed, agents)
     run_dir.mkdir(parents=True, exist_ok=True)
     model.save(run_dir / MODEL_FILE)
     config = {
         "env": env_id,
         "algo": algo,
         "seed": seed,
+        "agents": agents,
         "hyperparams": hp,
         "versions": {
             "sensorgym": version("sensorgym"),
@@ -100,15 +109,16 @@ def train(
     (run_dir / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
 
     n_eval = min(16, eval_episodes)
-    eval_env = make_sb3_env(env_id, n_eval, seed + EVAL_SEED_OFFSET)
     eval_seed = seed + EVAL_SEED_OFFSET
-    policies: dict[str, Any] = {"trained": model}
+    # the same scenarios for all: the trained policy on its own view, the rules on the joint one
+    eval_env = make_sb3_env(env_id, n_eval, eval_seed)
+    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=True) if agents else eval_env
+    evaluation = {"trained": evaluate(model, model_env, eval_episodes, eval_seed).as_dict()}
     if env_id in RULES:
-        policies.update(rules_for(env_id, env_params(eval_env), simulator_state(eval_env)))
-    evaluation = {
-        name: evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
-        for name, policy in policies.items()
-    }
+        rules = rules_for(env_id, env_params(eval_env), simulator_state(eval_env))
+        for name, policy in rules.items():
+            evaluation[name] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
+    model_env.close()
     eval_env.close()
     doc = {"episodes": eval_episodes, "seed": eval_seed, "results": evaluation}
     (run_dir / "evaluation.json").write_text(json.dumps(doc, indent=2) + "\n")

@@ -1,79 +1,21 @@
-"""Platform-manoeuvre environments over the bearings-only tracker (Gymnasium and vector)."""
+"""``sensorgym/BearingsManeuver-v0``: the Gymnasium, native vector and PettingZoo envs.
+
+Thin shells (:mod:`sensorgym.envs.shells`) over :mod:`.simulation`; the class docstring of
+:class:`BearingsManeuverEnv` is the spec.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from sensorgym.envs.bearings_maneuver import simulation as core
-from sensorgym.envs.bearings_maneuver.simulation import (
-    OBS_CLIP,
-    OBS_DIM,
-    ManeuverParams,
-    ManeuverState,
-)
-from sensorgym.envs.shells.gym_env import CoreEnv, CoreVectorEnv
+from sensorgym.envs.bearings_maneuver import simulation
+from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
 
-FloatArray = NDArray[np.float64]
-
-
-def _spaces() -> tuple[spaces.Box, spaces.Box]:
-    obs = spaces.Box(-OBS_CLIP, OBS_CLIP, (OBS_DIM,), np.float32)
-    act = spaces.Box(-1.0, 1.0, (2,), np.float32)
-    return obs, act
-
-
-def _one_platform(params: ManeuverParams | None) -> ManeuverParams:
-    params = ManeuverParams() if params is None else params
-    if params.platforms != 1:
-        raise ValueError(
-            f"params.platforms: the Gymnasium envs fly one platform, got {params.platforms} "
-            "(use the PettingZoo env, sensorgym.envs.bearings_maneuver.parallel, for several)"
-        )
-    return params
-
-
-@dataclass(frozen=True)
-class BearingsManeuverCore:
-    """:mod:`.bearings_maneuver_core` as the shells step it (``observe``: the one platform of
-    the Gymnasium envs; ``observe_agents``: every platform, for PettingZoo)."""
-
-    params: ManeuverParams
-
-    def reset(
-        self, rng: np.random.Generator, batch: int, like: ManeuverState | None = None
-    ) -> ManeuverState:
-        # fresh scenarios join a running batch on its tracker clock
-        return core.reset(self.params, rng, batch, t=0.0 if like is None else like.bank.t)
-
-    def step(self, state: ManeuverState, action: FloatArray, rng: np.random.Generator) -> tuple:
-        return core.step(self.params, state, action, rng)
-
-    def observe(self, state: ManeuverState) -> NDArray[np.float32]:
-        return core.observe(self.params, state)[:, 0]  # the Gymnasium envs fly one platform
-
-    def observe_agents(self, state: ManeuverState) -> NDArray[np.float32]:
-        return core.observe(self.params, state)  # (B, K, obs_dim): one row per platform
-
-    def where(
-        self, mask: NDArray[np.bool_], new: ManeuverState, old: ManeuverState
-    ) -> ManeuverState:
-        return core.where(mask, new, old)
-
-    def info(self, state: ManeuverState) -> dict[str, FloatArray]:
-        """Diagnostics (ground truth included: for evaluation, never for the policy)."""
-        est = state.estimate
-        return {
-            "range": state.range.min(axis=1),
-            "bound": state.accuracy,
-            "position_error": np.hypot(*(est.position - state.target[:, :2]).T),
-            "tracker_t": np.full(state.batch_size, state.bank.t),
-        }
+ENV_ID = "sensorgym/BearingsManeuver-v0"
 
 
 class BearingsManeuverEnv(CoreEnv):
@@ -101,7 +43,7 @@ class BearingsManeuverEnv(CoreEnv):
     ## Observation Space
 
     ``Box(-10, 10, (10,), float32)``: the tracker's view, no ground truth (table in
-    :func:`~sensorgym.envs.bearings_maneuver.simulation.observe`): the last bearing relative to the
+    :func:`~sensorgym.envs.bearings_maneuver.simulation.observe_agents`): the last bearing relative to the
     heading (sin, cos), own speed, the estimated relative position and velocity in the
     platform frame, and the estimate's position uncertainty (two log standard deviations and
     their correlation).
@@ -126,9 +68,13 @@ class BearingsManeuverEnv(CoreEnv):
 
     ## Arguments
 
-    ``gym.make("sensorgym/BearingsManeuver-v0", params=ManeuverParams(...), render_mode=None)``
-    — every setting is a field of :class:`~sensorgym.envs.bearings_maneuver.simulation.ManeuverParams`
-    (units in its docstrings). ``render_mode="rgb_array"`` draws the tracks, the estimate and
+    ``gym.make("sensorgym/BearingsManeuver-v0", render_mode=None, **fields)`` — every setting is
+    a field of :class:`~sensorgym.envs.bearings_maneuver.simulation.ManeuverParams` (units in
+    its docstrings), given as a keyword or as ``params=ManeuverParams(...)``; the same
+    keywords work for ``gym.make_vec`` and :func:`parallel_env`. With ``platforms=K > 1`` one
+    agent steers all ``K`` platforms: the action is every platform's ``(turn, speed change)``
+    in turn, ``(2K,)``, and the observation every platform's view in turn
+    (``K · (10 + 2(K − 1))``); the PettingZoo env makes each platform an agent. ``render_mode="rgb_array"`` draws the tracks, the estimate and
     its 2σ ellipse.
 
     ## Version History
@@ -137,9 +83,9 @@ class BearingsManeuverEnv(CoreEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
-
-    def __init__(self, params: ManeuverParams | None = None, render_mode: str | None = None):
-        super().__init__(BearingsManeuverCore(_one_platform(params)), *_spaces(), render_mode)
+    simulation = simulation
+    params_type = ManeuverParams
+    env_id = ENV_ID
 
     def draw(self, history: list[ManeuverState]) -> NDArray[np.uint8]:
         from sensorgym.envs.bearings_maneuver.render import draw
@@ -148,21 +94,74 @@ class BearingsManeuverEnv(CoreEnv):
 
 
 class BearingsManeuverVectorEnv(CoreVectorEnv):
-    """``num_envs`` independent :class:`BearingsManeuverEnv` scenarios in one batched core.
+    """``num_envs`` independent :class:`BearingsManeuverEnv` scenarios in one batched call.
 
     Same spaces, rewards and episode ends as the single env (its docstring is the spec);
-    autoreset modes as :class:`~sensorgym.envs.shells.gym_env.CoreVectorEnv`.
+    autoreset modes and ``agent_view`` as :class:`~sensorgym.envs.shells.CoreVectorEnv`.
     """
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        params: ManeuverParams | None = None,
-        max_episode_steps: int | None = 30,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-    ):
-        core_ = BearingsManeuverCore(_one_platform(params))
-        super().__init__(
-            core_, num_envs, *_spaces(), max_episode_steps, render_mode, autoreset_mode
-        )
+    simulation = simulation
+    params_type = ManeuverParams
+    env_id = ENV_ID
+
+
+class BearingsManeuverParallelEnv(CoreParallelEnv):
+    """``K`` platforms cooperate to locate one target from bearings (PettingZoo Parallel API).
+
+    ## Description
+
+    The multi-platform case of ``sensorgym/BearingsManeuver-v0`` (same simulation,
+    :mod:`sensorgym.envs.bearings_maneuver.simulation`, with ``params.platforms = K``): every platform
+    takes a bearing each step, one tracker fuses them all, and the Cramér–Rao bound adds their
+    information. Cross-bearings from separated platforms make range observable without any
+    manoeuvre; the agents decide how to spread and turn so that the bearings cross well.
+
+    ## Agents
+
+    ``"platform_0"`` … ``"platform_{K-1}"``, all acting at once.
+
+    ## Action Space (per agent)
+
+    ``Box(-1, 1, (2,), float32)``: turn (``a₀ · world.max_turn_rate``) and speed change
+    (``a₁ · world.max_speed_change``); clipped to ``[-1, 1]``; NaN raises.
+
+    ## Observation Space (per agent)
+
+    ``Box(-10, 10, (10 + 2(K−1),), float32)``: the agent's own view of the shared tracker
+    estimate in its own frame, then the other platforms' positions relative to it
+    (:func:`~sensorgym.envs.bearings_maneuver.simulation.observe`). :meth:`state` concatenates every
+    agent's observation (a centralised critic's input; still no ground truth).
+
+    ## Rewards
+
+    One team reward, given to every agent: ``ln m_k − ln m_{k+1}`` of the position bound (or
+    ``σ_r/r``); ``close_penalty`` when a platform comes within ``min_range``.
+
+    ## Episode End
+
+    All agents end together: terminated when any platform comes within ``min_range`` of the
+    target; truncated after ``max_episode_steps`` steps.
+
+    ## Arguments
+
+    ``parallel_env(platforms=2, ...)``: the fields of
+    :class:`~sensorgym.envs.bearings_maneuver.simulation.ManeuverParams` as keywords (or
+    ``params=``); two platforms unless ``platforms`` or ``params`` say otherwise.
+    ``max_episode_steps`` defaults to the registration's.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"name": "bearings_maneuver_v0", "render_modes": []}
+    simulation = simulation
+    params_type = ManeuverParams
+    env_id = ENV_ID
+    default_fields: ClassVar[dict[str, Any]] = {"platforms": 2}
+
+
+def parallel_env(**kwargs: Any) -> BearingsManeuverParallelEnv:
+    """PettingZoo's conventional constructor: :class:`BearingsManeuverParallelEnv` (``params``
+    fields as keywords, e.g. ``platforms=K``, and ``max_episode_steps``)."""
+    return BearingsManeuverParallelEnv(**kwargs)

@@ -1,10 +1,10 @@
 """Simulation core of the platform-manoeuvre environments (bearings-only target motion analysis).
 
-Pure functions over frozen, batched values (leading axis ``B`` = scenario), in the gymnax
-style: :func:`reset` draws ``B`` fresh scenarios, :func:`step` advances them under a
-normalised action, :func:`observe` makes the agent's observation, :func:`where` swaps fresh
-scenarios into a batch (vector-env autoreset). The Gymnasium env, its vector env and any
-multi-agent shell call only these; none holds physics of its own.
+The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pure functions
+over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`,
+:func:`step`, :func:`observe` (joint view), :func:`observe_agents` (one view per platform) and
+:func:`info`. The Gymnasium env, its vector env and the PettingZoo env are shells over these;
+none holds physics of its own.
 
 One step (``params.world.dt`` seconds):
 
@@ -42,6 +42,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.shells.contract import EnvSpaces, clip_observation
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
     fly,
@@ -68,10 +69,8 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 Metric = Literal["position", "relative_range"]
 
-#: observation length of a lone platform (see :func:`observe`; + 2 per other platform)
+#: observation length of a lone platform (see :func:`observe_agents`; + 2 per other platform)
 OBS_DIM = 10
-#: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]`` (a diverged filter stays finite)
-OBS_CLIP = 10.0
 
 
 @dataclass(frozen=True)
@@ -201,14 +200,16 @@ class ManeuverState:
         return self.bank.estimate()
 
 
-def _accuracy(
+def accuracy_of(
     params: ManeuverParams, J: FloatArray, target: FloatArray, origin: FloatArray
 ) -> FloatArray:
-    """``m(J⁻¹)``; the relative range bound is taken from ``origin`` ``(B, 2)`` (platform 1)."""
+    """The accuracy ``m(J⁻¹)`` the reward measures (``params.metric``) of information ``J``
+    ``(..., 4, 4)`` about ``target`` ``(..., 4)``: the position RMS bound, or the relative range
+    bound taken from ``origin`` ``(..., 2)`` (platform 1). The env and the oracle call this."""
     P = crlb(J)
     if params.metric == "position":
         return position_rms_bound(P)
-    return relative_range_bound(P, target[:, :2], origin)
+    return relative_range_bound(P, target[..., :2], origin)
 
 
 def _fuse(
@@ -220,16 +221,28 @@ def _fuse(
     return bank
 
 
+def spaces(params: ManeuverParams) -> EnvSpaces:
+    """Agents ``platform_0 … platform_{K−1}``; each acts with ``(turn, speed change)`` and sees
+    ``params.obs_dim`` entries; the joint view is every platform's observation in turn."""
+    K = params.platforms
+    return EnvSpaces.build("platform", K, K * params.obs_dim, params.obs_dim, 2)
+
+
 def reset(
-    params: ManeuverParams, rng: np.random.Generator, batch: int, t: float = 0.0
+    params: ManeuverParams,
+    rng: np.random.Generator,
+    batch: int,
+    like: ManeuverState | None = None,
 ) -> ManeuverState:
     """``batch`` fresh scenarios: platform at the origin, target at a random range and bearing.
 
-    ``t`` is the tracker clock to start on (a vector env passes its running clock, so that
-    fresh scenarios can be swapped into a running batch by :func:`where`).
+    All scenarios of a batch share the tracker clock ``bank.t`` (the dynamics are
+    time-invariant): fresh scenarios for a running batch ``like`` start on its clock, so that
+    they can be swapped into it.
     """
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
+    t = 0.0 if like is None else like.bank.t
     w, K = params.world, params.platforms
     # scenario draws, in a fixed order so that a seed fixes every scenario
     heading = rng.uniform(-np.pi, np.pi, (batch, K))
@@ -282,7 +295,7 @@ def reset(
         target=target,
         bank=bank,
         information=J,
-        accuracy=_accuracy(params, J, target, positions[:, 0]),
+        accuracy=accuracy_of(params, J, target, positions[:, 0]),
         bearing=z,
     )
 
@@ -290,8 +303,7 @@ def reset(
 def step(
     params: ManeuverParams, state: ManeuverState, action: ArrayLike, rng: np.random.Generator
 ) -> tuple[ManeuverState, FloatArray, BoolArray]:
-    """Advance every scenario one step under ``action`` ``(B, K, 2)`` (or ``(B, 2)`` for one
-    platform) in ``[−1, 1]``.
+    """Advance every scenario one step under the joint action ``(B, K, 2)`` in ``[−1, 1]``.
 
     Actions outside ``[−1, 1]`` are clipped (documented fallback, as Box spaces allow);
     NaN or infinite actions raise ``ValueError``. Returns ``(state, reward (B,),
@@ -314,42 +326,13 @@ def step(
     J = predict_information(state.information, w.dt, w.q_tilde) + bearing_information(
         target[:, None], positions, w.sigma_bearing
     ).sum(1)
-    accuracy = _accuracy(params, J, target, positions[:, 0])
+    accuracy = accuracy_of(params, J, target, positions[:, 0])
     new = ManeuverState(state.t + w.dt, positions, heading, speed, target, bank, J, accuracy, z)
     # reward_k = ln m_k − ln m_{k+1}
     reward = np.log(state.accuracy) - np.log(accuracy)
     terminated = np.any(new.range < params.min_range, axis=1)
     reward = reward - params.close_penalty * terminated
     return new, reward, terminated
-
-
-def where(mask: ArrayLike, new: ManeuverState, old: ManeuverState) -> ManeuverState:
-    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old``.
-
-    Both must be on the same tracker clock (pass ``t=old.bank.t`` to :func:`reset`).
-    """
-    m = np.asarray(mask, dtype=bool)
-    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
-        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
-    if new.bank.t != old.bank.t:
-        raise ValueError(f"new: tracker clock {new.bank.t} differs from {old.bank.t}")
-    mb = m[:, None]
-    members = BearingsGaussian(
-        np.where(mb[..., None], new.bank.members.x, old.bank.members.x),
-        np.where(mb[..., None, None], new.bank.members.P, old.bank.members.P),
-        old.bank.t,
-    )
-    return ManeuverState(
-        t=np.where(m, new.t, old.t),
-        platform_position=np.where(mb[..., None], new.platform_position, old.platform_position),
-        heading=np.where(mb, new.heading, old.heading),
-        speed=np.where(mb, new.speed, old.speed),
-        target=np.where(mb, new.target, old.target),
-        bank=RangeBankState(np.where(mb, new.bank.log_weights, old.bank.log_weights), members),
-        information=np.where(m[:, None, None], new.information, old.information),
-        accuracy=np.where(m, new.accuracy, old.accuracy),
-        bearing=np.where(mb, new.bearing, old.bearing),
-    )
 
 
 def body_frame(heading: ArrayLike, v: ArrayLike) -> FloatArray:
@@ -362,6 +345,26 @@ def body_frame(heading: ArrayLike, v: ArrayLike) -> FloatArray:
 
 
 def observe(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]:
+    """The joint view ``(B, K · obs_dim)``: every platform's :func:`observe_agents` row in turn
+    (for ``K = 1``, the lone platform's observation)."""
+    obs = observe_agents(params, state)
+    return obs.reshape(obs.shape[0], -1)
+
+
+def info(params: ManeuverParams, state: ManeuverState) -> dict[str, FloatArray]:
+    """Diagnostics (ground truth included: for evaluation, never for the policy): the nearest
+    platform's range, the bound the reward measures, the estimate's position error, the
+    tracker clock."""
+    est = state.estimate
+    return {
+        "range": state.range.min(axis=1),
+        "bound": state.accuracy,
+        "position_error": np.hypot(*(est.position - state.target[:, :2]).T),
+        "tracker_t": np.full(state.batch_size, state.bank.t),
+    }
+
+
+def observe_agents(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]:
     """Each platform's observation ``(B, K, params.obs_dim)`` float32 — tracker output in that
     platform's own frame, no ground truth.
 
@@ -405,5 +408,4 @@ def observe(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]
         others = np.array([[j for j in range(K) if j != k] for k in range(K)])  # (K, K−1)
         d = state.platform_position[:, others] - state.platform_position[:, :, None]
         parts.append(body_frame(psi[..., None], d).reshape(B, K, 2 * (K - 1)) / params.range_scale)
-    obs = np.concatenate(parts, axis=-1)
-    return np.clip(obs, -OBS_CLIP, OBS_CLIP).astype(np.float32)
+    return clip_observation(np.concatenate(parts, axis=-1))

@@ -1,4 +1,4 @@
-"""The PettingZoo shell every multi-agent sensorgym env shares: agents over one batched core.
+"""The PettingZoo shell every sensorgym env shares: its agents over one batched simulation.
 
 The core steps one scenario (batch of one) with a joint action ``(1, n_agents, *action)``; the
 shell splits observations by agent, hands every agent the one team reward, and ends all agents
@@ -8,7 +8,8 @@ together (the scenarios are cooperative: receivers or platforms serving one trac
 from __future__ import annotations
 
 import functools
-from typing import Any, ClassVar, Protocol
+from types import ModuleType
+from typing import Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -16,46 +17,61 @@ from gymnasium.utils import seeding
 from numpy.typing import NDArray
 from pettingzoo import ParallelEnv
 
-from sensorgym.envs.shells.gym_env import BatchedCore, check_action
-
-
-class AgentCore(BatchedCore, Protocol):
-    """A :class:`~.core_shells.BatchedCore` that can also split its observation by agent."""
-
-    def observe_agents(self, state: Any) -> NDArray[np.float32]:
-        """Per-agent observations ``(B, n_agents, *observation shape)``."""
-        ...
+from sensorgym.envs.shells.contract import (
+    REGISTERED,
+    Core,
+    check_action,
+    registered_episode_steps,
+    resolve_params,
+)
 
 
 class CoreParallelEnv(ParallelEnv):
-    """Cooperative agents over an :class:`AgentCore`. Subclasses give the core, the agent
-    names and the per-agent spaces; ``state()`` concatenates every agent's observation."""
+    """Cooperative agents over a batched simulation (PettingZoo Parallel API). Subclasses set
+    ``simulation``, ``params_type``, ``env_id``, ``metadata`` and, optionally,
+    ``default_fields`` (params fields that differ from the params defaults for this door).
+    ``state()`` concatenates every agent's observation."""
 
     metadata: ClassVar[dict[str, Any]] = {"name": "sensorgym", "render_modes": []}
+    simulation: ClassVar[ModuleType]
+    params_type: ClassVar[type]
+    env_id: ClassVar[str]
+    default_fields: ClassVar[dict[str, Any]] = {}
 
     def __init__(
         self,
-        core: AgentCore,
-        agents: list[str],
-        observation_space: spaces.Space,
-        action_space: spaces.Space,
-        max_episode_steps: int,
+        params: Any = None,
+        max_episode_steps: int | str = REGISTERED,
         render_mode: str | None = None,
+        **fields: Any,
     ):
-        if max_episode_steps < 1:
+        if max_episode_steps == REGISTERED:
+            max_episode_steps = registered_episode_steps(self.env_id)
+        if max_episode_steps is None or max_episode_steps < 1:
             raise ValueError(f"max_episode_steps: must be >= 1, got {max_episode_steps}")
         if render_mode is not None:
             raise ValueError("render_mode: the PettingZoo envs do not render (use the single env)")
-        self.core = core
-        self.params = core.params
+        if params is None:
+            fields = {**self.default_fields, **fields}
+        self.core = Core(self.simulation, resolve_params(self.params_type, params, **fields))
+        self.params = self.core.params
         self.max_episode_steps = max_episode_steps
         self.render_mode = render_mode
-        self.possible_agents = list(agents)
+        sp = self.core.spaces
+        self.possible_agents = list(sp.agents)
         self.agents: list[str] = []
-        self._observation_space, self._action_space = observation_space, action_space
+        self._observation_space, self._action_space = sp.agent_observation, sp.agent_action
         self._rng, _ = seeding.np_random(None)
         self._state: Any = None
         self._steps = 0
+
+    @property
+    def simulator_state(self) -> Any:
+        """The simulation's current state, a batch of one (ground truth included: for oracles,
+        rendering and diagnostics, never for a policy one could field)."""
+        if self._state is None:
+            raise RuntimeError("simulator_state: call reset() first")
+        return self._state
 
     @functools.cache  # noqa: B019 - the same space object on every call, as PettingZoo asks
     def observation_space(self, agent: str) -> spaces.Space:

@@ -1,1 +1,23 @@
-"""TODO"""
+"""``sensorgym/StereoPlacement-v0``: drive receiver vehicles so that scanned fixes locate a drone.
+
+:mod:`.simulation` (params, state and the contract's functions), :mod:`.scan` (one scan period
+and its velocity-aware conjugation fix), :mod:`.env` (Gymnasium, native vector and PettingZoo
+envs) and :mod:`.render`.
+"""
+
+from sensorgym.envs.stereo_placement.env import (
+    StereoPlacementEnv,
+    StereoPlacementParallelEnv,
+    StereoPlacementVectorEnv,
+    parallel_env,
+)
+from sensorgym.envs.stereo_placement.simulation import PlacementParams, PlacementState
+
+__all__ = [
+    "PlacementParams",
+    "PlacementState",
+    "StereoPlacementEnv",
+    "StereoPlacementParallelEnv",
+    "StereoPlacementVectorEnv",
+    "parallel_env",
+]

@@ -1,41 +1,21 @@
-"""Receiver-placement environments over the velocity-aware conjugation tracker (Gymnasium and vector)."""
+"""``sensorgym/StereoPlacement-v0``: the Gymnasium, native vector and PettingZoo envs.
+
+Thin shells (:mod:`sensorgym.envs.shells`) over :mod:`.simulation`; the class docstring of
+:class:`StereoPlacementEnv` is the spec.
+"""
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from sensorgym.envs.shells.gym_env import CoreEnv, CoreVectorEnv, ReceiverTeamCore, receiver_spaces
-from sensorgym.envs.stereo_placement import simulation as core
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.stereo_placement import simulation
 from sensorgym.envs.stereo_placement.simulation import PlacementParams, PlacementState
 
-FloatArray = NDArray[np.float64]
-
-
-def _spaces(params: PlacementParams) -> tuple[spaces.Box, spaces.Box]:
-    return receiver_spaces(params.obs_dim, params.n_receivers, core.OBS_CLIP)
-
-
-class StereoPlacementCore(ReceiverTeamCore):
-    """:mod:`.stereo_placement_core` as the shells step it (``observe_agents`` for PettingZoo)."""
-
-    functions = core
-
-    def info(self, state: PlacementState) -> dict[str, FloatArray]:
-        """Diagnostics (ground truth included: for evaluation, never for the policy)."""
-        error = np.linalg.norm(state.estimate[:, :3] - state.drone_position, axis=-1)
-        angles = core.los_angles(self.params, state.receivers, state.drone_position)
-        return {
-            "position_error": error,
-            "bound": state.bound,
-            "condition": state.fix.condition,
-            "degenerate": state.fix.degenerate.astype(np.float64),
-            "min_los_angle": angles.min(axis=-1),
-        }
+ENV_ID = "sensorgym/StereoPlacement-v0"
 
 
 class StereoPlacementEnv(CoreEnv):
@@ -100,9 +80,10 @@ class StereoPlacementEnv(CoreEnv):
 
     ## Arguments
 
-    ``gym.make("sensorgym/StereoPlacement-v0", params=PlacementParams(...), render_mode=None)``
-    — every setting is a field of :class:`~sensorgym.envs.stereo_placement.simulation.PlacementParams`
-    (units in its docstrings). ``render_mode="rgb_array"`` draws a top view: the permitted
+    ``gym.make("sensorgym/StereoPlacement-v0", render_mode=None, **fields)`` — every setting is
+    a field of :class:`~sensorgym.envs.stereo_placement.simulation.PlacementParams` (units in
+    its docstrings), given as a keyword or as ``params=PlacementParams(...)``; the same keywords
+    work for ``gym.make_vec`` and :func:`parallel_env`. ``render_mode="rgb_array"`` draws a top view: the permitted
     disc, the receivers' tracks and lines of sight, the drone's track and the estimate.
 
     ## Version History
@@ -111,10 +92,9 @@ class StereoPlacementEnv(CoreEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
-
-    def __init__(self, params: PlacementParams | None = None, render_mode: str | None = None):
-        params = PlacementParams() if params is None else params
-        super().__init__(StereoPlacementCore(params), *_spaces(params), render_mode)
+    simulation = simulation
+    params_type = PlacementParams
+    env_id = ENV_ID
 
     def draw(self, history: list[PlacementState]) -> NDArray[np.uint8]:
         from sensorgym.envs.stereo_placement.render import draw
@@ -123,26 +103,68 @@ class StereoPlacementEnv(CoreEnv):
 
 
 class StereoPlacementVectorEnv(CoreVectorEnv):
-    """``num_envs`` independent :class:`StereoPlacementEnv` scenarios in one batched core.
+    """``num_envs`` independent :class:`StereoPlacementEnv` scenarios in one batched call.
 
-    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes as
-    :class:`~sensorgym.envs.shells.gym_env.CoreVectorEnv`.
+    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes and
+    ``agent_view`` as :class:`~sensorgym.envs.shells.CoreVectorEnv`.
     """
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        params: PlacementParams | None = None,
-        max_episode_steps: int | None = 60,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-    ):
-        params = PlacementParams() if params is None else params
-        super().__init__(
-            StereoPlacementCore(params),
-            num_envs,
-            *_spaces(params),
-            max_episode_steps,
-            render_mode,
-            autoreset_mode,
-        )
+    simulation = simulation
+    params_type = PlacementParams
+    env_id = ENV_ID
+
+
+class StereoPlacementParallelEnv(CoreParallelEnv):
+    """``n`` receiver vehicles each drive themselves to fix one drone (PettingZoo Parallel).
+
+    ## Description
+
+    The multi-agent form of ``sensorgym/StereoPlacement-v0`` (same core,
+    :mod:`sensorgym.envs.stereo_placement.simulation`): one agent per receiver vehicle; the
+    conjugation tracker, its estimate and the reward are shared.
+
+    ## Agents
+
+    ``"receiver_0"`` … ``"receiver_{n-1}"``, all acting at once.
+
+    ## Action Space (per agent)
+
+    ``Box(-1, 1, (2,), float32)``: the vehicle's velocity along world X and Z, scaled by
+    ``max_speed`` (speed capped at it); clipped; NaN raises.
+
+    ## Observation Space (per agent)
+
+    ``Box(-10, 10, (obs_dim + n,), float32)``: the single env's observation (every receiver's
+    position and the tracker's output, see
+    :func:`~sensorgym.envs.stereo_placement.simulation.observe`), followed by a one-hot of the agent's
+    own index, so that one shared policy knows which receiver it drives.
+
+    ## Rewards
+
+    One team reward, given to every agent: ``clip(ln(σ_ref/σ_pos), −R, R)`` (the single env's).
+
+    ## Episode End
+
+    Never terminated; truncated after ``max_episode_steps`` steps, for all agents together.
+
+    ## Arguments
+
+    ``parallel_env(**fields)``: the fields of
+    :class:`~sensorgym.envs.stereo_placement.simulation.PlacementParams` as keywords (or
+    ``params=``) and ``max_episode_steps`` (default: the registration's).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"name": "stereo_placement_v0", "render_modes": []}
+    simulation = simulation
+    params_type = PlacementParams
+    env_id = ENV_ID
+
+
+def parallel_env(**kwargs: Any) -> StereoPlacementParallelEnv:
+    """PettingZoo's conventional constructor: :class:`StereoPlacementParallelEnv` (``params``
+    fields as keywords, and ``max_episode_steps``)."""
+    return StereoPlacementParallelEnv(**kwargs)

@@ -1,9 +1,10 @@
 """Simulation core of the receiver-placement environments (velocity-aware conjugation tracker).
 
-Pure functions over frozen, batched values (leading axis ``B`` = scenario), in the gymnax
-style: :func:`reset` draws ``B`` fresh scenarios (:func:`start` builds them from given
-receivers and drone), :func:`step` advances them under a normalised action, :func:`observe`
-makes the agent's observation, :func:`where` swaps fresh scenarios into a batch.
+The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pure functions
+over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`
+(:func:`start` builds scenarios from given receivers and drone), :func:`step`,
+:func:`observe` (the joint view), :func:`observe_agents` (one view per receiver) and
+:func:`info`.
 
 World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (SPEC §1.2). ``n`` (default 3)
 receivers are ground vehicles (``y = 0``) inside a permitted disc of radius ``arena_radius``
@@ -36,21 +37,24 @@ reward scores the geometry.
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
 from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan
+from sensorgym.trackers.stereo.information import (
+    log_ratio_reward,
+    observable,
+    position_information,
+    position_sigma,
+)
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-
-#: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]``
-OBS_CLIP = 10.0
 
 
 @dataclass(frozen=True)
@@ -170,25 +174,25 @@ class PlacementState:
         return int(self.t.shape[0])
 
 
+def spaces(params: PlacementParams) -> EnvSpaces:
+    """Agents ``receiver_0 … receiver_{n−1}``, each driving its vehicle ``(v_x, v_z)``; the joint
+    view is :func:`observe`, each agent's that plus a one-hot of its index."""
+    n = params.n_receivers
+    return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 2)
+
+
 def crlb_sigma(params: PlacementParams, geometry: ScanGeometry) -> FloatArray:
-    """``σ_pos = σ_ang √tr G⁻¹`` (m), ``G = Σ_k (I − u_k u_kᵀ)/r_k²`` (so ``I(M) = G/σ_ang²``);
-    ``inf`` where ``G`` is singular (parallel lines of sight, the test of ``position_crlb``)."""
-    u, r = geometry.los, np.maximum(geometry.ranges, 1e-9)
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    G = np.einsum("bk,bkij->bij", 1.0 / r**2, proj)
-    ok = np.linalg.det(G) > 1e-12 * np.trace(G, axis1=-2, axis2=-1) ** 3
-    tr = np.trace(np.linalg.inv(np.where(ok[:, None, None], G, np.eye(3))), axis1=-2, axis2=-1)
-    return np.where(ok, params.sigma_ang * np.sqrt(np.maximum(tr, 0.0)), np.inf)
+    """``σ_pos = σ_ang √tr G⁻¹`` (m) of the period's true geometry, ``G = Σ_k Π_k / r_k²``
+    (``I(M) = G/σ_ang²``); ``inf`` where ``G`` is singular (parallel lines of sight)."""
+    G = position_information(geometry.los, geometry.ranges)
+    return position_sigma(G, observable(G), params.sigma_ang)
 
 
 def reward_of(params: PlacementParams, bound: FloatArray, degenerate: BoolArray) -> FloatArray:
     """``clip(ln(σ_ref / σ_pos), −R, R)`` ``(B,)``; ``−R`` where degenerate or singular,
     ``+R`` for a noise-free bound ``σ_pos = 0``."""
-    R = params.reward_clip
-    positive = np.isfinite(bound) & (bound > 0.0)
-    log_ratio = np.log(params.sigma_ref) - np.log(np.where(positive, bound, 1.0))
-    value = np.where(positive, np.clip(log_ratio, -R, R), np.where(np.isfinite(bound), R, -R))
-    return np.where(degenerate, -R, value)
+    value = log_ratio_reward(bound, params.sigma_ref, params.reward_clip)
+    return np.where(degenerate, -params.reward_clip, value)
 
 
 def _period(
@@ -232,7 +236,7 @@ def start(
     B = p.shape[0]
     if o.ndim != 3 or p.ndim != 2 or o.shape[0] != B or v.shape != p.shape:
         raise ValueError(f"receivers/drone_position/drone_velocity: batch {B} shapes differ")
-    o = _in_arena(params, o * np.array([1.0, 0.0, 1.0]))
+    o = in_arena(params, o * np.array([1.0, 0.0, 1.0]))
     sp, sv = params.cue_sigma
     cue_p = p + sp * rng.standard_normal(p.shape)
     cue_v = v + sv * rng.standard_normal(v.shape)
@@ -242,8 +246,14 @@ def start(
     return PlacementState(np.zeros(B), o, p, v, fix, estimate, geometry, bound)
 
 
-def reset(params: PlacementParams, rng: np.random.Generator, batch: int) -> PlacementState:
-    """``batch`` fresh scenarios: receivers clustered near the origin, a drone on a random line."""
+def reset(
+    params: PlacementParams,
+    rng: np.random.Generator,
+    batch: int,
+    like: PlacementState | None = None,
+) -> PlacementState:
+    """``batch`` fresh scenarios: receivers clustered near the origin, a drone on a random line.
+    Scenarios share nothing: ``like`` is unused."""
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
     n = params.n_receivers
@@ -262,10 +272,11 @@ def reset(params: PlacementParams, rng: np.random.Generator, batch: int) -> Plac
     return start(params, o, p, v, rng)
 
 
-def _in_arena(params: PlacementParams, positions: FloatArray) -> FloatArray:
-    """Ground positions pulled radially back onto the permitted disc where outside it."""
+def in_arena(params: PlacementParams, positions: FloatArray, margin: float = 0.0) -> FloatArray:
+    """Ground positions pulled radially back onto the permitted disc (less ``margin`` m) where
+    outside it."""
     norm = np.hypot(positions[..., 0], positions[..., 2])
-    scale = np.minimum(1.0, params.arena_radius / np.maximum(norm, 1e-12))
+    scale = np.minimum(1.0, (params.arena_radius - margin) / np.maximum(norm, 1e-12))
     return positions * scale[..., None]
 
 
@@ -284,14 +295,16 @@ def velocities(params: PlacementParams, action: ArrayLike, batch: int) -> FloatA
 
 def step(
     params: PlacementParams, state: PlacementState, action: ArrayLike, rng: np.random.Generator
-) -> tuple[PlacementState, FloatArray]:
-    """Advance every scenario one scan period under ``action`` ``(B, 2n)``.
+) -> tuple[PlacementState, FloatArray, BoolArray]:
+    """Advance every scenario one scan period under the joint ``action`` ``(B, n, 2)`` (or
+    ``(B, 2n)``).
 
     Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError``. Returns
-    ``(state, reward (B,))``; nothing terminates (the time limit is the shell's business).
+    ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always False); the
+    time limit is the shells' business.
     """
     B = state.batch_size
-    end = _in_arena(params, state.receivers + params.period * velocities(params, action, B))
+    end = in_arena(params, state.receivers + params.period * velocities(params, action, B))
     p = state.drone_position + params.period * state.drone_velocity
     fix, estimate, geometry, bound = _period(
         params, state.receivers, end, p, state.drone_velocity, state.estimate, rng
@@ -299,22 +312,8 @@ def step(
     new = PlacementState(
         state.t + params.period, end, p, state.drone_velocity, fix, estimate, geometry, bound
     )
-    return new, reward_of(params, bound, fix.degenerate | geometry.degenerate)
-
-
-def where(mask: ArrayLike, new: PlacementState, old: PlacementState) -> PlacementState:
-    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old``."""
-    m = np.asarray(mask, dtype=bool)
-    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
-        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
-
-    def pick(a, b):
-        if dataclasses.is_dataclass(a):  # the nested tracker output and geometry
-            parts = {f.name: pick(getattr(a, f.name), getattr(b, f.name)) for f in fields(a)}
-            return type(a)(**parts)
-        return np.where(m.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
-
-    return pick(new, old)
+    reward = reward_of(params, bound, fix.degenerate | geometry.degenerate)
+    return new, reward, np.zeros(B, dtype=bool)
 
 
 def los_angles(params: PlacementParams, receivers: FloatArray, point: FloatArray) -> FloatArray:
@@ -363,7 +362,26 @@ def observe(params: PlacementParams, state: PlacementState) -> NDArray[np.float3
         los_angles(params, o, p_hat) / (np.pi / 2),
         fix.degenerate[:, None].astype(np.float64),
     ]
-    return np.clip(np.concatenate(blocks, -1), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+    return clip_observation(np.concatenate(blocks, -1))
+
+
+def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np.float32]:
+    """Per-receiver views ``(B, n, obs_dim + n)``: :func:`observe` and a one-hot of the
+    receiver's index."""
+    return with_agent_index(observe(params, state), params.n_receivers)
+
+
+def info(params: PlacementParams, state: PlacementState) -> dict[str, FloatArray]:
+    """Diagnostics (ground truth included: for evaluation, never for the policy)."""
+    error = np.linalg.norm(state.estimate[:, :3] - state.drone_position, axis=-1)
+    angles = los_angles(params, state.receivers, state.drone_position)
+    return {
+        "position_error": error,
+        "bound": state.bound,
+        "condition": state.fix.condition,
+        "degenerate": state.fix.degenerate.astype(np.float64),
+        "min_los_angle": angles.min(axis=-1),
+    }
 
 
 def split_observation(params: PlacementParams, obs: ArrayLike) -> dict[str, FloatArray]:

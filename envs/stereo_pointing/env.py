@@ -1,42 +1,21 @@
-"""Receiver-pointing environments over the multi-receiver stereo tracker (Gymnasium and vector)."""
+"""``sensorgym/StereoPointing-v0``: the Gymnasium, native vector and PettingZoo envs.
+
+Thin shells (:mod:`sensorgym.envs.shells`) over :mod:`.simulation`; the class docstring of
+:class:`StereoPointingEnv` is the spec.
+"""
 
 from __future__ import annotations
 
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium import spaces
-from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from sensorgym.envs.shells.gym_env import CoreEnv, CoreVectorEnv, ReceiverTeamCore, receiver_spaces
-from sensorgym.envs.stereo_pointing import simulation as core
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingState
 
-FloatArray = NDArray[np.float64]
-
-
-def _spaces(params: PointingParams) -> tuple[spaces.Box, spaces.Box]:
-    return receiver_spaces(params.obs_dim, params.n_receivers, core.OBS_CLIP)
-
-
-class StereoPointingCore(ReceiverTeamCore):
-    """:mod:`.stereo_pointing_core` as the shells step it (``observe_agents`` for PettingZoo)."""
-
-    functions = core
-
-    def info(self, state: PointingState) -> dict[str, FloatArray]:
-        return _info(state)
-
-
-def _info(state: PointingState) -> dict[str, FloatArray]:
-    """Diagnostics (ground truth included: for evaluation, never for the policy)."""
-    error = np.linalg.norm(state.track.position - state.drone_position, axis=-1)
-    return {
-        "position_error": error.mean(axis=-1),
-        "drones_fixed": state.fixed.sum(axis=-1).astype(np.float64),
-        "views": state.seen.sum(axis=(1, 2)).astype(np.float64),
-    }
+ENV_ID = "sensorgym/StereoPointing-v0"
 
 
 class StereoPointingEnv(CoreEnv):
@@ -93,9 +72,10 @@ class StereoPointingEnv(CoreEnv):
 
     ## Arguments
 
-    ``gym.make("sensorgym/StereoPointing-v0", params=PointingParams(...), render_mode=None)``
-    — every setting is a field of :class:`~sensorgym.envs.stereo_pointing.simulation.PointingParams`
-    (units in its docstrings). ``render_mode="rgb_array"`` draws a top view: receivers and
+    ``gym.make("sensorgym/StereoPointing-v0", render_mode=None, **fields)`` — every setting is a
+    field of :class:`~sensorgym.envs.stereo_pointing.simulation.PointingParams` (units in its
+    docstrings), given as a keyword (``n_drones=3``) or as ``params=PointingParams(...)``; the
+    same keywords work for ``gym.make_vec`` and :func:`parallel_env`. ``render_mode="rgb_array"`` draws a top view: receivers and
     their field-of-view wedges, drone tracks and the estimates.
 
     ## Version History
@@ -104,10 +84,9 @@ class StereoPointingEnv(CoreEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
-
-    def __init__(self, params: PointingParams | None = None, render_mode: str | None = None):
-        params = PointingParams() if params is None else params
-        super().__init__(StereoPointingCore(params), *_spaces(params), render_mode)
+    simulation = simulation
+    params_type = PointingParams
+    env_id = ENV_ID
 
     def draw(self, history: list[PointingState]) -> NDArray[np.uint8]:
         from sensorgym.envs.stereo_pointing.render import draw
@@ -116,26 +95,69 @@ class StereoPointingEnv(CoreEnv):
 
 
 class StereoPointingVectorEnv(CoreVectorEnv):
-    """``num_envs`` independent :class:`StereoPointingEnv` scenarios in one batched core.
+    """``num_envs`` independent :class:`StereoPointingEnv` scenarios in one batched call.
 
-    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes as
-    :class:`~sensorgym.envs.shells.gym_env.CoreVectorEnv`.
+    Same spaces and rewards as the single env (its docstring is the spec); autoreset modes and
+    ``agent_view`` as :class:`~sensorgym.envs.shells.CoreVectorEnv`.
     """
 
-    def __init__(
-        self,
-        num_envs: int = 1,
-        params: PointingParams | None = None,
-        max_episode_steps: int | None = 150,
-        render_mode: str | None = None,
-        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-    ):
-        params = PointingParams() if params is None else params
-        super().__init__(
-            StereoPointingCore(params),
-            num_envs,
-            *_spaces(params),
-            max_episode_steps,
-            render_mode,
-            autoreset_mode,
-        )
+    simulation = simulation
+    params_type = PointingParams
+    env_id = ENV_ID
+
+
+class StereoPointingParallelEnv(CoreParallelEnv):
+    """``n`` receivers each slew their own gimbal to fix several drones (PettingZoo Parallel).
+
+    ## Description
+
+    The multi-agent form of ``sensorgym/StereoPointing-v0`` (same core,
+    :mod:`sensorgym.envs.stereo_pointing.simulation`): one agent per gimballed receiver; the tracker,
+    its estimates and the reward are shared.
+
+    ## Agents
+
+    ``"receiver_0"`` … ``"receiver_{n-1}"``, all acting at once.
+
+    ## Action Space (per agent)
+
+    ``Box(-1, 1, (2,), float32)``: the receiver's slew in azimuth and elevation, scaled by
+    ``slew_rate · dt``; clipped; NaN raises.
+
+    ## Observation Space (per agent)
+
+    ``Box(-10, 10, (obs_dim + n,), float32)``: the single env's observation (every receiver's
+    pointing and view of every drone, the tracker's predictions; see
+    :func:`~sensorgym.envs.stereo_pointing.simulation.observe`), followed by a one-hot of the agent's
+    own index, so that one shared policy knows which receiver it drives.
+
+    ## Rewards
+
+    One team reward, given to every agent: the mean over drones of
+    ``clip(ln(σ_ref/σ_pos), −R, R)`` (the single env's reward).
+
+    ## Episode End
+
+    Never terminated; truncated after ``max_episode_steps`` steps, for all agents together.
+
+    ## Arguments
+
+    ``parallel_env(**fields)``: the fields of
+    :class:`~sensorgym.envs.stereo_pointing.simulation.PointingParams` as keywords (or
+    ``params=``) and ``max_episode_steps`` (default: the registration's).
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"name": "stereo_pointing_v0", "render_modes": []}
+    simulation = simulation
+    params_type = PointingParams
+    env_id = ENV_ID
+
+
+def parallel_env(**kwargs: Any) -> StereoPointingParallelEnv:
+    """PettingZoo's conventional constructor: :class:`StereoPointingParallelEnv` (``params``
+    fields as keywords, e.g. ``n_receivers=n``, and ``max_episode_steps``)."""
+    return StereoPointingParallelEnv(**kwargs)

@@ -1,9 +1,9 @@
 """Simulation core of the receiver-pointing environments (multi-receiver stereo tracking).
 
-Pure functions over frozen, batched values (leading axis ``B`` = scenario), in the gymnax
-style: :func:`reset` draws ``B`` fresh scenarios (:func:`start` builds them from given drones
-and pointing), :func:`step` advances them under a normalised action, :func:`observe` makes the
-agent's observation, :func:`where` swaps fresh scenarios into a batch (vector-env autoreset).
+The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pure functions
+over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`
+(:func:`start` builds scenarios from given drones and pointing), :func:`step`, :func:`observe`
+(the joint view), :func:`observe_agents` (one view per receiver) and :func:`info`.
 
 World frame: ``Y`` up, azimuth measured from ``+Z`` towards ``+X`` (SPEC §1.2, the 000/003
 convention applied to world axes). ``n`` gimballed receivers stand on a circle (SPEC §7 OC-3),
@@ -36,24 +36,26 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
 from sensorgym.envs.worlds.stereo_scene import perturb_directions
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
+from sensorgym.trackers.stereo.information import (
+    log_ratio_reward,
+    observable,
+    position_information,
+    position_sigma,
+)
 from sensorgym.trackers.stereo.kalman import (
     CVTrack,
     cv_predict,
     cv_prior,
     cv_update,
-    fix_geometry,
     masked_fix,
-    observable,
 )
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-
-#: observations are clipped to ``[−OBS_CLIP, OBS_CLIP]``
-OBS_CLIP = 10.0
 
 
 @dataclass(frozen=True)
@@ -201,6 +203,13 @@ class PointingState:
         return int(self.t.shape[0])
 
 
+def spaces(params: PointingParams) -> EnvSpaces:
+    """Agents ``receiver_0 … receiver_{n−1}``, each slewing its gimbal ``(azimuth, elevation)``;
+    the joint view is :func:`observe`, each agent's that plus a one-hot of its index."""
+    n = params.n_receivers
+    return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 2)
+
+
 def boresights(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
     """Unit boresight vectors ``(..., 3)`` of world azimuths and elevations (rad)."""
     return unit_from_angles(azimuth, elevation)
@@ -248,9 +257,14 @@ def start(
     )
 
 
-def reset(params: PointingParams, rng: np.random.Generator, batch: int) -> PointingState:
-    """``batch`` fresh scenarios: drones at random places and courses, gimbals at random
-    azimuths, the tracker on its cue."""
+def reset(
+    params: PointingParams,
+    rng: np.random.Generator,
+    batch: int,
+    like: PointingState | None = None,
+) -> PointingState:
+    """``batch`` fresh scenarios: drones at random places and courses, gimbals on the cue (or at
+    random azimuths), the tracker on its cue. Scenarios share nothing: ``like`` is unused."""
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
     n, m = params.n_receivers, params.n_drones
@@ -277,32 +291,19 @@ def reset(params: PointingParams, rng: np.random.Generator, batch: int) -> Point
     )
 
 
-def crlb_sigma(params: PointingParams, G: FloatArray, ok: BoolArray) -> FloatArray:
-    """``σ_pos = σ √tr G⁻¹`` (m) where ``ok``, ``inf`` elsewhere (``I(M) = G/σ²``)."""
-    G_safe = np.where(ok[..., None, None], G, np.eye(3))
-    tr = np.trace(np.linalg.inv(G_safe), axis1=-2, axis2=-1)
-    return np.where(ok, params.sigma_ang * np.sqrt(np.maximum(tr, 0.0)), np.inf)
-
-
 def reward_of(params: PointingParams, sigma_pos: FloatArray) -> FloatArray:
     """Mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)``: ``(B, m)`` → ``(B,)``."""
-    R = params.reward_clip
-    finite = np.isfinite(sigma_pos)
-    positive = finite & (sigma_pos > 0.0)
-    log_ratio = np.log(params.sigma_ref) - np.log(np.where(positive, sigma_pos, 1.0))
-    # σ_pos = 0 (noise-free) earns R, no fix (σ_pos = inf) earns −R
-    per_drone = np.where(positive, np.clip(log_ratio, -R, R), np.where(finite, R, -R))
-    return per_drone.mean(axis=-1)
+    return log_ratio_reward(sigma_pos, params.sigma_ref, params.reward_clip).mean(axis=-1)
 
 
 def step(
     params: PointingParams, state: PointingState, action: ArrayLike, rng: np.random.Generator
-) -> tuple[PointingState, FloatArray]:
-    """Advance every scenario one step under ``action`` ``(B, n, 2)`` (or ``(B, 2n)``).
+) -> tuple[PointingState, FloatArray, BoolArray]:
+    """Advance every scenario one step under the joint ``action`` ``(B, n, 2)`` (or ``(B, 2n)``).
 
     Actions outside ``[−1, 1]`` are clipped; NaN or infinite actions raise ``ValueError``.
-    Returns ``(state, reward (B,))``: the environment never terminates, truncation (the time
-    limit) is the shell's business.
+    Returns ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always
+    False); the time limit is the shells' business.
     """
     n, B = params.n_receivers, state.batch_size
     a = finite_array(action, "action")
@@ -327,34 +328,12 @@ def step(
     track = cv_update(track, fix, R, ok_fix)
     # the reward's bound: true lines of sight and ranges of the receivers that see the drone
     seen_t = np.swapaxes(seen, 1, 2)
-    G_true = fix_geometry(np.swapaxes(u, 1, 2), np.swapaxes(r, 1, 2), seen_t)
-    bound = crlb_sigma(params, G_true, observable(G_true, seen_t))
+    G_true = position_information(np.swapaxes(u, 1, 2), np.swapaxes(r, 1, 2), mask=seen_t)
+    bound = position_sigma(G_true, observable(G_true, seen_t), params.sigma_ang)
     new = PointingState(
         state.t + params.dt, az, el, p, state.drone_velocity, track, seen, ok_fix, bound
     )
-    return new, reward_of(params, bound)
-
-
-def where(mask: ArrayLike, new: PointingState, old: PointingState) -> PointingState:
-    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old``."""
-    m = np.asarray(mask, dtype=bool)
-    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
-        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
-
-    def pick(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return np.where(m.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
-
-    return PointingState(
-        t=pick(new.t, old.t),
-        azimuth=pick(new.azimuth, old.azimuth),
-        elevation=pick(new.elevation, old.elevation),
-        drone_position=pick(new.drone_position, old.drone_position),
-        drone_velocity=pick(new.drone_velocity, old.drone_velocity),
-        track=CVTrack(pick(new.track.x, old.track.x), pick(new.track.P, old.track.P)),
-        seen=pick(new.seen, old.seen),
-        fixed=pick(new.fixed, old.fixed),
-        bound=pick(new.bound, old.bound),
-    )
+    return new, reward_of(params, bound), np.zeros(B, dtype=bool)
 
 
 def predicted_track(params: PointingParams, state: PointingState) -> CVTrack:
@@ -408,7 +387,24 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     obs = np.concatenate(
         [gimbals.reshape(B, -1), per_pair.reshape(B, -1), drones.reshape(B, -1)], -1
     )
-    return np.clip(obs, -OBS_CLIP, OBS_CLIP).astype(np.float32)
+    return clip_observation(obs)
+
+
+def observe_agents(params: PointingParams, state: PointingState) -> NDArray[np.float32]:
+    """Per-receiver views ``(B, n, obs_dim + n)``: :func:`observe` and a one-hot of the
+    receiver's index."""
+    return with_agent_index(observe(params, state), params.n_receivers)
+
+
+def info(params: PointingParams, state: PointingState) -> dict[str, FloatArray]:
+    """Diagnostics (ground truth included: for evaluation, never for the policy): the mean
+    position error of the tracks, the number of drones fixed and of receiver-drone views."""
+    error = np.linalg.norm(state.track.position - state.drone_position, axis=-1)
+    return {
+        "position_error": error.mean(axis=-1),
+        "drones_fixed": state.fixed.sum(axis=-1).astype(np.float64),
+        "views": state.seen.sum(axis=(1, 2)).astype(np.float64),
+    }
 
 
 def split_observation(

@@ -174,7 +174,7 @@ def test_every_env_has_rules_that_follow_the_sb3_predict_protocol(env_id):
     venv = _vector(env_id, 3)
     obs, _ = venv.reset(seed=0)
     core_env = venv.unwrapped
-    rules = rules_for(env_id, core_env.params, lambda: core_env._state)
+    rules = rules_for(env_id, core_env.params, lambda: core_env.simulator_state)
     assert len(rules) >= 3
     for name, rule in rules.items():
         assert isinstance(rule, PolicyPredictor), name

@@ -8,11 +8,11 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.envs.bearings_maneuver import parallel as bearings_maneuver_pz
+from sensorgym.envs import bearings_maneuver as bearings_maneuver_pz
+from sensorgym.envs import stereo_placement as stereo_placement_pz
+from sensorgym.envs import stereo_pointing as stereo_pointing_pz
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
-from sensorgym.envs.stereo_placement import parallel as stereo_placement_pz
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
-from sensorgym.envs.stereo_pointing import parallel as stereo_pointing_pz
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 

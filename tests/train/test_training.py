@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -88,41 +89,72 @@ def test_autoreset_mode_is_validated():
         BearingsManeuverVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
 
 
-def test_parameter_sharing_slots_follow_the_agents_and_restart_together():
-    from sensorgym.envs.bearings_maneuver import parallel as bearings_maneuver_pz
-    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
+def test_parameter_sharing_slots_are_the_pettingzoo_agents_of_every_scenario():
+    from sensorgym.envs.bearings_maneuver import parallel_env
 
-    venv = ParameterSharingVecEnv(
-        [lambda: bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)] * 2
-    )
-    assert venv.num_envs == 4
-    venv.seed(7)
+    # one scenario: its slots step exactly as the PettingZoo env with the same seed
+    venv = make_sb3_env(ENV_ID, 1, seed=7, agents=True, platforms=2, max_episode_steps=3)
+    assert venv.num_envs == 2  # 1 scenario × 2 platforms
     obs = venv.reset()
-    pz = bearings_maneuver_pz.parallel_env(platforms=2, max_episode_steps=3)
+    pz = parallel_env(platforms=2, max_episode_steps=3)
     first, _ = pz.reset(seed=7)
-    np.testing.assert_array_equal(obs[0], first["platform_0"])  # slot 0 = copy 0, agent 0
+    np.testing.assert_array_equal(obs[0], first["platform_0"])  # slot 0 = scenario 0, agent 0
     np.testing.assert_array_equal(obs[1], first["platform_1"])
-    for _ in range(3):
-        obs, reward, dones, infos = venv.step(np.zeros((4, 2), dtype=np.float32))
-        assert reward[0] == reward[1]  # one team reward per copy
+    actions = np.random.default_rng(0).uniform(-1, 1, (3, 2, 2)).astype(np.float32)
+    for k in range(3):
+        obs, reward, dones, infos = venv.step(actions[k])
+        pz_obs, rewards, *_ = pz.step({"platform_0": actions[k, 0], "platform_1": actions[k, 1]})
+        assert reward[0] == reward[1] == np.float32(rewards["platform_0"])  # one team reward
+        if k < 2:
+            np.testing.assert_array_equal(obs[1], pz_obs["platform_1"])
     assert dones.all()
     assert all(i["TimeLimit.truncated"] and i["terminal_observation"].shape == (12,) for i in infos)
+    np.testing.assert_array_equal(infos[1]["terminal_observation"], pz_obs["platform_1"])
+    # several scenarios: slot i is agent i mod n of scenario i div n
+    venv = make_sb3_env(ENV_ID, 3, seed=7, agents=True, platforms=2)
+    assert venv.reset().shape == (6, 12)
+    _, reward, _, _ = venv.step(np.zeros((6, 2), dtype=np.float32))
+    np.testing.assert_array_equal(reward[0::2], reward[1::2])
+
+
+def test_parameter_sharing_steps_the_batched_simulation_once_per_step():
+    venv = make_sb3_env("sensorgym/StereoPointing-v0", 4, seed=0, agents=True, n_receivers=3)
+    venv.reset()
+    inner = venv.unwrapped.venv
+    calls = []
+    step = inner.core.simulation.step
+
+    def counting(*args, **kwargs):
+        calls.append(args[1].batch_size)
+        return step(*args, **kwargs)
+
+    inner.core.simulation = SimpleNamespace(**{**vars(inner.core.simulation), "step": counting})
+    venv.step(np.zeros((12, 2), dtype=np.float32))
+    assert calls == [4]  # 12 agent slots, one call on the 4 scenarios
 
 
 def test_ppo_trains_one_shared_policy_on_every_receiver():
     from stable_baselines3 import PPO
 
-    from sensorgym.envs.stereo_pointing import parallel as stereo_pointing_pz
-    from sensorgym.train.parameter_sharing import ParameterSharingVecEnv
-
-    venv = ParameterSharingVecEnv(
-        [lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20)]
-    )
-    venv.seed(0)
+    venv = make_sb3_env("sensorgym/StereoPointing-v0", 1, 0, agents=True, n_receivers=3, n_drones=1)
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=48, n_epochs=1, seed=0, device="cpu")
     model.learn(96)
     action, _ = model.predict(venv.reset(), deterministic=True)
     assert action.shape == (3, 2)
+
+
+def test_train_command_with_parameter_sharing_then_benchmark_the_saved_run(tmp_path):
+    args = ["--agents", "--timesteps", "128", "--n-envs", "2", "--eval-episodes", "2"]
+    env = ["--env", "sensorgym/StereoPlacement-v0"]
+    assert main(["train", *env, *args, "--out", str(tmp_path), "--no-progress"]) == 0
+    run_dir = tmp_path / "sensorgym__StereoPlacement-v0" / "ppo-shared_seed0"
+    assert read_config(run_dir)["agents"] is True
+    evaluation = json.loads((run_dir / "evaluation.json").read_text())["results"]
+    assert {"trained", "hold-position", "greedy-information"} <= set(evaluation)
+    bench = [*env, "--episodes", "2", "--n-envs", "2", "--model", str(run_dir)]
+    assert main(["benchmark", *bench, "--out", str(tmp_path / "bench")]) == 0
+    results = json.loads((tmp_path / "bench" / "sensorgym__StereoPlacement-v0.json").read_text())
+    assert "model:ppo-shared_seed0" in results["results"]
 
 
 def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):

@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.stereo import information
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -144,9 +145,7 @@ def position_information(los: ArrayLike, ranges: ArrayLike, sigma_ang: ArrayLike
     s = _check_positive(sigma_ang, "sigma_ang")
     if u.ndim < 2:
         raise ValueError(f"los: expected shape (..., n, 3), got {u.shape}")
-    scale = 1.0 / (np.broadcast_to(s, r.shape) * r) ** 2
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    return np.einsum("...k,...kij->...ij", scale, proj)
+    return information.position_information(u, r, s)
 
 
 def position_crlb(los: ArrayLike, ranges: ArrayLike, sigma_ang: ArrayLike) -> FloatArray:
@@ -156,9 +155,7 @@ def position_crlb(los: ArrayLike, ranges: ArrayLike, sigma_ang: ArrayLike) -> Fl
     information is singular (the position is unobservable along the common line of sight).
     """
     info = position_information(los, ranges, sigma_ang)
-    det = np.linalg.det(info)
-    scale = np.trace(info, axis1=-2, axis2=-1) ** 3
-    if np.any(det <= 1e-12 * scale):
+    if not np.all(information.observable(info)):
         raise ValueError("los: lines of sight are parallel; position information is singular")
     return np.linalg.inv(info)
 
@@ -188,8 +185,7 @@ def triangulate_ml(
         # (Σ w_k Π_k) M = Σ w_k Π_k o_k
         w = 1.0 / (np.broadcast_to(sigma_ang, r.shape) * r) ** 2
         rhs = np.einsum("...k,...kij,...kj->...i", w, proj, np.broadcast_to(o, (*r.shape, 3)))
-        det = np.linalg.det(info)
-        if np.any(det <= 1e-12 * np.trace(info, axis1=-2, axis2=-1) ** 3):
+        if not np.all(information.observable(info)):
             raise ValueError("los: lines of sight are parallel; the position is unobservable")
         M = np.linalg.solve(info, rhs[..., None])[..., 0]
         r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), 1e-9)

@@ -29,14 +29,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.stereo.information import observable, position_information
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
-
-#: a fix needs ``det G > CONDITION · (tr G)³`` (lines of sight not parallel, as
-#: :func:`~.stereo_accuracy.position_crlb` requires)
-CONDITION = 1e-12
 
 
 @dataclass(frozen=True)
@@ -114,25 +111,6 @@ def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CV
     return CVTrack(np.where(m[..., None], x, track.x), np.where(m[..., None, None], P, track.P))
 
 
-def fix_geometry(los: ArrayLike, ranges: ArrayLike, seen: ArrayLike) -> FloatArray:
-    """``G = Σ_k s_k (I − u_k u_kᵀ) / r_k²`` ``(..., 3, 3)``, 1/m²: ``I(M) = G / σ²``.
-
-    ``los (..., n, 3)`` unit lines of sight, ``ranges (..., n)`` m, ``seen (..., n)`` bool.
-    """
-    u = np.asarray(los, dtype=np.float64)
-    w = np.asarray(seen, dtype=bool) / np.maximum(np.asarray(ranges, dtype=np.float64), 1e-9) ** 2
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    return np.einsum("...k,...kij->...ij", w, proj)
-
-
-def observable(G: ArrayLike, seen: ArrayLike) -> BoolArray:
-    """Where a fix exists: at least two views whose lines of sight are not parallel."""
-    G = np.asarray(G, dtype=np.float64)
-    views = np.sum(np.asarray(seen, dtype=bool), axis=-1)
-    tr = np.trace(G, axis1=-2, axis2=-1)
-    return (views >= 2) & (np.linalg.det(G) > CONDITION * tr**3)
-
-
 def masked_fix(
     origins: ArrayLike, los: ArrayLike, seen: ArrayLike, iterations: int = 2
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
@@ -156,7 +134,7 @@ def masked_fix(
     ok = np.zeros(s.shape[:-1], dtype=bool)
     G = np.zeros((*s.shape[:-1], 3, 3))
     for _ in range(iterations):
-        G = fix_geometry(u, r, s)
+        G = position_information(u, r, mask=s)
         ok = observable(G, s)
         w = s / r**2
         # (Σ w_k Π_k) M = Σ w_k Π_k o_k
@@ -164,5 +142,5 @@ def masked_fix(
         M = np.linalg.solve(np.where(ok[..., None, None], G, np.eye(3)), rhs[..., None])[..., 0]
         M = np.where(ok[..., None], M, 0.0)
         r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), 1e-9)
-    G = fix_geometry(u, r, s)
+    G = position_information(u, r, mask=s)
     return M, G, ok & observable(G, s)

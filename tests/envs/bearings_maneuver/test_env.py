@@ -11,7 +11,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.evaluation import evaluate_policy
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.agents.bearings_maneuver import GreedyInformation, Paper002Maneuver, StraightCourse
+from sensorgym.agents.bearings_maneuver import GreedyManeuver, Paper002Maneuver, StraightCourse
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.envs.bearings_maneuver import simulation as core
 from sensorgym.envs.bearings_maneuver.env import BearingsManeuverEnv, BearingsManeuverVectorEnv
@@ -83,7 +83,7 @@ def test_observation_is_the_tracker_view_in_the_platform_frame():
     relative position (obs 3, 4) points along that bearing (the prior sits on it)."""
     params = ManeuverParams()
     state = core.reset(params, np.random.default_rng(3), 5)
-    obs = core.observe(params, state)[:, 0].astype(np.float64)
+    obs = core.observe_agents(params, state)[:, 0].astype(np.float64)
     theta = state.bearing[:, 0] - state.heading[:, 0]
     np.testing.assert_allclose(obs[:, 0], np.sin(theta), atol=1e-6)
     np.testing.assert_allclose(obs[:, 1], np.cos(theta), atol=1e-6)
@@ -111,7 +111,7 @@ def scores():
     rules = {
         "straight": StraightCourse(),
         "paper002": Paper002Maneuver(),
-        "greedy": GreedyInformation(),
+        "greedy": GreedyManeuver(),
     }
     return {
         name: evaluate_policy(rule, venv, n_eval_episodes=24, deterministic=True)[0]
@@ -122,7 +122,7 @@ def scores():
 def test_rules_follow_the_sb3_predict_protocol():
     obs = np.zeros((3, core.OBS_DIM), dtype=np.float32)
     obs[:, 1] = 1.0
-    for rule in (StraightCourse(), Paper002Maneuver(), GreedyInformation()):
+    for rule in (StraightCourse(), Paper002Maneuver(), GreedyManeuver()):
         assert isinstance(rule, PolicyPredictor)
         action, _ = rule.predict(obs)
         assert action.shape == (3, 2) and action.dtype == np.float32
@@ -163,7 +163,7 @@ def test_greedy_rule_steers_across_the_line_of_sight():
     params = dataclasses.replace(
         ManeuverParams(), world=PlatformWorldParams(max_turn_rate=np.deg2rad(1.0))
     )
-    rule = GreedyInformation(params)
+    rule = GreedyManeuver(params)
     obs = np.zeros(core.OBS_DIM, dtype=np.float32)
     obs[0], obs[1] = 0.0, 1.0  # target dead ahead
     obs[2] = 1.0 / 3.0
@@ -197,12 +197,12 @@ def test_coming_too_close_terminates_with_the_penalty():
 def test_one_step_oracle_picks_the_action_with_the_smallest_next_bound():
     """With horizon 1 the oracle's plan is exactly the env's next reward: stepping the core with
     every candidate, its choice has the smallest next bound."""
-    from sensorgym.agents.bearings_maneuver_oracle import OracleLookahead
+    from sensorgym.agents.bearings_maneuver import OracleLookahead
 
     params = ManeuverParams()
     state = core.reset(params, np.random.default_rng(12), 3)
     oracle = OracleLookahead(lambda: state, params, horizon=1, safety=0.0)
-    action, _ = oracle.predict(core.observe(params, state)[:, 0])
+    action, _ = oracle.predict(core.observe_agents(params, state)[:, 0])
     cand = oracle.candidates()
     bounds = np.stack(
         [
@@ -216,12 +216,12 @@ def test_one_step_oracle_picks_the_action_with_the_smallest_next_bound():
 
 
 def test_oracle_lookahead_is_a_ceiling_above_the_rules():
-    from sensorgym.agents.bearings_maneuver_oracle import OracleLookahead
+    from sensorgym.agents.bearings_maneuver import OracleLookahead
     from sensorgym.train.evaluation import evaluate, make_sb3_env, simulator_state
 
     env = make_sb3_env(ENV_ID, 8, seed=0)
     oracle = evaluate(OracleLookahead(simulator_state(env)), env, 16, seed=0)
-    greedy = evaluate(GreedyInformation(), env, 16, seed=0)
+    greedy = evaluate(GreedyManeuver(), env, 16, seed=0)
     assert oracle.mean > greedy.mean + 1.0
     with pytest.raises(ValueError, match="batch"):
         OracleLookahead(simulator_state(env)).predict(np.zeros((3, core.OBS_DIM), np.float32))

@@ -14,8 +14,9 @@ from stable_baselines3.common.evaluation import evaluate_policy
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_placement import CirclePlacement, GreedyInformation, HoldPosition
-from sensorgym.envs.stereo_placement import parallel as stereo_placement_pz
+from sensorgym.agents.stereo_placement import CirclePlacement, GreedyPlacement, HoldPosition
+from sensorgym.envs import stereo_placement as stereo_placement_pz
+from sensorgym.envs.shells import tree_where
 from sensorgym.envs.stereo_placement import simulation as core
 from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
@@ -54,17 +55,17 @@ def test_registration_sets_the_time_limit_and_the_vector_entry_point():
 def test_where_swaps_only_the_masked_scenarios():
     params = PlacementParams()
     old = core.reset(params, np.random.default_rng(1), 5)
-    old, _ = core.step(params, old, np.ones((5, 6)), np.random.default_rng(2))
+    old, _, _ = core.step(params, old, np.ones((5, 6)), np.random.default_rng(2))
     new = core.reset(params, np.random.default_rng(3), 5)
     mask = np.array([True, False, True, False, False])
-    mixed = core.where(mask, new, old)
+    mixed = tree_where(mask, new, old)
     obs = core.observe(params, mixed)
     np.testing.assert_array_equal(obs[mask], core.observe(params, new)[mask])
     np.testing.assert_array_equal(obs[~mask], core.observe(params, old)[~mask])
     np.testing.assert_array_equal(mixed.fix.condition[~mask], old.fix.condition[~mask])
     np.testing.assert_array_equal(mixed.t, np.where(mask, 0.0, params.period))
     with pytest.raises(ValueError, match="mask"):
-        core.where(mask[:3], new, old)
+        tree_where(mask[:3], new, old)
 
 
 # --- the conjugation tracker --------------------------------------------------------------------
@@ -80,7 +81,7 @@ def test_noise_free_conjugation_recovers_the_moving_drone_exactly():
     for _ in range(8):
         action, _ = rule.predict(core.observe(params, state))
         assert np.abs(action).max() > 0.5  # the receivers really move during the periods
-        state, reward = core.step(params, state, action, rng)
+        state, reward, _ = core.step(params, state, action, rng)
         assert not state.fix.degenerate.any()
         np.testing.assert_allclose(state.fix.position, state.drone_position, rtol=0, atol=1e-6)
         np.testing.assert_allclose(state.fix.velocity, state.drone_velocity, rtol=0, atol=1e-6)
@@ -103,7 +104,7 @@ def test_degenerate_fix_is_not_trusted_and_the_tracker_coasts():
     truth = np.concatenate([state.drone_position, state.drone_velocity], -1)
     np.testing.assert_allclose(state.estimate, truth, atol=1e-9)
     for _ in range(3):
-        state, reward = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(0))
+        state, reward, _ = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(0))
         assert state.fix.degenerate[0] and reward[0] == -params.reward_clip
         truth = np.concatenate([state.drone_position, state.drone_velocity], -1)
         np.testing.assert_allclose(state.estimate, truth, atol=1e-9)
@@ -120,7 +121,7 @@ def test_reward_is_the_crlb_of_the_true_geometry():
     o = np.array([[0.0, 0.0, 0.0], [80.0, 0.0, 10.0], [20.0, 0.0, 90.0]])
     drone = np.array([40.0, 50.0, 60.0])
     state = _still_scene(params, o, drone)
-    new, reward = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(1))
+    new, reward, _ = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(1))
     d = drone - o
     r = np.linalg.norm(d, axis=-1)
     sigma_pos = np.sqrt(np.trace(position_crlb(d / r[:, None], r, params.sigma_ang)))
@@ -147,7 +148,7 @@ def test_degenerate_geometry_gives_minus_r_and_no_nan(params, receivers, drone, 
     params = dataclasses.replace(params, sigma_ang=sigma_ang)
     state = _still_scene(params, receivers, drone, velocity=(3.0, 0.0, 0.0))
     for _ in range(3):
-        state, reward = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(2))
+        state, reward, _ = core.step(params, state, np.zeros((1, 6)), np.random.default_rng(2))
         assert state.geometry.degenerate[0] and reward[0] == -params.reward_clip
         obs = core.observe(params, state)
         assert np.all(np.isfinite(obs)) and np.all(np.isfinite(state.estimate))
@@ -163,7 +164,7 @@ def test_actions_are_scaled_speed_limited_clipped_and_kept_in_the_disc():
     o = np.array([[0.0, 0.0, 0.0], [50.0, 0.0, 0.0], [198.0, 0.0, 0.0]])
     state = _still_scene(params, o, [60.0, 40.0, 90.0])
     action = np.array([[0.5, 0.0, 1.0, 1.0, 7.0, 0.0]])
-    new, _ = core.step(params, state, action, np.random.default_rng(0))
+    new, _, _ = core.step(params, state, action, np.random.default_rng(0))
     moved = new.receivers[0] - o
     np.testing.assert_allclose(moved[0], [2.5, 0.0, 0.0])  # a · max_speed · τ
     np.testing.assert_allclose(np.linalg.norm(moved[1]), 5.0)  # speed capped, not 5√2
@@ -238,7 +239,7 @@ def test_observation_layout_round_trips_through_split_observation():
 def test_rules_follow_the_sb3_predict_protocol():
     params = PlacementParams()
     obs = core.observe(params, core.reset(params, np.random.default_rng(8), 4))
-    for rule in (HoldPosition(), CirclePlacement(), GreedyInformation()):
+    for rule in (HoldPosition(), CirclePlacement(), GreedyPlacement()):
         assert isinstance(rule, PolicyPredictor)
         batch, state = rule.predict(obs)
         one, _ = rule.predict(obs[0])
@@ -252,7 +253,7 @@ def test_rules_follow_the_sb3_predict_protocol():
 @pytest.fixture(scope="module")
 def scores():
     venv = make_vec_env(ENV_ID, n_envs=4, seed=0)
-    rules = {"hold": HoldPosition(), "circle": CirclePlacement(), "greedy": GreedyInformation()}
+    rules = {"hold": HoldPosition(), "circle": CirclePlacement(), "greedy": GreedyPlacement()}
     return {
         name: evaluate_policy(rule, venv, n_eval_episodes=8, deterministic=True)[0]
         for name, rule in rules.items()
@@ -273,7 +274,7 @@ def test_circle_placement_ends_with_near_orthogonal_lines_of_sight():
     rule = CirclePlacement(params)
     for _ in range(60):
         action, _ = rule.predict(core.observe(params, state))
-        state, reward = core.step(params, state, action, rng)
+        state, reward, _ = core.step(params, state, action, rng)
     angles = core.los_angles(params, state.receivers, state.drone_position)
     np.testing.assert_allclose(np.rad2deg(angles), 90.0, atol=3.0)
     # and on the √2·h circle around the drone
@@ -288,8 +289,8 @@ def test_greedy_information_moves_the_receivers_apart():
     rng = np.random.default_rng(10)
     state = core.reset(params, rng, 8)
     first = state.bound.copy()
-    rule = GreedyInformation(params)
+    rule = GreedyPlacement(params)
     for _ in range(20):
         action, _ = rule.predict(core.observe(params, state))
-        state, _ = core.step(params, state, action, rng)
+        state, _, _ = core.step(params, state, action, rng)
     assert np.all(state.bound < 0.5 * first)

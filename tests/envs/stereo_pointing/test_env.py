@@ -14,11 +14,12 @@ from stable_baselines3.common.evaluation import evaluate_policy
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.agents.stereo_pointing import (
-    GreedyInformation,
+    GreedyPointing,
     HoldStill,
     OrthogonalPairs,
     TrackNearest,
 )
+from sensorgym.envs.shells import tree_where
 from sensorgym.envs.stereo_pointing import simulation as core
 from sensorgym.envs.stereo_pointing.env import StereoPointingEnv, StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
@@ -100,16 +101,16 @@ def test_vector_env_truncates_together_and_restarts_every_scenario():
 def test_where_swaps_only_the_masked_scenarios():
     params = PointingParams()
     old = core.reset(params, np.random.default_rng(1), 5)
-    old, _ = core.step(params, old, np.zeros((5, 8)), np.random.default_rng(2))
+    old, _, _ = core.step(params, old, np.zeros((5, 8)), np.random.default_rng(2))
     new = core.reset(params, np.random.default_rng(3), 5)
     mask = np.array([True, False, True, False, False])
-    mixed = core.where(mask, new, old)
+    mixed = tree_where(mask, new, old)
     obs = core.observe(params, mixed)
     np.testing.assert_array_equal(obs[mask], core.observe(params, new)[mask])
     np.testing.assert_array_equal(obs[~mask], core.observe(params, old)[~mask])
     np.testing.assert_array_equal(mixed.t, np.where(mask, 0.0, params.dt))
     with pytest.raises(ValueError, match="mask"):
-        core.where(mask[:3], new, old)
+        tree_where(mask[:3], new, old)
 
 
 # --- geometry, measurement, reward --------------------------------------------------------------
@@ -145,7 +146,7 @@ def test_a_receiver_sees_exactly_the_drones_inside_its_cone():
         el = state.elevation.copy()
         el[0, 0] += tilt
         state = dataclasses.replace(state, elevation=el)
-        new, _ = core.step(params, state, np.zeros(8), np.random.default_rng(0))
+        new, _, _ = core.step(params, state, np.zeros(8), np.random.default_rng(0))
         assert bool(new.seen[0, 0, 0]) is inside
         assert new.seen[0, 1:, 0].all()
 
@@ -156,7 +157,7 @@ def test_noise_free_fix_is_the_truth_and_the_filter_takes_it():
     params = PointingParams(sigma_ang=0.0)
     drones = np.array([[80.0, 40.0, 60.0], [-50.0, 70.0, -120.0]])
     state = _still(params, drones, [0, 0, 1, 1])
-    new, _ = core.step(params, state, np.zeros(8), np.random.default_rng(1))
+    new, _, _ = core.step(params, state, np.zeros(8), np.random.default_rng(1))
     assert new.fixed.all()
     np.testing.assert_allclose(new.track.position[0], drones, rtol=0, atol=1e-9)
     # the fix alone, on random geometries and random masks of at least two views
@@ -191,7 +192,7 @@ def test_reward_is_the_crlb_of_the_receivers_that_see_each_drone():
     params = PointingParams(sigma_ang=2e-3)
     drones = np.array([[70.0, 35.0, 90.0], [-100.0, 60.0, -40.0]])
     state = _still(params, drones, [0, 0, 0, 1])
-    new, reward = core.step(params, state, np.zeros(8), np.random.default_rng(4))
+    new, reward, _ = core.step(params, state, np.zeros(8), np.random.default_rng(4))
     np.testing.assert_array_equal(new.seen[0], [[1, 0], [1, 0], [1, 0], [0, 1]])
     d = drones[0] - params.receiver_positions[:3]
     r = np.linalg.norm(d, axis=-1)
@@ -201,9 +202,9 @@ def test_reward_is_the_crlb_of_the_receivers_that_see_each_drone():
     assert new.fixed[0].tolist() == [True, False]
     # both drones fixed, and a tight σ_ref clips the reward at −R for both
     state = _still(params, drones, [0, 0, 1, 1])
-    _, reward = core.step(params, state, np.zeros(8), np.random.default_rng(4))
+    _, reward, _ = core.step(params, state, np.zeros(8), np.random.default_rng(4))
     tight = dataclasses.replace(params, sigma_ref=1e-6)
-    _, low = core.step(tight, state, np.zeros(8), np.random.default_rng(4))
+    _, low, _ = core.step(tight, state, np.zeros(8), np.random.default_rng(4))
     assert -5.0 < reward[0] < 5.0 and low[0] == -5.0
 
 
@@ -211,10 +212,10 @@ def test_no_view_gives_minus_r_and_noise_free_views_give_plus_r():
     params = PointingParams(sigma_ang=0.0)
     drones = np.array([[80.0, 40.0, 60.0], [-50.0, 70.0, -120.0]])
     state = _still(params, drones, [0, 0, 1, 1])
-    _, reward = core.step(params, state, np.zeros(8), np.random.default_rng(5))
+    _, reward, _ = core.step(params, state, np.zeros(8), np.random.default_rng(5))
     assert reward[0] == 5.0
     away = dataclasses.replace(state, elevation=state.elevation - 0.5)
-    new, reward = core.step(params, away, np.zeros(8), np.random.default_rng(5))
+    new, reward, _ = core.step(params, away, np.zeros(8), np.random.default_rng(5))
     assert reward[0] == -5.0 and not new.seen.any() and not new.fixed.any()
 
 
@@ -224,13 +225,13 @@ def test_slew_is_scaled_clipped_and_bounded_in_elevation():
     a = np.zeros((2, 4, 2))
     a[:, :, 0] = [0.5, -1.0, 3.0, 0.0]
     a[:, :, 1] = [0.0, 0.0, 0.0, 1.0]
-    new, _ = core.step(params, state, a, np.random.default_rng(8))
+    new, _, _ = core.step(params, state, a, np.random.default_rng(8))
     step = params.slew_rate * params.dt
     turn = np.angle(np.exp(1j * (new.azimuth - state.azimuth)))
     np.testing.assert_allclose(turn, np.tile([0.5 * step, -step, step, 0.0], (2, 1)), atol=1e-12)
     np.testing.assert_allclose(new.elevation[:, 3], state.elevation[:, 3] + step, atol=1e-12)
     for _ in range(20):
-        new, _ = core.step(params, new, np.tile([0.0, 1.0], (2, 4)), np.random.default_rng(9))
+        new, _, _ = core.step(params, new, np.tile([0.0, 1.0], (2, 4)), np.random.default_rng(9))
     np.testing.assert_allclose(new.elevation, params.max_elevation)
 
 
@@ -330,7 +331,7 @@ def test_kalman_filter_is_consistent_on_a_straight_track():
 def test_rules_follow_the_sb3_predict_protocol():
     params = PointingParams()
     obs = core.observe(params, core.reset(params, np.random.default_rng(13), 3))
-    for rule in (HoldStill(), TrackNearest(), OrthogonalPairs(), GreedyInformation()):
+    for rule in (HoldStill(), TrackNearest(), OrthogonalPairs(), GreedyPointing()):
         assert isinstance(rule, PolicyPredictor)
         action, _ = rule.predict(obs)
         assert action.shape == (3, 8) and action.dtype == np.float32
@@ -358,7 +359,7 @@ def test_slewing_rules_put_the_prediction_on_the_boresight():
     az, el = _aim(params, pred, target)
     state = dataclasses.replace(state, azimuth=az - 0.05, elevation=el + 0.03)
     action, _ = TrackNearest().predict(core.observe(params, state))
-    new, _ = core.step(params, state, action, np.random.default_rng(0))
+    new, _, _ = core.step(params, state, action, np.random.default_rng(0))
     np.testing.assert_allclose(np.angle(np.exp(1j * (new.azimuth - az))), 0.0, atol=1e-6)
     np.testing.assert_allclose(new.elevation, el, atol=1e-6)
 
@@ -370,7 +371,7 @@ def scores():
         "hold": HoldStill(),
         "nearest": TrackNearest(),
         "orthogonal": OrthogonalPairs(),
-        "greedy": GreedyInformation(),
+        "greedy": GreedyPointing(),
     }
     return {
         name: evaluate_policy(rule, venv, n_eval_episodes=8, deterministic=True)[0]
@@ -402,17 +403,17 @@ def test_orthogonal_pairs_beat_track_nearest_when_nearest_pairs_are_collinear():
     A = o[1] + 60.0 * line + [0.0, 1.0, 0.0]
     drones = np.stack([A, A * [-1.0, 1.0, -1.0]])
     returns = {}
-    for rule in (TrackNearest(params), OrthogonalPairs(params), GreedyInformation(params)):
+    for rule in (TrackNearest(params), OrthogonalPairs(params), GreedyPointing(params)):
         rng = np.random.default_rng(15)
         p = drones[None]
         state = core.start(params, p, np.zeros_like(p), np.zeros((1, 4)), np.zeros((1, 4)), rng)
         total = 0.0
         for _ in range(40):
             a, _ = rule.predict(core.observe(params, state))
-            state, r = core.step(params, state, a, rng)
+            state, r, _ = core.step(params, state, a, rng)
             total += r[0]
         returns[type(rule).__name__] = total
     nearest = TrackNearest(params).assign(core.observe(params, state)[0])
     assert nearest.tolist() == [0, 0, 1, 1]  # the clusters: nearly parallel lines of sight
     assert returns["OrthogonalPairs"] > returns["TrackNearest"] + 40.0
-    assert returns["GreedyInformation"] > returns["TrackNearest"] + 40.0
+    assert returns["GreedyPointing"] > returns["TrackNearest"] + 40.0

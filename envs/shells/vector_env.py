@@ -1,0 +1,183 @@
+"""The native vector shell every sensorgym env shares: ``num_envs`` scenarios in one call.
+
+:class:`CoreVectorEnv` steps all scenarios of a batched simulation at once (no Python loop over
+envs) and implements Gymnasium's ``VectorEnv`` with both autoreset modes. With
+``agent_view=True`` it presents the per-agent observations ``(num_envs, n_agents, obs)`` and
+takes per-agent actions ``(num_envs, n_agents, action)``: what parameter-sharing training
+steps (:mod:`sensorgym.train.sb3_vec_env`), still one simulation call per step.
+"""
+
+from __future__ import annotations
+
+from types import ModuleType
+from typing import Any, ClassVar
+
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+from numpy.typing import NDArray
+
+from sensorgym.envs.shells.contract import (
+    REGISTERED,
+    BoolArray,
+    Core,
+    FloatArray,
+    check_action,
+    registered_episode_steps,
+    resolve_params,
+)
+
+
+class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarray]):
+    """``num_envs`` scenarios of a batched core stepped in one call.
+
+    Truncation after ``max_episode_steps`` is done here. ``autoreset_mode``: ``NEXT_STEP``
+    (Gymnasium's default) — the step after an episode ends returns the first observation of
+    the next one, with reward 0 and both flags False; with ``num_envs=1`` and one seed it
+    produces exactly the single env's episodes. ``SAME_STEP`` — an ending scenario restarts
+    within the step; its last observation and info go to ``infos["final_obs"]``
+    ``(num_envs, ...)`` and ``infos["final_info"]`` (valid where ``"_final_obs"`` /
+    ``"_final_info"`` are True) — what SB3 needs (:mod:`sensorgym.train.sb3_vec_env`).
+    """
+
+    simulation: ClassVar[ModuleType]
+    params_type: ClassVar[type]
+    env_id: ClassVar[str]
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        params: Any = None,
+        max_episode_steps: int | str | None = REGISTERED,
+        render_mode: str | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        agent_view: bool = False,
+        **fields: Any,
+    ):
+        if num_envs < 1:
+            raise ValueError(f"num_envs: must be >= 1, got {num_envs}")
+        if render_mode is not None:
+            raise ValueError("render_mode: the vector env does not render (use the single env)")
+        if max_episode_steps == REGISTERED:
+            max_episode_steps = registered_episode_steps(self.env_id)
+        if max_episode_steps is not None and max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps: must be >= 1 or None, got {max_episode_steps}")
+        self.autoreset_mode = AutoresetMode(autoreset_mode)
+        if self.autoreset_mode is AutoresetMode.DISABLED:
+            raise ValueError("autoreset_mode: NEXT_STEP or SAME_STEP (DISABLED is not supported)")
+        self.metadata = {"render_modes": [], "autoreset_mode": self.autoreset_mode}
+        self.core = Core(self.simulation, resolve_params(self.params_type, params, **fields))
+        self.params = self.core.params
+        self.num_envs = num_envs
+        self.max_episode_steps = max_episode_steps
+        self.render_mode = render_mode
+        self.agent_view = agent_view
+        sp = self.core.spaces
+        self.n_agents = sp.n_agents
+        if agent_view:
+            # per-agent spaces; the batch carries a scenario and an agent axis
+            self.single_observation_space, self.single_action_space = (
+                sp.agent_observation,
+                sp.agent_action,
+            )
+            self.observation_space = _batch_agents(sp.agent_observation, num_envs, sp.n_agents)
+            self.action_space = _batch_agents(sp.agent_action, num_envs, sp.n_agents)
+        else:
+            self.single_observation_space, self.single_action_space = sp.observation, sp.action
+            self.observation_space = batch_space(sp.observation, num_envs)
+            self.action_space = batch_space(sp.action, num_envs)
+        self._state: Any = None
+        self._steps = np.zeros(num_envs, dtype=np.int64)
+        self._done = np.zeros(num_envs, dtype=bool)  # NEXT_STEP: ended on the last step
+
+    @property
+    def simulator_state(self) -> Any:
+        """The simulation's current state, batch ``num_envs`` (ground truth included: for
+        oracles and diagnostics, never for a policy one could field)."""
+        if self._state is None:
+            raise RuntimeError("simulator_state: call reset() first")
+        return self._state
+
+    def _observe(self, state: Any) -> NDArray[np.float32]:
+        if self.agent_view:
+            return self.core.observe_agents(state)
+        return self.core.observe(state)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[NDArray[np.float32], dict[str, Any]]:
+        super().reset(seed=seed)
+        self._state = self.core.reset(self.np_random, self.num_envs)
+        self._steps[:] = 0
+        self._done[:] = False
+        return self._observe(self._state), self._infos(self._state)
+
+    def step(
+        self, actions: NDArray[np.float32]
+    ) -> tuple[NDArray[np.float32], FloatArray, BoolArray, BoolArray, dict[str, Any]]:
+        if self._state is None:
+            raise RuntimeError("step: call reset() first")
+        a = check_action(actions, self.action_space.shape)
+        if self.autoreset_mode is AutoresetMode.SAME_STEP:
+            return self._step_same(a)
+        return self._step_next(a)
+
+    def _restart(self, done: BoolArray, state: Any) -> Any:
+        """Fresh scenarios where ``done`` (all of them when every scenario restarts)."""
+        if done.all():
+            return self.core.reset(self.np_random, self.num_envs)
+        fresh = self.core.reset(self.np_random, self.num_envs, like=state)
+        return self.core.where(done, fresh, state)
+
+    def _truncated(self) -> BoolArray:
+        if self.max_episode_steps is None:
+            return np.zeros(self.num_envs, dtype=bool)
+        return self._steps >= self.max_episode_steps
+
+    def _step_next(self, a: FloatArray) -> tuple:
+        done = self._done
+        reward = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        if done.all():
+            new = self._restart(done, self._state)
+        else:
+            new, reward, terminated = self.core.step(self._state, a, self.np_random)
+            if done.any():
+                new = self._restart(done, new)
+                reward = np.where(done, 0.0, reward)
+                terminated = terminated & ~done
+        self._steps = np.where(done, 0, self._steps + 1)
+        # as the TimeLimit wrapper of the single env: both flags may be set on one step
+        truncated = self._truncated() & ~done
+        self._state, self._done = new, terminated | truncated
+        return self._observe(new), reward, terminated, truncated, self._infos(new)
+
+    def _step_same(self, a: FloatArray) -> tuple:
+        new, reward, terminated = self.core.step(self._state, a, self.np_random)
+        self._steps = self._steps + 1
+        truncated = self._truncated()
+        done = terminated | truncated
+        obs, infos = self._observe(new), self._infos(new)
+        if done.any():
+            final = {"final_obs": obs, "_final_obs": done, "final_info": infos, "_final_info": done}
+            new = self._restart(done, new)
+            self._steps = np.where(done, 0, self._steps)
+            obs, infos = self._observe(new), {**self._infos(new), **final}
+        self._state = new
+        return obs, reward, terminated, truncated, infos
+
+    def _infos(self, state: Any) -> dict[str, Any]:
+        # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them
+        infos: dict[str, Any] = {}
+        for key, value in self.core.info(state).items():
+            infos[key], infos[f"_{key}"] = value, np.ones(self.num_envs, dtype=bool)
+        return infos
+
+
+def _batch_agents(space: spaces.Box, num_envs: int, n_agents: int) -> spaces.Box:
+    """``(num_envs, n_agents, *shape)`` Box of a per-agent Box."""
+    shape = (num_envs, n_agents, *space.shape)
+    low = np.broadcast_to(space.low, shape)
+    high = np.broadcast_to(space.high, shape)
+    return spaces.Box(low, high, shape, space.dtype)

@@ -1,0 +1,85 @@
+"""Position information from lines of sight: the maths every stereo env, rule and tracker shares.
+
+Angle-noise model (theory §2.7): receiver ``k`` measures the line of sight ``u_k`` to a point
+``M`` at range ``r_k`` with isotropic angular noise ``σ_k``. The Fisher information of ``M`` is
+
+    I(M) = Σ_k m_k (I − u_k u_kᵀ) / (σ_k² r_k²)
+
+(``m_k`` = 1 where receiver ``k`` sees the point), its inverse the Cramér–Rao bound; the
+position RMS bound is ``σ_pos = √tr I⁻¹``. The information is singular when fewer than two
+receivers see the point or their lines of sight are parallel; :func:`observable` is the one
+test of that, ``det I > CONDITION · (tr I)³`` (scale-free: ``det/tr³`` is a product of
+eigenvalue ratios).
+
+These functions are batched over leading axes, mask-aware and *unchecked*: they never raise on
+degenerate geometry, which an environment must score, not refuse. Their documented fallbacks:
+:func:`position_sigma` is ``+inf`` where the position is unobservable, and
+:func:`log_ratio_reward` maps that to the finite ``−R``. The checked public API of
+:mod:`.accuracy` (``position_information``, ``position_crlb``) validates its inputs and calls
+these.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+#: the information is regular where ``det I > CONDITION · (tr I)³``
+CONDITION = 1e-12
+#: ranges are floored at this (m) so that a receiver on the point gives finite information
+MIN_RANGE = 1e-9
+
+
+def position_information(
+    los: ArrayLike, ranges: ArrayLike, sigma: ArrayLike = 1.0, mask: ArrayLike | None = None
+) -> FloatArray:
+    """``I = Σ_k m_k (I − u_k u_kᵀ) / (σ_k² r_k²)`` ``(..., 3, 3)``, 1/m² (``σ`` in rad).
+
+    ``los (..., n, 3)`` unit lines of sight in one frame, ``ranges (..., n)`` m, ``sigma``
+    scalar or ``(..., n)`` rad, ``mask (..., n)`` bool (None: every receiver). With the default
+    ``σ = 1`` it is the geometry part ``G`` of ``I = G/σ²`` (equal noise at every receiver).
+    Leading axes broadcast.
+    """
+    u = np.asarray(los, dtype=np.float64)
+    r = np.maximum(np.asarray(ranges, dtype=np.float64), MIN_RANGE)
+    w = 1.0 / (np.broadcast_to(sigma, r.shape) * r) ** 2
+    if mask is not None:
+        w = np.asarray(mask, dtype=bool) * w
+    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
+    # I = Σ_k w_k Π_k,  Π_k = I − u_k u_kᵀ
+    return np.einsum("...k,...kij->...ij", w, proj)
+
+
+def observable(information: ArrayLike, mask: ArrayLike | None = None) -> BoolArray:
+    """Where the position is observable ``(...)``: ``det I > CONDITION · (tr I)³`` and, with a
+    ``mask (..., n)``, at least two receivers see the point."""
+    info = np.asarray(information, dtype=np.float64)
+    tr = np.trace(info, axis1=-2, axis2=-1)
+    regular = np.linalg.det(info) > CONDITION * tr**3
+    if mask is None:
+        return regular
+    return (np.sum(np.asarray(mask, dtype=bool), axis=-1) >= 2) & regular
+
+
+def position_sigma(information: ArrayLike, ok: ArrayLike, sigma: float = 1.0) -> FloatArray:
+    """Position RMS bound ``σ √tr I⁻¹`` ``(...)`` (m) where ``ok``; ``+inf`` elsewhere (the
+    documented value of an unobservable position). ``sigma`` scales a geometry part
+    ``G = σ² I`` (pass the information itself with the default 1)."""
+    info = np.asarray(information, dtype=np.float64)
+    good = np.asarray(ok, dtype=bool)
+    safe = np.where(good[..., None, None], info, np.eye(3))
+    tr = np.trace(np.linalg.inv(safe), axis1=-2, axis2=-1)
+    return np.where(good, sigma * np.sqrt(np.maximum(tr, 0.0)), np.inf)
+
+
+def log_ratio_reward(sigma_pos: ArrayLike, sigma_ref: float, clip: float) -> FloatArray:
+    """``clip(ln(σ_ref / σ_pos), −R, R)`` elementwise (theory §9): ``+R`` for an exact fix
+    (``σ_pos = 0``), ``−R`` where ``σ_pos`` is ``inf`` or NaN (no fix) — always finite."""
+    s = np.asarray(sigma_pos, dtype=np.float64)
+    finite = np.isfinite(s)
+    positive = finite & (s > 0.0)
+    log_ratio = np.log(sigma_ref) - np.log(np.where(positive, s, 1.0))
+    return np.where(positive, np.clip(log_ratio, -clip, clip), np.where(finite, clip, -clip))
