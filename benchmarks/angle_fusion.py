@@ -18,6 +18,7 @@ from timing import RESULTS, best_rate, write_results
 
 from sensorgym.envs.worlds.gimbal import StraightTrajectory
 from sensorgym.envs.worlds.imaging import ImagingScene
+from sensorgym.reproduce.experiments.paper004_closed_loop import matched_model
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angles.prediction import ABCPredictor
 from sensorgym.trackers.fusion.tracker import FusionTracker
@@ -42,7 +43,7 @@ def time_angle_predictor(predictor, batch: int, frames: int, repeat: int) -> flo
 def time_fusion(batch: int, frames: int, repeat: int) -> float:
     """Best-of-``repeat`` track-steps per second of one fused update (4 channels, 48 px)."""
     scene = ImagingScene()
-    tracker = FusionTracker(scene.fusion_model())
+    tracker = FusionTracker(matched_model(scene))
     rng = np.random.default_rng(0)
     angle, views = scene.initial_world(rng, batch)
     images = scene.render(rng, angle, np.zeros(batch), views)

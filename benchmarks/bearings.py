@@ -96,7 +96,7 @@ def main() -> None:
         f"filter: RP-CKF bank ({args.members}) predict + update": lambda: range_bank_update(
             range_bank_predict(bank, 60.0, Q_TILDE), z, p, SIGMA, "ckf"
         ),
-        "world: step (platform arc + CWNA target)": lambda: step(world, actions, wparams, wrng),
+        "world: step (platform arc + CWNA target)": lambda: step(wparams, world, actions, wrng),
     }
     rows = []
     print(f"batch = {B} scenarios; scenario-steps per second (best of {args.repeat})")

@@ -1,4 +1,8 @@
-"""What every reproduction shares: the common command-line options and its output files."""
+"""What every reproduction command shares: the common command-line options and the output files.
+
+Private module (leading underscore): not a ``sensorgym reproduce`` entry of its own. The
+experiments and their report text live in :mod:`sensorgym.reproduce.experiments`.
+"""
 
 from __future__ import annotations
 
@@ -25,22 +29,6 @@ def add_common_arguments(
         parser.add_argument("--no-plots", action="store_true", help="skip the matplotlib figures")
 
 
-def format_checks(checks: list[dict]) -> list[str]:
-    """The "Targets (SPEC §8)" block: one line per check with the paper's value beside ours.
-
-    Each check is a dict with ``id``, ``status`` (matched / missed / …), ``what``, ``paper``,
-    ``ours`` and ``reason`` (why it was missed, or empty).
-    """
-    lines = ["", "Targets (SPEC §8):"]
-    for ch in checks:
-        tail = f" — {ch['reason']}" if ch["reason"] else ""
-        lines.append(
-            f"  {ch['id']:<6} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, "
-            f"ours {ch['ours']}{tail}"
-        )
-    return lines
-
-
 def write_json(out: Path, filename: str, data: Any) -> Path:
     """Write ``data`` as ``out/filename`` (creating ``out``), print and return the path."""
     out.mkdir(parents=True, exist_ok=True)
@@ -65,13 +53,3 @@ def publish(
             print(f"wrote {path}")
     if "seconds" in result:
         print(f"{result['seconds']:.1f} s")
-
-
-def save_figure(fig: Any, path: Path) -> Path:
-    """Lay out, save (120 dpi) and close a matplotlib figure; return its path."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path

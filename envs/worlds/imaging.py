@@ -1,6 +1,8 @@
 """Simulated co-boresighted imaging channels watching one object (paper 004, SPEC §6.1, §6.4).
 
-World model only; :class:`sensorgym.trackers.fusion.tracker.FusionTracker` sees the images.
+World model only: it imports no tracker. The tracker that sees these images,
+:class:`sensorgym.trackers.fusion.tracker.FusionTracker`, is run in the loop (its matched model
+and the closed-loop simulation) by :mod:`sensorgym.reproduce.experiments.paper004_closed_loop`.
 
 One tracking plane. The object's line-of-sight angle λ (mrad) follows the Gauss–Markov law (1)
 ``λ_k = R_λ λ_{k−1} + σ_λ √(1 − R_λ²) ξ_k`` with ``σ_λ = θ₀`` (angles here, so the paper's
@@ -24,7 +26,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import erf
 
-from sensorgym.trackers.fusion.tracker import FusionModel, FusionTracker
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -121,20 +122,6 @@ class ImagingScene:
         s, _ = self.templates()
         return np.sqrt(np.sum(s**2, axis=-1)) / np.asarray(self.noise_std)[:, None]
 
-    def fusion_model(self, channels: ArrayLike | None = None, **options: object) -> FusionModel:
-        """The tracker's (matched) model of these channels; ``options`` go to FusionModel."""
-        s, ds = self.templates()
-        idx = np.arange(self.channels) if channels is None else np.atleast_1d(channels)
-        return FusionModel(
-            templates=s[idx],
-            template_slopes=ds[idx],
-            noise_std=np.asarray(self.noise_std, dtype=np.float64)[idx],
-            transition=np.asarray(self.transition, dtype=np.float64)[idx],
-            correlation=self.correlation,
-            prior_std=self.theta0,
-            **options,  # type: ignore[arg-type]
-        )
-
     def stationary_views(self) -> FloatArray:
         """Stationary distribution of each channel's view chain, ``(N, M)``."""
         out = []
@@ -183,68 +170,3 @@ class ImagingScene:
         clean = s[np.arange(B)[:, None], np.arange(N)[None, :], views]  # (B, N, J)
         noise = rng.standard_normal(clean.shape) * np.asarray(self.noise_std)[None, :, None]
         return clean + noise
-
-
-@dataclass(frozen=True)
-class ClosedLoopRun:
-    """Histories of a batch of closed-loop runs, each ``(T, B)`` (frames × scenarios)."""
-
-    pointing_error: FloatArray
-    """``λ_k − a_k``: the object's offset from the optical axis when frame k is taken (mrad)."""
-    estimate_error: FloatArray
-    """``λ_k − λ̂_k`` after the update (mrad)."""
-    variance: FloatArray
-    """The tracker's posterior variance ``d_k`` (mrad²)."""
-    loop_open: NDArray[np.bool_]
-    """True where the tracker coasted (no channel held the object)."""
-    visible_channels: NDArray[np.int64]
-    """Number of channels whose true view is not the background."""
-    view_accuracy: FloatArray
-    """Fraction of channels whose MAP view ``argmax P_k(ϑ)`` is the true view."""
-
-    def lost(self, limit: float, frames: int) -> NDArray[np.bool_]:
-        """``(B,)``: True where ``|λ − a| > limit`` for at least ``frames`` consecutive frames."""
-        out = np.abs(self.pointing_error) > limit
-        run = np.zeros(out.shape[1], dtype=np.int64)
-        lost = np.zeros(out.shape[1], dtype=bool)
-        for row in out:
-            run = np.where(row, run + 1, 0)
-            lost |= run >= frames
-        return lost
-
-
-def simulate_closed_loop(
-    scene: ImagingScene,
-    tracker: FusionTracker,
-    rng: np.random.Generator,
-    batch_size: int,
-    frames: int,
-    channels: ArrayLike | None = None,
-) -> ClosedLoopRun:
-    """Run the tracker in closed loop on ``batch_size`` independent scenarios for ``frames``.
-
-    Each frame: the axis is pointed at ``tracker.command(state)``, the world advances, the
-    images of ``channels`` (default all; the tracker's model must describe the same channels)
-    are rendered and the tracker updates.
-    """
-    idx = np.arange(scene.channels) if channels is None else np.atleast_1d(channels)
-    if tracker.model.channels != idx.size:
-        raise ValueError("channels: the tracker's model describes a different number of channels")
-    angle, views = scene.initial_world(rng, batch_size)
-    # the operator designates the object on the axis to within about one pixel
-    state = tracker.initial_state(batch_size, variance=scene.pixel_pitch**2)
-    hist: dict[str, list[FloatArray]] = {k: [] for k in ClosedLoopRun.__dataclass_fields__}
-    for _ in range(frames):
-        axis = tracker.command(state)
-        angle, views = scene.step_world(rng, angle, views)
-        images = scene.render(rng, angle, axis, views)[:, idx]
-        state = tracker.update(state, images)
-        hist["pointing_error"].append(angle - axis)
-        hist["estimate_error"].append(angle - state.estimate)
-        hist["variance"].append(state.variance)
-        hist["loop_open"].append(state.loop_open)
-        hist["visible_channels"].append(np.sum(views[:, idx] > 0, axis=1))
-        hist["view_accuracy"].append(
-            np.mean(np.argmax(state.view_posterior, axis=-1) == views[:, idx], axis=1)
-        )
-    return ClosedLoopRun(**{k: np.stack(v) for k, v in hist.items()})

@@ -1,10 +1,5 @@
-"""A manoeuvring platform taking bearings on a moving target — the bearings-only world model.
+"""The platform/target world of bearings-only tracking: kinematics and bearings.
 
-The simulation core the platform-manoeuvre environments wrap (Gymnasium, PettingZoo,
-heuristics). Pure functions over frozen, batched values: leading axis = scenario.
-
-Description
------------
 A 2-D platform (position, heading, speed) is commanded each step by a heading-rate and a
 speed change; a target moves with nearly constant velocity (continuous white-noise
 acceleration of intensity ``q̃``); the platform measures the absolute bearing of the target
@@ -13,6 +8,25 @@ platform manoeuvres (SPEC §4, §7 OC-5).
 
 Frame: ``x`` East, ``y`` North (m); heading from North clockwise (rad), so the platform
 velocity is ``v (sin ψ, cos ψ)``.
+
+The world model, over any leading shape of arrays
+--------------------------------------------------
+:class:`PlatformWorldParams` (limits, sampling interval, noise), :func:`fly` (the platform
+over one step), :func:`propagate_target` (the target over one step: the exact discretisation
+``x' = F x + w``, ``w ~ N(0, Q)`` of the CWNA model, :mod:`sensorgym.trackers.bearings.models`)
+and :func:`noisy_bearings`. The platform-manoeuvre environments' simulation,
+:mod:`sensorgym.envs.bearings_maneuver.simulation`, builds on these four with its own state,
+tracker and reward.
+
+Open-loop trajectories
+----------------------
+:class:`PlatformWorldState` (one batched state, leading axis = scenario), ``step(params,
+state, action, rng=None)``, ``rollout(params, state, actions, rng=None)`` →
+:class:`PlatformTrajectory` and :func:`true_bearings`: what the reproductions
+(:mod:`sensorgym.reproduce.experiments.paper002`,
+:mod:`sensorgym.reproduce.experiments.bot_benchmark`) and ``benchmarks/bearings.py`` use to
+record trajectories for estimators and bounds. Pure functions over frozen values; ``rng`` is
+needed only when ``q̃ > 0``.
 
 Action (per scenario, shape ``(B, 2)``)
 --------------------------------------
@@ -24,15 +38,6 @@ Action (per scenario, shape ``(B, 2)``)
 
 The speed change takes effect at the start of the step; the heading rate is held for the
 whole step, and the platform flies the exact circular arc.
-
-Step
-----
-``step(state, action, params, rng) -> state`` advances time by ``params.dt``. The target is
-propagated with the exact discretisation ``x' = F x + w``, ``w ~ N(0, Q)`` of the CWNA model
-(:mod:`sensorgym.trackers.bearings.models`); ``rng`` is needed only when ``q̃ > 0``.
-Bearings are drawn separately by :func:`measure_bearings` with an explicit generator.
-:func:`where` swaps freshly reset scenarios into a batch (each scenario keeps its own clock);
-:func:`rollout` records an open-loop trajectory for estimators and bounds.
 """
 
 from __future__ import annotations
@@ -94,7 +99,7 @@ class PlatformWorldState:
 
     t: FloatArray
     """Time ``(B,)`` (s) of each scenario (a scalar is broadcast). The dynamics are
-    time-invariant, so scenarios may run on their own clocks (vector-env autoreset)."""
+    time-invariant, so scenarios may run on their own clocks."""
     platform_position: FloatArray
     """Platform position ``(B, 2)`` East, North (m)."""
     heading: FloatArray
@@ -137,28 +142,6 @@ class PlatformWorldState:
     def platform_velocity(self) -> FloatArray:
         """Platform velocity ``v (sin ψ, cos ψ)`` ``(B, 2)`` (m/s)."""
         return self.speed[:, None] * np.stack([np.sin(self.heading), np.cos(self.heading)], -1)
-
-    @property
-    def relative_position(self) -> FloatArray:
-        """Target minus platform position ``(B, 2)`` (m)."""
-        return self.target[:, :2] - self.platform_position
-
-    @property
-    def range(self) -> FloatArray:
-        """Platform–target range ``(B,)`` (m)."""
-        return np.hypot(*self.relative_position.T)
-
-
-def clip_action(
-    action: ArrayLike, state: PlatformWorldState, params: PlatformWorldParams
-) -> FloatArray:
-    """Action ``(B, 2)`` clipped to the turn-rate, speed-change and speed limits.
-
-    Column 1 of the result is the speed change actually applied (after the speed limits).
-    """
-    a = finite_array(action, "action", tail=(2,))
-    a = np.broadcast_to(a, (state.batch_size, 2))
-    return _clip_command(a, state.speed, params)
 
 
 def _clip_command(a: FloatArray, speed: FloatArray, params: PlatformWorldParams) -> FloatArray:
@@ -205,9 +188,9 @@ def propagate_target(
 
 
 def step(
+    params: PlatformWorldParams,
     state: PlatformWorldState,
     action: ArrayLike,
-    params: PlatformWorldParams,
     rng: np.random.Generator | None = None,
 ) -> PlatformWorldState:
     """Advance every scenario by ``params.dt`` under ``action`` (see the module docstring)."""
@@ -222,30 +205,9 @@ def step(
     )
 
 
-def where(mask: ArrayLike, new: PlatformWorldState, old: PlatformWorldState) -> PlatformWorldState:
-    """Scenario-wise select: ``new`` where ``mask`` ``(B,)`` is True, else ``old`` (autoreset)."""
-    m = np.asarray(mask, dtype=bool)
-    if m.shape != (old.batch_size,) or new.batch_size != old.batch_size:
-        raise ValueError(f"mask: expected shape ({old.batch_size},) and equal batch sizes")
-    return PlatformWorldState(
-        t=np.where(m, new.t, old.t),
-        platform_position=np.where(m[:, None], new.platform_position, old.platform_position),
-        heading=np.where(m, new.heading, old.heading),
-        speed=np.where(m, new.speed, old.speed),
-        target=np.where(m[:, None], new.target, old.target),
-    )
-
-
 def true_bearings(state: PlatformWorldState) -> FloatArray:
     """Noise-free absolute bearings ``(B,)`` (rad, from North clockwise)."""
     return bearing(state.target[:, :2], state.platform_position)
-
-
-def measure_bearings(
-    state: PlatformWorldState, params: PlatformWorldParams, rng: np.random.Generator
-) -> FloatArray:
-    """Noisy bearings ``z = wrap(β + σ ε)``, ``ε ~ N(0, 1)``, shape ``(B,)`` (rad)."""
-    return noisy_bearings(state.target[:, :2], state.platform_position, params.sigma_bearing, rng)
 
 
 def noisy_bearings(
@@ -274,9 +236,9 @@ class PlatformTrajectory:
 
 
 def rollout(
+    params: PlatformWorldParams,
     state: PlatformWorldState,
     actions: ArrayLike,
-    params: PlatformWorldParams,
     rng: np.random.Generator | None = None,
 ) -> PlatformTrajectory:
     """Apply ``actions`` ``(K−1, B, 2)`` (or ``(K−1, 2)``, shared); record ``K`` states.
@@ -288,7 +250,7 @@ def rollout(
         raise ValueError("state: rollout needs all scenarios on one clock (equal t)")
     states = [state]
     for k in range(acts.shape[0]):
-        states.append(step(states[-1], acts[k], params, rng))
+        states.append(step(params, states[-1], acts[k], rng))
     return PlatformTrajectory(
         t=np.array([s.t[0] for s in states]),
         platform_position=np.stack([s.platform_position for s in states], axis=1),

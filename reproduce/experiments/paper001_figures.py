@@ -1,4 +1,5 @@
-"""Figures of ``sensorgym reproduce paper001``: pure functions of the result dict.
+"""Figures of ``sensorgym reproduce paper001``: pure functions of the result dict of
+:func:`sensorgym.reproduce.experiments.paper001.reproduce`.
 
 matplotlib (Agg backend) is imported inside :func:`write_figures`, so the reproduction's numbers
 never depend on a plotting installation.
@@ -11,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from sensorgym.envs.worlds.gimbal import StraightTrajectory
-from sensorgym.reproduce._common import save_figure
+from sensorgym.reproduce.experiments.reporting import save_figure
 
 
 def write_figures(result: dict, out: Path) -> list[Path]:

@@ -1,4 +1,5 @@
-"""Figures of ``sensorgym reproduce paper004``: pure functions of the result dict.
+"""Figures of ``sensorgym reproduce paper004``: pure functions of the result dict of
+:func:`sensorgym.reproduce.experiments.paper004.reproduce`.
 
 matplotlib (Agg backend) is imported inside :func:`write_figures`, so the reproduction's numbers
 never depend on a plotting installation.
@@ -10,9 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorgym.reproduce._common import save_figure
-
-FORMS = ("mixture", "information")
+from sensorgym.reproduce.experiments.paper004 import FORMS
+from sensorgym.reproduce.experiments.reporting import save_figure
 
 
 def write_figures(result: dict, out: Path) -> list[Path]:

@@ -10,12 +10,10 @@ import pytest
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
     PlatformWorldState,
-    clip_action,
-    measure_bearings,
+    noisy_bearings,
     rollout,
     step,
     true_bearings,
-    where,
 )
 from sensorgym.trackers.bearings.models import cwna_covariance
 
@@ -27,7 +25,7 @@ def _state(B: int = 3, heading: float = 0.0, speed: float = 10.0) -> PlatformWor
 
 def test_straight_line_and_bearing_convention():
     params = PlatformWorldParams(dt=10.0)
-    s = step(_state(1, heading=np.pi / 2), [[0.0, 0.0]], params)  # due East
+    s = step(params, _state(1, heading=np.pi / 2), [[0.0, 0.0]])  # due East
     np.testing.assert_allclose(s.platform_position, [[100.0, 0.0]], atol=1e-12)
     np.testing.assert_allclose(s.target[0], [970.0, 5010.0, -3.0, 1.0])
     probe = dataclasses.replace(s, target=np.array([[100.0, 50.0, 0.0, 0.0]]))
@@ -40,7 +38,7 @@ def test_constant_turn_flies_exact_circle():
     # 90° turn over one step at constant rate: quarter circle of radius v/ω
     params = PlatformWorldParams(dt=90.0, max_turn_rate=np.deg2rad(1.0))
     omega = np.deg2rad(1.0)
-    s = step(_state(1, heading=0.0, speed=10.0), [[omega, 0.0]], params)
+    s = step(params, _state(1, heading=0.0, speed=10.0), [[omega, 0.0]])
     R = 10.0 / omega
     np.testing.assert_allclose(s.platform_position[0], [R, R], rtol=1e-12)
     np.testing.assert_allclose(s.heading, [np.pi / 2])
@@ -48,7 +46,7 @@ def test_constant_turn_flies_exact_circle():
     params_small = dataclasses.replace(params, dt=1.0)
     s2 = _state(1, heading=0.0, speed=10.0)
     for _ in range(90):
-        s2 = step(s2, [[omega, 0.0]], params_small)
+        s2 = step(params_small, s2, [[omega, 0.0]])
     np.testing.assert_allclose(s2.platform_position, s.platform_position, rtol=1e-9)
 
 
@@ -57,37 +55,37 @@ def test_action_limits_are_enforced():
         dt=1.0, max_turn_rate=0.1, min_speed=2.0, max_speed=12.0, max_speed_change=1.0
     )
     s = _state(3, speed=11.5)
-    a = clip_action([[1.0, 5.0], [-1.0, -5.0], [0.05, 0.2]], s, params)
-    np.testing.assert_allclose(a, [[0.1, 0.5], [-0.1, -1.0], [0.05, 0.2]])
-    slow = _state(1, speed=2.5)
-    np.testing.assert_allclose(clip_action([[0.0, -1.0]], slow, params), [[0.0, -0.5]])
-    s2 = step(s, [[1.0, 5.0], [-1.0, -5.0], [0.05, 0.2]], params)
+    s2 = step(params, s, [[1.0, 5.0], [-1.0, -5.0], [0.05, 0.2]])
     np.testing.assert_allclose(s2.speed, [12.0, 10.5, 11.7])
+    # the turn rate is clipped to ±0.1 rad/s over the 1-s step
+    np.testing.assert_allclose(s2.heading, [0.1, -0.1, 0.05])
+    slow = step(params, _state(1, speed=2.5), [[0.0, -1.0]])
+    np.testing.assert_allclose(slow.speed, [2.0])
 
 
 def test_target_noise_matches_cwna_covariance():
     params = PlatformWorldParams(dt=60.0, q_tilde=1e-3)
     rng = np.random.default_rng(1)
     s0 = _state(40_000)
-    s1 = step(s0, [[0.0, 0.0]], params, rng)
+    s1 = step(params, s0, [[0.0, 0.0]], rng)
     d = s1.target - np.array([1000.0 - 180.0, 5060.0, -3.0, 1.0])
     C = np.cov(d.T)
     Q = cwna_covariance(60.0, 1e-3)
     np.testing.assert_allclose(np.diag(C), np.diag(Q), rtol=0.03)
     np.testing.assert_allclose(C[0, 2] / np.sqrt(Q[0, 0] * Q[2, 2]), np.sqrt(3) / 2, atol=0.02)
     with pytest.raises(ValueError, match="rng"):
-        step(s0, [[0.0, 0.0]], params)
+        step(params, s0, [[0.0, 0.0]])
 
 
 def test_measurement_noise_and_seed_determinism():
-    params = PlatformWorldParams(sigma_bearing=np.deg2rad(2.0))
+    sigma = np.deg2rad(2.0)
     s = _state(50_000)
-    z1 = measure_bearings(s, params, np.random.default_rng(7))
-    z2 = measure_bearings(s, params, np.random.default_rng(7))
+    z1 = noisy_bearings(s.target[:, :2], s.platform_position, sigma, np.random.default_rng(7))
+    z2 = noisy_bearings(s.target[:, :2], s.platform_position, sigma, np.random.default_rng(7))
     np.testing.assert_array_equal(z1, z2)
     err = z1 - true_bearings(s)
-    assert abs(np.std(err) / params.sigma_bearing - 1.0) < 0.02
-    assert abs(np.mean(err)) < 4 * params.sigma_bearing / np.sqrt(err.size)
+    assert abs(np.std(err) / sigma - 1.0) < 0.02
+    assert abs(np.mean(err)) < 4 * sigma / np.sqrt(err.size)
 
 
 def test_batched_rollout_equals_looped():
@@ -100,29 +98,23 @@ def test_batched_rollout_equals_looped():
         0.0, rng.normal(size=(B, 2)), heads, np.full(B, 8.0), rng.normal(size=(B, 4)) * 1e3
     )
     params0 = dataclasses.replace(params, q_tilde=0.0)
-    batched = rollout(s0, actions, params0)
+    batched = rollout(params0, s0, actions)
     for b in range(B):
         sb = PlatformWorldState(
             0.0, s0.platform_position[b : b + 1], heads[b : b + 1], s0.speed[b : b + 1],
             s0.target[b : b + 1],
         )  # fmt: skip
-        one = rollout(sb, actions[:, b : b + 1], params0)
+        one = rollout(params0, sb, actions[:, b : b + 1])
         np.testing.assert_allclose(one.platform_position[0], batched.platform_position[b])
         np.testing.assert_allclose(one.target[0], batched.target[b])
 
 
-def test_where_resets_selected_scenarios_on_their_own_clock():
+def test_scenarios_keep_their_own_clocks_but_rollout_needs_one():
     params = PlatformWorldParams(dt=10.0)
-    old = step(_state(3), [[0.0, 0.0]] * 3, params)
-    fresh = _state(3, heading=1.0, speed=3.0)
-    mixed = where([True, False, True], fresh, old)
-    np.testing.assert_array_equal(mixed.t, [0.0, 10.0, 0.0])
-    np.testing.assert_array_equal(mixed.speed, [3.0, 10.0, 3.0])
-    np.testing.assert_array_equal(mixed.platform_position[1], old.platform_position[1])
-    nxt = step(mixed, [[0.0, 0.0]] * 3, params)
-    np.testing.assert_array_equal(nxt.t, [10.0, 20.0, 10.0])
+    s = dataclasses.replace(_state(3), t=np.array([0.0, 10.0, 0.0]))
+    np.testing.assert_array_equal(step(params, s, [[0.0, 0.0]] * 3).t, [10.0, 20.0, 10.0])
     with pytest.raises(ValueError, match="one clock"):
-        rollout(mixed, np.zeros((2, 2)), params)
+        rollout(params, s, np.zeros((2, 2)))
 
 
 def test_invalid_inputs_raise():
@@ -133,4 +125,4 @@ def test_invalid_inputs_raise():
     with pytest.raises(ValueError, match="heading"):
         PlatformWorldState(0.0, np.zeros((2, 2)), np.zeros(3), np.zeros(2), np.zeros((2, 4)))
     with pytest.raises(ValueError, match="action"):
-        step(_state(2), [[np.nan, 0.0], [0.0, 0.0]], PlatformWorldParams())
+        step(PlatformWorldParams(), _state(2), [[np.nan, 0.0], [0.0, 0.0]])

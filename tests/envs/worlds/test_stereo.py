@@ -1,4 +1,4 @@
-"""The simulated stereo world: geometry, raster timing, noise, detection (envs/stereo_world)."""
+"""The simulated stereo world: geometry, raster timing, noise, detection (envs/worlds/stereo)."""
 
 import numpy as np
 import pytest

@@ -237,7 +237,8 @@ def test_rt7_noisy_paper_example_errors_and_ranking() -> None:
 
 
 def test_reproduction_runs_and_meets_its_targets(tmp_path) -> None:
-    from sensorgym.reproduce.paper001 import format_report, reproduce, write_figures
+    from sensorgym.reproduce.experiments.paper001 import format_report, reproduce
+    from sensorgym.reproduce.experiments.paper001_figures import write_figures
 
     result = reproduce(runs=6, seed=1, loss_frame=120, gate=100, turn_rates_deg=(0.02,))
     assert {c["id"]: c["status"] for c in result["checks"]} == {

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorgym.reproduce.bot_benchmark import BotScenario
+from sensorgym.reproduce.experiments.bot_benchmark import BotScenario
 from sensorgym.trackers.bearings.crlb import (
     add_bearing_information,
     batch_information,
@@ -151,7 +151,7 @@ def test_pcrlb_batched_over_candidate_trajectories_equals_looped():
 
 def test_textbook_pcrlb_shape():
     # Ristic ch. 6 geometry: the bound stays near the 2 km prior until the manoeuvre, then drops
-    from sensorgym.reproduce.bot_benchmark import pcrlb_position, simulate
+    from sensorgym.reproduce.experiments.bot_benchmark import pcrlb_position, simulate
 
     scn = BotScenario()
     sim = simulate(scn, 50, np.random.default_rng(0))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from sensorgym.reproduce.bot_benchmark import (
+from sensorgym.reproduce.experiments.bot_benchmark import (
     BotScenario,
     bank_prior_for,
     prior_for,
@@ -34,7 +34,7 @@ SCN = BotScenario()
 
 def _noise_free(n=3):
     sim = simulate(SCN, n, np.random.default_rng(0), q_tilde=0.0)
-    from sensorgym.reproduce.bot_benchmark import true_bearings_along
+    from sensorgym.reproduce.experiments.bot_benchmark import true_bearings_along
 
     return sim, true_bearings_along(sim.trajectory)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorgym.reproduce.paper002 import Paper002Scenario, ideal_result, noisy_result
+from sensorgym.reproduce.experiments.paper002 import Paper002Scenario, ideal_result, noisy_result
 from sensorgym.trackers.bearings.four_bearings import (
     block_base_bearings,
     fictitious_bearing_fix,

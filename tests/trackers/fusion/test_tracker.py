@@ -8,7 +8,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from sensorgym.envs.worlds.imaging import ImagingScene, simulate_closed_loop
+from sensorgym.envs.worlds.imaging import ImagingScene
+from sensorgym.reproduce.experiments.paper004_closed_loop import (
+    matched_model,
+    simulate_closed_loop,
+)
 from sensorgym.trackers.fusion.tracker import FusionModel, FusionTracker
 from sensorgym.trackers.fusion.variance import stationary_relative_variance
 
@@ -27,7 +31,7 @@ def always_visible_scene(contrast: float, correlation: float) -> ImagingScene:
 
 def test_batched_update_equals_one_at_a_time() -> None:
     rng = np.random.default_rng(5)
-    tracker = FusionTracker(SCENE.fusion_model())
+    tracker = FusionTracker(matched_model(SCENE))
     B = 4
     state = tracker.initial_state(B, estimate=rng.normal(size=B))
     states = [tracker.initial_state(1, estimate=state.estimate[b]) for b in range(B)]
@@ -45,7 +49,7 @@ def test_batched_update_equals_one_at_a_time() -> None:
 
 
 def test_uniform_transitions_reduce_to_the_printed_softmax_eq8() -> None:
-    base = SCENE.fusion_model(gaussian_factor=False)
+    base = matched_model(SCENE, gaussian_factor=False)
     M = base.views
     model = FusionModel(
         base.templates,
@@ -72,7 +76,7 @@ def test_single_visible_channel_is_a_consistent_kalman_loop() -> None:
     # is linearised, so the match needs innovations small against the blurred edge: R = 0.999
     # (per-frame motion 0.22 mrad). At R = 0.99 (0.7 mrad) the error variance is ≈ 1.27 d.
     scene = always_visible_scene(contrast=4.0, correlation=0.999)
-    model = scene.fusion_model()
+    model = matched_model(scene)
     tracker = FusionTracker(model)
     run = simulate_closed_loop(scene, tracker, np.random.default_rng(21), 400, 150)
     I = model.fisher_information[0, 1]
@@ -99,7 +103,7 @@ def test_filter_variance_follows_the_mixture_form_of_eq11() -> None:
         transition=np.array([[[1.0 - P, P], [1.0 - P, P]]]),
         correlation=R,
     )
-    model = scene.fusion_model()
+    model = matched_model(scene)
     z2 = model.fisher_information[0, 1] * scene.theta0**2
     run = simulate_closed_loop(scene, FusionTracker(model), np.random.default_rng(6), 150, 300)
     kept = ~run.lost(0.5 * scene.object_size, 5)
@@ -114,7 +118,7 @@ def test_filter_variance_follows_the_mixture_form_of_eq11() -> None:
 
 
 def test_loop_opens_when_no_channel_sees_the_object() -> None:
-    model = SCENE.fusion_model()
+    model = matched_model(SCENE)
     tracker = FusionTracker(model)
     state = tracker.initial_state(2, estimate=[1.0, -2.0], variance=0.3)
     empty = np.zeros((2, model.channels, SCENE.pixels))
@@ -133,7 +137,7 @@ def test_loop_opens_when_no_channel_sees_the_object() -> None:
 def test_transition_probabilities_stabilise_the_view_decisions() -> None:
     # SPEC §6.2: weighting by transition probabilities rejects appearance changes the object's
     # inertia forbids. Same worlds (common random numbers), MAP view accuracy after lock-on.
-    model = SCENE.fusion_model()
+    model = matched_model(SCENE)
     uniform = replace(model, transition=np.full_like(model.transition, 1.0 / model.views))
     acc = {}
     for name, mdl in (("chain", model), ("uniform", uniform)):
@@ -145,7 +149,7 @@ def test_transition_probabilities_stabilise_the_view_decisions() -> None:
 
 
 def test_model_validation() -> None:
-    model = SCENE.fusion_model()
+    model = matched_model(SCENE)
     with pytest.raises(ValueError, match="background"):
         FusionModel(
             model.templates[:, ::-1], model.template_slopes, model.noise_std, model.transition
@@ -172,14 +176,14 @@ def test_several_weak_channels_keep_lock_that_no_single_channel_holds() -> None:
     runs, frames = 120, 300
     limit = 0.5 * SCENE.object_size
     fused = simulate_closed_loop(
-        SCENE, FusionTracker(SCENE.fusion_model()), np.random.default_rng(77), runs, frames
+        SCENE, FusionTracker(matched_model(SCENE)), np.random.default_rng(77), runs, frames
     )
     fused_lost = fused.lost(limit, 5).mean()
     single_lost = []
     for n in range(SCENE.channels):
         one = simulate_closed_loop(
             SCENE,
-            FusionTracker(SCENE.fusion_model(channels=[n])),
+            FusionTracker(matched_model(SCENE, channels=[n])),
             np.random.default_rng(77),
             runs,
             frames,
@@ -192,7 +196,8 @@ def test_several_weak_channels_keep_lock_that_no_single_channel_holds() -> None:
 
 
 def test_reproduction_runs_and_reports_its_targets(tmp_path) -> None:
-    from sensorgym.reproduce.paper004 import format_report, reproduce, write_figures
+    from sensorgym.reproduce.experiments.paper004 import format_report, reproduce
+    from sensorgym.reproduce.experiments.paper004_figures import write_figures
 
     result = reproduce(runs=40, frames=150, seed=3)
     status = {(c["id"], c["what"]): c["status"] for c in result["checks"]}

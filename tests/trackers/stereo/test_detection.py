@@ -6,7 +6,11 @@ import pytest
 from sensorgym.envs.worlds.drones import Trajectories
 from sensorgym.envs.worlds.scanning import RasterScan
 from sensorgym.envs.worlds.stereo import DetectionModel, NoiseModel, ReceiverLayout, simulate
-from sensorgym.reproduce.paper003 import Scenario003, algebraic_accuracy, algorithmic_cell
+from sensorgym.reproduce.experiments.paper003 import (
+    Scenario003,
+    algebraic_accuracy,
+    algorithmic_cell,
+)
 from sensorgym.trackers.stereo.algebraic_detection import (
     AlgebraicParams,
     algebraic_multi,
@@ -242,7 +246,7 @@ def test_batched_continuation_equals_group_by_group():
 
 
 def test_reproduction_runs_end_to_end_and_reports_every_target():
-    from sensorgym.reproduce.paper003 import format_report, reproduce
+    from sensorgym.reproduce.experiments.paper003 import format_report, reproduce
 
     res = reproduce(runs=3, algorithmic_runs=2, jobs=1)
     assert {c["id"] for c in res["checks"]} == {"RT-10", "RT-11", "RT-12", "RT-13", "ext"}

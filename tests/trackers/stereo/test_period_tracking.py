@@ -5,7 +5,7 @@ import pytest
 
 from sensorgym.envs.worlds.drones import Trajectories
 from sensorgym.envs.worlds.stereo import FixedDelay, NoiseModel, ReceiverLayout, simulate
-from sensorgym.reproduce.paper000 import Scenario000, run_cell
+from sensorgym.reproduce.experiments.paper000 import Scenario000, run_cell
 from sensorgym.trackers.stereo.conjugation import solve_proposed
 from sensorgym.trackers.stereo.period_tracking import (
     AlternativeParams,
@@ -122,7 +122,7 @@ def test_at10_alternative_ratio_and_detection_trend():
 
 
 def test_reproduction_does_not_depend_on_worker_count():
-    from sensorgym.reproduce.paper000 import reproduce
+    from sensorgym.reproduce.experiments.paper000 import reproduce
 
     one = reproduce(runs=4, seed=1, jobs=1)
     two = reproduce(runs=4, seed=1, jobs=2)

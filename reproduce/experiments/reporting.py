@@ -1,0 +1,32 @@
+"""What every reproduction report shares: the block of target checks and figure saving."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+
+def format_checks(checks: list[dict]) -> list[str]:
+    """The "Targets (SPEC §8)" block: one line per check with the paper's value beside ours.
+
+    Each check is a dict with ``id``, ``status`` (matched / missed / …), ``what``, ``paper``,
+    ``ours`` and ``reason`` (why it was missed, or empty).
+    """
+    lines = ["", "Targets (SPEC §8):"]
+    for ch in checks:
+        tail = f" — {ch['reason']}" if ch["reason"] else ""
+        lines.append(
+            f"  {ch['id']:<6} {ch['status']:<8} {ch['what']}: paper {ch['paper']}, "
+            f"ours {ch['ours']}{tail}"
+        )
+    return lines
+
+
+def save_figure(fig: Any, path: Path) -> Path:
+    """Lay out, save (120 dpi) and close a matplotlib figure; return its path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
