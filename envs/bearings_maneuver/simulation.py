@@ -10,7 +10,7 @@ One step (``params.world.dt`` seconds):
 
 1. the action ``a ∈ [−1, 1]²`` becomes a heading-rate command ``a₀·ω_max`` and a speed change
    ``a₁·Δv_max``; the platform flies the exact arc, the target moves on
-   (:func:`sensorgym.envs.worlds.platform.step`);
+   (:func:`sensorgym.envs.worlds.platform.fly`, :func:`~sensorgym.envs.worlds.platform.propagate_target`);
 2. the platform measures a noisy bearing and the range-parameterised EKF bank updates on it
    (:mod:`sensorgym.trackers.bearings.filters`): this estimate is all the agent sees;
 3. the reward is the gain in accuracy of the best possible estimate: the posterior Cramér–Rao

@@ -59,7 +59,7 @@ class StereoPlacementEnv(CoreEnv):
 
     ``clip(ln(σ_ref / σ_pos), −R, R)`` per step with ``σ_pos = √tr I⁻¹``,
     ``I = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` the angle-noise Cramér–Rao bound of the true
-    geometry at the fix times (``position_crlb``; no noise draw in it, so the reward scores
+    geometry at the fix times (:mod:`sensorgym.trackers.stereo.information`; no noise draw in it, so the reward scores
     the placement, not the luck of the period). A degenerate conjugation — the tracker's solve
     took the pseudo-inverse fallback, or the noise-free solve of the true geometry would
     (coplanar lines of sight, equal delays) — or singular information gives ``−R``.

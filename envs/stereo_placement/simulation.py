@@ -21,7 +21,7 @@ straight level line. One step is one scan period ``τ``:
 3. the reward is ``clip(ln(σ_ref / σ_pos), −R, R)`` with ``σ_pos = √tr I(M)⁻¹`` the
    angle-noise Cramér–Rao bound of the period's true geometry,
    ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` (``u_k``, ``r_k`` the lines of sight and ranges
-   at the fix times, :func:`~sensorgym.trackers.stereo.accuracy.position_crlb`); ``−R`` when
+   at the fix times, :mod:`sensorgym.trackers.stereo.information`); ``−R`` when
    the information is singular or the conjugation degenerate: the tracker's solve took the
    pseudo-inverse fallback (``used_pinv``), or the noise-free solve of the true geometry would
    (coplanar lines of sight, equal delays — the bound of the position alone cannot see that

@@ -53,7 +53,7 @@ class StereoPointingEnv(CoreEnv):
 
     Mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)``, with ``σ_pos = √tr I⁻¹`` and
     ``I = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` over the receivers that see the drone now
-    (``position_crlb``, true geometry). A drone seen by fewer than two receivers gives ``−R``.
+    (:mod:`sensorgym.trackers.stereo.information`, true geometry). A drone seen by fewer than two receivers gives ``−R``.
     Defaults ``σ_ref = 1 m``, ``R = 5``: +2.3 per step is a 10 cm fix.
 
     ## Starting State

@@ -23,7 +23,7 @@ One step (``params.dt`` seconds):
 4. the reward is the mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)`` with
    ``σ_pos = √tr I(M)⁻¹`` the Cramér–Rao bound of the receivers that see the drone now, at the
    true geometry: ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ² r_k²)``
-   (:func:`~sensorgym.trackers.stereo.accuracy.position_crlb`); fewer than two views (or
+   (:mod:`sensorgym.trackers.stereo.information`); fewer than two views (or
    parallel lines of sight) give ``−R``. The bound has no noise draw in it: the reward depends
    only on where the receivers point, and it favours near-orthogonal pairs (SPEC §7 OC-1).
 """

@@ -97,7 +97,7 @@ def test_cross_bearings_make_range_observable_without_manoeuvres():
 def test_observations_place_the_other_platforms_in_the_own_frame():
     env = bearings_maneuver_pz.parallel_env(platforms=3)
     obs, _ = env.reset(seed=2)
-    state = env._state
+    state = env.simulator_state
     for k in range(3):
         others = obs[f"platform_{k}"][10:].reshape(2, 2) * env.params.range_scale
         dist = np.linalg.norm(others, axis=1)

@@ -52,7 +52,8 @@ FloatArray = NDArray[np.float64]
 @dataclass(frozen=True)
 class FusionModel:
     """What the tracker knows about the channels and the motion (shapes: N channels, M views,
-    J pixels per image). Build from a world with e.g. ``ImagingScene.fusion_model()``.
+    J pixels per image). Build one matched to a simulated world with
+    ``sensorgym.reproduce.experiments.paper004_closed_loop.matched_model(scene)``.
 
     All channels share M and J. A channel with fewer views is padded with unreachable views
     (zero template, zero transition probability into them): their posterior is zero from the

@@ -178,7 +178,7 @@ def match_tracks(distance: FloatArray, gate: float) -> IntArray:
 
 
 class Fixes(Protocol):
-    """One receiver's report for one period, as the trackers read it (see ``envs.stereo_world``)."""
+    """One receiver's report for one period, as the trackers read it (see ``sensorgym.envs.worlds.stereo``)."""
 
     directions: FloatArray
     """(m_k, 3) unit direction vectors in the receiver's own frame."""

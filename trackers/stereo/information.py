@@ -1,6 +1,6 @@
 """Position information from lines of sight: the maths every stereo env, rule and tracker shares.
 
-Angle-noise model (theory §2.7): receiver ``k`` measures the line of sight ``u_k`` to a point
+Angle-noise model (theory §4.1–4.3): receiver ``k`` measures the line of sight ``u_k`` to a point
 ``M`` at range ``r_k`` with isotropic angular noise ``σ_k``. The Fisher information of ``M`` is
 
     I(M) = Σ_k m_k (I − u_k u_kᵀ) / (σ_k² r_k²)
@@ -76,7 +76,7 @@ def position_sigma(information: ArrayLike, ok: ArrayLike, sigma: float = 1.0) ->
 
 
 def log_ratio_reward(sigma_pos: ArrayLike, sigma_ref: float, clip: float) -> FloatArray:
-    """``clip(ln(σ_ref / σ_pos), −R, R)`` elementwise (theory §9): ``+R`` for an exact fix
+    """``clip(ln(σ_ref / σ_pos), −R, R)`` elementwise (theory §11.1): ``+R`` for an exact fix
     (``σ_pos = 0``), ``−R`` where ``σ_pos`` is ``inf`` or NaN (no fix) — always finite."""
     s = np.asarray(sigma_pos, dtype=np.float64)
     finite = np.isfinite(s)
