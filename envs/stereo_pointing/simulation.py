@@ -44,13 +44,13 @@ from sensorgym.trackers.stereo.information import (
     observable,
     position_information,
     position_sigma,
+    weighted_fix,
 )
 from sensorgym.trackers.stereo.kalman import (
     CVTrack,
     cv_predict,
     cv_prior,
     cv_update,
-    masked_fix,
 )
 from sensorgym.trackers.validation import finite_array
 
@@ -321,7 +321,7 @@ def step(
     z = perturb_directions(u, params.sigma_ang, rng) if params.sigma_ang > 0.0 else u
     # per drone: (B, m, n, ...) views
     origins = np.broadcast_to(params.receiver_positions[None, None], (B, params.n_drones, n, 3))
-    fix, G_fix, ok_fix = masked_fix(origins, np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2))
+    fix, G_fix, ok_fix = weighted_fix(origins, np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2))
     track = cv_predict(state.track, params.dt, params.process_noise)
     # R = σ² G⁻¹ at the fix's own ranges
     R = params.sigma_ang**2 * np.linalg.inv(np.where(ok_fix[..., None, None], G_fix, np.eye(3)))

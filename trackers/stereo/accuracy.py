@@ -178,16 +178,7 @@ def triangulate_ml(
     u = unit_vectors(los, "los")
     if iterations < 1:
         raise ValueError("iterations: must be at least 1")
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    r = np.ones(np.broadcast_shapes(o.shape[:-1], u.shape[:-1]))
-    for _ in range(iterations):
-        info = position_information(u, r, np.broadcast_to(sigma_ang, r.shape))
-        # (Σ w_k Π_k) M = Σ w_k Π_k o_k
-        w = 1.0 / (np.broadcast_to(sigma_ang, r.shape) * r) ** 2
-        rhs = np.einsum("...k,...kij,...kj->...i", w, proj, np.broadcast_to(o, (*r.shape, 3)))
-        if not np.all(information.observable(info)):
-            raise ValueError("los: lines of sight are parallel; the position is unobservable")
-        M = np.linalg.solve(info, rhs[..., None])[..., 0]
-        r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), 1e-9)
-    cov = np.linalg.inv(position_information(u, r, np.broadcast_to(sigma_ang, r.shape)))
-    return M, cov
+    M, info, ok = information.weighted_fix(o, u, sigma=sigma_ang, iterations=iterations)
+    if not np.all(ok):
+        raise ValueError("los: lines of sight are parallel; the position is unobservable")
+    return M, np.linalg.inv(info)

@@ -83,3 +83,47 @@ def log_ratio_reward(sigma_pos: ArrayLike, sigma_ref: float, clip: float) -> Flo
     positive = finite & (s > 0.0)
     log_ratio = np.log(sigma_ref) - np.log(np.where(positive, s, 1.0))
     return np.where(positive, np.clip(log_ratio, -clip, clip), np.where(finite, clip, -clip))
+
+
+def weighted_fix(
+    origins: ArrayLike,
+    los: ArrayLike,
+    mask: ArrayLike | None = None,
+    sigma: ArrayLike = 1.0,
+    iterations: int = 2,
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """The position fix efficient to first order under angle noise (theory §4.2).
+
+    Minimises ``Σ_k m_k ‖Π_k (M − o_k)‖² / (σ_k² r_k²)``, the perpendicular miss of ``M`` from
+    each line of sight weighted by its information: for fixed ranges the normal equations are
+    ``I M = Σ_k w_k Π_k o_k`` with ``I`` of :func:`position_information`; the ranges start at 1
+    (the unweighted midpoint) and are refreshed from the fix ``iterations − 1`` times.
+    Noise-free directions give the exact intersection whatever the weights.
+
+    ``origins (..., n, 3)`` m and ``los (..., n, 3)`` unit vectors in one frame, ``mask (..., n)``
+    bool (None: every receiver), ``sigma`` scalar or ``(..., n)`` rad. Returns
+    ``(M (..., 3), I (..., 3, 3) at the final ranges, ok (...))``; where ``ok`` is False (fewer
+    than two views, parallel lines of sight) ``M`` is zero and must not be used.
+    """
+    o = np.asarray(origins, dtype=np.float64)
+    u = np.asarray(los, dtype=np.float64)
+    if iterations < 1:
+        raise ValueError(f"iterations: must be at least 1, got {iterations}")
+    batch = np.broadcast_shapes(o.shape[:-1], u.shape[:-1])
+    s = np.ones(batch, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
+    o = np.broadcast_to(o, (*s.shape, 3))
+    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
+    r = np.ones(s.shape)
+    M = np.zeros((*s.shape[:-1], 3))
+    ok = np.zeros(s.shape[:-1], dtype=bool)
+    for _ in range(iterations):
+        info = position_information(u, r, sigma, s)
+        ok = observable(info, s)
+        w = s / (np.broadcast_to(sigma, r.shape) * r) ** 2
+        # (Σ w_k Π_k) M = Σ w_k Π_k o_k
+        rhs = np.einsum("...k,...kij,...kj->...i", w, proj, o)
+        safe = np.where(ok[..., None, None], info, np.eye(3))
+        M = np.where(ok[..., None], np.linalg.solve(safe, rhs[..., None])[..., 0], 0.0)
+        r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), MIN_RANGE)
+    info = position_information(u, r, sigma, s)
+    return M, info, ok & observable(info, s)

@@ -1,15 +1,16 @@
-"""Multi-receiver position fixes and a 3-D constant-velocity Kalman filter (batched).
+"""A 3-D constant-velocity Kalman filter fed by multi-receiver position fixes (batched).
 
 The tracker of the receiver-pointing environments (SPEC §2.2, §7 OC-1). Each step, for each
 object, the receivers that see it give unit lines of sight ``u_k`` from their origins ``o_k``;
-the *measurement model* turns them into one position fix, the *updater* fuses the fix into a
-constant-velocity track, the *predictor* carries the track when fewer than two receivers see it.
+the *measurement model* (:func:`~sensorgym.trackers.stereo.information.weighted_fix`) turns
+them into one position fix, the *updater* fuses the fix into a constant-velocity track, the
+*predictor* carries the track when fewer than two receivers see it.
 
-Position fix (angle-noise model, :mod:`~.stereo_accuracy`): with isotropic angular noise ``σ``
+Position fix (angle-noise model, :mod:`.information`): with isotropic angular noise ``σ``
 on every direction, the Fisher information of the position ``M`` is
 ``I(M) = Σ_k s_k (I − u_k u_kᵀ) / (σ² r_k²)`` (``s_k`` = 1 if receiver ``k`` sees the object)
 and the weighted least-squares fix ``(Σ_k s_k Π_k / r_k²) M = Σ_k s_k Π_k o_k / r_k²`` attains
-``I(M)⁻¹`` to first order (it is :func:`~.stereo_accuracy.triangulate_ml` with a mask). The
+``I(M)⁻¹`` to first order (:func:`~.information.weighted_fix`). The
 geometry part ``G = Σ_k s_k Π_k / r_k²`` is kept apart from ``σ²`` so that ``σ = 0``
 (noise-free measurements) gives the exact intersection and a zero covariance.
 
@@ -29,7 +30,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.trackers.stereo.information import observable, position_information
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -109,38 +109,3 @@ def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CV
     P = track.P - K @ S @ np.swapaxes(K, -1, -2)
     P = 0.5 * (P + np.swapaxes(P, -1, -2))
     return CVTrack(np.where(m[..., None], x, track.x), np.where(m[..., None, None], P, track.P))
-
-
-def masked_fix(
-    origins: ArrayLike, los: ArrayLike, seen: ArrayLike, iterations: int = 2
-) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """Weighted least-squares position fix from the receivers that see the object.
-
-    ``origins (..., n, 3)`` m and ``los (..., n, 3)`` unit vectors in one frame, ``seen
-    (..., n)`` bool. Solves ``G M = Σ_k s_k Π_k o_k / r_k²`` with the ranges ``r_k`` starting at
-    1 (unweighted midpoint) and refreshed from the fix ``iterations − 1`` times. Returns
-    ``(M (..., 3), G (..., 3, 3), ok (...))``; where ``ok`` is False (fewer than two views or
-    parallel lines of sight) ``M`` is zero and must not be used. Noise-free directions give the
-    exact intersection whatever the weights.
-    """
-    o = np.asarray(origins, dtype=np.float64)
-    u = np.asarray(los, dtype=np.float64)
-    s = np.asarray(seen, dtype=bool)
-    if iterations < 1:
-        raise ValueError(f"iterations: must be at least 1, got {iterations}")
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    r = np.ones(s.shape)
-    M = np.zeros((*s.shape[:-1], 3))
-    ok = np.zeros(s.shape[:-1], dtype=bool)
-    G = np.zeros((*s.shape[:-1], 3, 3))
-    for _ in range(iterations):
-        G = position_information(u, r, mask=s)
-        ok = observable(G, s)
-        w = s / r**2
-        # (Σ w_k Π_k) M = Σ w_k Π_k o_k
-        rhs = np.einsum("...k,...kij,...kj->...i", w, proj, o)
-        M = np.linalg.solve(np.where(ok[..., None, None], G, np.eye(3)), rhs[..., None])[..., 0]
-        M = np.where(ok[..., None], M, 0.0)
-        r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), 1e-9)
-    G = position_information(u, r, mask=s)
-    return M, G, ok & observable(G, s)

@@ -25,7 +25,8 @@ from sensorgym.envs.stereo_pointing.env import StereoPointingEnv, StereoPointing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.trackers.geometry import angles_from_unit
 from sensorgym.trackers.stereo.accuracy import position_crlb, triangulate_ml
-from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior, cv_update, masked_fix
+from sensorgym.trackers.stereo.information import weighted_fix
+from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior, cv_update
 
 ENV_ID = "sensorgym/StereoPointing-v0"
 
@@ -168,19 +169,19 @@ def test_noise_free_fix_is_the_truth_and_the_filter_takes_it():
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
     seen = rng.random((50, 5)) < 0.6
     seen[:, :2] = True
-    fix, _, ok = masked_fix(o, u, seen)
+    fix, _, ok = weighted_fix(o, u, seen)
     assert ok.all()
     np.testing.assert_allclose(fix, M, rtol=0, atol=1e-9)
 
 
-def test_masked_fix_with_every_view_is_triangulate_ml():
+def test_weighted_fix_with_every_view_is_triangulate_ml():
     rng = np.random.default_rng(3)
     M = rng.normal(size=(20, 3)) * 40.0 + [0.0, 50.0, 100.0]
     o = rng.normal(size=(20, 4, 3)) * 60.0
     u = M[:, None] - o
     u = u / np.linalg.norm(u, axis=-1, keepdims=True) + rng.normal(size=u.shape) * 1e-3
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
-    fix, G, ok = masked_fix(o, u, np.ones((20, 4), dtype=bool))
+    fix, G, ok = weighted_fix(o, u, np.ones((20, 4), dtype=bool))
     ml, cov = triangulate_ml(o, u, 1e-3)
     assert ok.all()
     np.testing.assert_allclose(fix, ml, rtol=1e-12, atol=1e-9)
@@ -296,7 +297,7 @@ def test_fix_scatter_matches_its_covariance():
     o = PointingParams().receiver_positions[:3]
     u = (M - o) / np.linalg.norm(M - o, axis=-1, keepdims=True)
     z = perturb_directions(np.broadcast_to(u, (4000, 3, 3)), 1e-3, rng)
-    fix, G, ok = masked_fix(np.broadcast_to(o, z.shape), z, np.ones((4000, 3), dtype=bool))
+    fix, G, ok = weighted_fix(np.broadcast_to(o, z.shape), z, np.ones((4000, 3), dtype=bool))
     err = fix - M
     sample = err.T @ err / len(err)
     crlb = 1e-6 * np.linalg.inv(G.mean(axis=0))
