@@ -8,9 +8,7 @@ import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.envs import bearings_maneuver as bearings_maneuver_pz
-from sensorgym.envs import stereo_placement as stereo_placement_pz
-from sensorgym.envs import stereo_pointing as stereo_pointing_pz
+from sensorgym.envs import bearings_maneuver, stereo_placement, stereo_pointing
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
@@ -19,11 +17,11 @@ from sensorgym.envs.stereo_pointing.simulation import PointingParams
 @pytest.mark.parametrize(
     "make",
     [
-        lambda: bearings_maneuver_pz.parallel_env(),
-        lambda: bearings_maneuver_pz.parallel_env(platforms=3, max_episode_steps=10),
-        lambda: stereo_pointing_pz.parallel_env(max_episode_steps=40),
-        lambda: stereo_pointing_pz.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20),
-        lambda: stereo_placement_pz.parallel_env(max_episode_steps=30),
+        lambda: bearings_maneuver.parallel_env(),
+        lambda: bearings_maneuver.parallel_env(platforms=3, max_episode_steps=10),
+        lambda: stereo_pointing.parallel_env(max_episode_steps=40),
+        lambda: stereo_pointing.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20),
+        lambda: stereo_placement.parallel_env(max_episode_steps=30),
     ],
 )
 def test_pettingzoo_api_and_seed_tests_pass(make):
@@ -33,7 +31,7 @@ def test_pettingzoo_api_and_seed_tests_pass(make):
 
 def test_one_platform_parallel_env_is_the_gymnasium_env():
     """Same core, same seed, same actions: the PettingZoo shell and the Gymnasium shell agree."""
-    pz = bearings_maneuver_pz.parallel_env(platforms=1, max_episode_steps=30)
+    pz = bearings_maneuver.parallel_env(platforms=1, max_episode_steps=30)
     env = gym.make("sensorgym/BearingsManeuver-v0")
     obs_pz, _ = pz.reset(seed=11)
     obs_g, _ = env.reset(seed=11)
@@ -53,11 +51,11 @@ def test_one_platform_parallel_env_is_the_gymnasium_env():
     "make_pz, env_id, params",
     [
         (
-            stereo_pointing_pz.parallel_env,
+            stereo_pointing.parallel_env,
             "sensorgym/StereoPointing-v0",
             PointingParams(n_receivers=3, n_drones=2),
         ),
-        (stereo_placement_pz.parallel_env, "sensorgym/StereoPlacement-v0", PlacementParams()),
+        (stereo_placement.parallel_env, "sensorgym/StereoPlacement-v0", PlacementParams()),
     ],
 )
 def test_receiver_agents_see_the_single_env_observation_and_their_index(make_pz, env_id, params):
@@ -77,7 +75,7 @@ def test_receiver_agents_see_the_single_env_observation_and_their_index(make_pz,
 
 
 def _final_bound_straight(platforms: int, seed: int) -> float:
-    env = bearings_maneuver_pz.parallel_env(
+    env = bearings_maneuver.parallel_env(
         params=ManeuverParams(platforms=platforms, formation_radius=5_000.0)
     )
     env.reset(seed=seed)
@@ -95,7 +93,7 @@ def test_cross_bearings_make_range_observable_without_manoeuvres():
 
 
 def test_observations_place_the_other_platforms_in_the_own_frame():
-    env = bearings_maneuver_pz.parallel_env(platforms=3)
+    env = bearings_maneuver.parallel_env(platforms=3)
     obs, _ = env.reset(seed=2)
     state = env.simulator_state
     for k in range(3):
@@ -107,11 +105,11 @@ def test_observations_place_the_other_platforms_in_the_own_frame():
 
 
 def test_bad_joint_actions_are_refused():
-    env = bearings_maneuver_pz.parallel_env()
+    env = bearings_maneuver.parallel_env()
     env.reset(seed=0)
     with pytest.raises(ValueError, match="no action"):
         env.step({"platform_0": np.zeros(2)})
     with pytest.raises(ValueError, match="NaN"):
         env.step({"platform_0": np.zeros(2), "platform_1": np.array([np.nan, 0.0])})
     with pytest.raises(ValueError, match="max_episode_steps"):
-        bearings_maneuver_pz.parallel_env(max_episode_steps=0)
+        bearings_maneuver.parallel_env(max_episode_steps=0)

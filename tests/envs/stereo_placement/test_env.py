@@ -15,7 +15,7 @@ import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_placement import CirclePlacement, GreedyPlacement, HoldPosition
-from sensorgym.envs import stereo_placement as stereo_placement_pz
+from sensorgym.envs import stereo_placement
 from sensorgym.envs.shells import tree_where
 from sensorgym.envs.stereo_placement import simulation as core
 from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
@@ -182,7 +182,7 @@ def test_bad_actions_raise():
     venv.reset(seed=0)
     with pytest.raises(ValueError, match="action"):
         venv.step(np.full((2, 6), np.nan))
-    pz = stereo_placement_pz.parallel_env()
+    pz = stereo_placement.parallel_env()
     pz.reset(seed=0)
     with pytest.raises(ValueError, match="action"):
         pz.step({agent: np.array([np.nan, 0.0]) for agent in pz.agents})
