@@ -1,4 +1,4 @@
-"""Rules for ``sensorgym/BearingsManeuver-v0`` (SPEC §7 OC-5), and the oracle ceiling above them.
+"""Rules for ``sensorgym/BearingsManeuver-v0`` (theory §10.5 OC-5), and the oracle ceiling above them.
 
 Each rule reads only the observation (the tracker's view, see
 :func:`sensorgym.envs.bearings_maneuver.simulation.observe_agents`) and implements SB3's
@@ -59,7 +59,7 @@ class StraightCourse(MemorylessRule):
 @dataclass(frozen=True)
 class Paper002Maneuver:
     """Move along the first bearing for two more bearings, then turn perpendicular to the
-    bearing and speed up (paper 002, SPEC §7 OC-5).
+    bearing and speed up (paper 002, theory §10.5 OC-5).
 
     The rule needs the step count, kept as its ``state`` (an int array per env, reset by
     ``episode_start``), as SB3 does for recurrent policies. The perpendicular is taken to the

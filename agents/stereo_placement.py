@@ -1,4 +1,4 @@
-"""Heuristic placement rules for ``sensorgym/StereoPlacement-v0`` (SPEC §7 OC-1, OC-3).
+"""Heuristic placement rules for ``sensorgym/StereoPlacement-v0`` (theory §10.1 OC-1, §10.3 OC-3).
 
 Each rule reads only the observation (own positions and the conjugation tracker's estimate,
 see :func:`sensorgym.envs.stereo_placement.simulation.observe`) plus the env's params (speed limit,
@@ -52,7 +52,7 @@ class HoldPosition(MemorylessRule):
 @dataclass(frozen=True)
 class CirclePlacement(MemorylessRule):
     """Drive the receivers onto a circle around the estimated drone's ground point, spaced
-    ``360°/n`` apart, of radius ``ρ = √2 ĥ`` with ``ĥ`` the estimated altitude (SPEC §7 OC-3
+    ``360°/n`` apart, of radius ``ρ = √2 ĥ`` with ``ĥ`` the estimated altitude (theory §10.3 OC-3
     "on a circle, not clustered", OC-1 "near-orthogonal lines of sight").
 
     Why ``√2 ĥ``: from ``n = 3`` receivers at 120° on a circle of radius ``ρ`` the lines of
@@ -106,7 +106,7 @@ class GreedyPlacement(MemorylessRule):
     """Move every receiver by the one-step candidate (stay, or full speed in one of
     ``headings`` directions) whose joint placement maximises ``ln det I`` of the predicted
     position information at the estimated drone position one period ahead,
-    ``I = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` (one-step D-optimal placement, SPEC §7 OC-1)."""
+    ``I = Σ_k (I − u_k u_kᵀ)/(σ_ang² r_k²)`` (one-step D-optimal placement, theory §10.1 OC-1)."""
 
     params: PlacementParams = field(default_factory=PlacementParams)
     """Env settings (speed limit, permitted disc, observation layout)."""

@@ -1,4 +1,4 @@
-"""Heuristic pointing rules for ``sensorgym/StereoPointing-v0`` (SPEC §7 OC-1, OC-2).
+"""Heuristic pointing rules for ``sensorgym/StereoPointing-v0`` (theory §10.1 OC-1, §10.2 OC-2).
 
 Each rule reads only the observation (own gimbal angles and the tracker's predictions, see
 :func:`sensorgym.envs.stereo_pointing.simulation.observe`) plus the fixed receiver layout from the
@@ -145,7 +145,7 @@ class TrackNearest(_AssignAndSlew):
 @dataclass(frozen=True)
 class OrthogonalPairs(_AssignAndSlew):
     """Assign receivers to drones so that each drone's lines of sight are closest to orthogonal
-    (SPEC §7 OC-1): minimise ``Σ_j ln score_j`` with ``score_j = σ / √(Σ_{k∈S_j} sin²γ_k)``,
+    (theory §10.1 OC-1): minimise ``Σ_j ln score_j`` with ``score_j = σ / √(Σ_{k∈S_j} sin²γ_k)``,
     ``γ_k`` the angle between receiver ``k``'s line of sight and the reference receiver's
     (the member of ``S_j`` that gives the best score); fewer than two receivers: infinite.
 
@@ -177,7 +177,7 @@ class OrthogonalPairs(_AssignAndSlew):
 class GreedyPointing(_AssignAndSlew):
     """Choose the assignment that maximises ``Σ_j ln det I_j`` of the position information the
     assigned receivers would give at the predicted positions (one-step D-optimal sensor
-    selection, SPEC §7 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
+    selection, theory §10.1–10.2 OC-1/OC-2): ``I_j = Σ_{k∈S_j} (I − u_k u_kᵀ)/(σ_ang² r_k²)``.
 
     A drone given fewer than two receivers gets no fix (its ``I_j`` is singular, and the env's
     reward for it is ``−R``); it scores ``−no_fix_cost`` instead of ``−∞``, so that when there

@@ -26,13 +26,13 @@ from sensorgym.trackers.stereo.algorithmic_detection import AlgorithmicParams, d
 from sensorgym.trackers.stereo.period_tracking import track_alternative, track_proposed
 
 LAYOUT = ReceiverLayout.on_circle(120.0, [0.0, 90.0, 270.0], aim=(0.0, 40.0, 0.0))
-SPEC = GroupSpec(
+GROUP = GroupSpec(
     centre=(0.0, 40.0, 0.0), spread=6.0, min_separation=2.0, speed=(9.0, 36.0), shared_velocity=True
 )
 
 
 def _scene(rng, m, tracker, N):
-    traj = random_group(rng, m, SPEC)
+    traj = random_group(rng, m, GROUP)
     if tracker == "proposed":
         timings = (FixedDelay(0.0), FixedDelay(0.1), FixedDelay(0.2))
         per, _ = simulate(rng, traj, LAYOUT, timings, N, 1.0, NoiseModel(position_sigma=0.1))

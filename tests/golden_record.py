@@ -82,7 +82,7 @@ def normalised_report(text: str) -> str:
         if line.startswith("wrote ") or re.fullmatch(r"\s*[\d.]+ s", line):
             continue
         line = re.sub(r"took [\d.]+ s", "took _ s", line)
-        line = re.sub(r"\((SPEC|theory) §[^)]*\)", "(ref)", line)
+        line = re.sub(r"\(theory §[^)]*\)", "(ref)", line)
         if "time (s)" in line:
             timing_table = True
         elif not line.strip():

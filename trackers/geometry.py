@@ -1,4 +1,4 @@
-"""Direction vectors, angles and receiver poses (SPEC §1).
+"""Direction vectors, angles and receiver poses (theory §2).
 
 Frames
 ------
@@ -14,16 +14,16 @@ elevation ``θ`` from the plane ``XZ`` towards ``Y``::
 θ there) measured from ``Y`` towards ``X``, elevation (called ϕ there) from the horizontal
 plane::
 
-    u = (cos ϕ sin θ, cos ϕ cos θ, sin ϕ)ᵀ               (SPEC §1.2, derived)
+    u = (cos ϕ sin θ, cos ϕ cos θ, sin ϕ)ᵀ               (theory §2.2, derived)
 
 Because both frames are right-handed, the rotation between them maps the 001 frame
 ``(X_right, Y_forward, Z_up)`` to the 000 frame as ``(x, y, z) = (−X, Z, Y)``: the forward
 axis and the up axis agree, and positive 001 azimuth (towards its ``+X``, to the right) is
 *negative* 000 azimuth (000's ``+x`` is to the left). Use :func:`yup_from_zup` /
-:func:`zup_from_yup`; never share angle code between the frames without them (SPEC §11.1
-item 3).
+:func:`zup_from_yup`; never share angle code between the frames without them (theory
+§13.3).
 
-Poses (SPEC §1.1): with ``R_k`` the local→world rotation and ``o_k`` the world position of
+Poses (theory §2.1): with ``R_k`` the local→world rotation and ``o_k`` the world position of
 receiver ``k``, ``M_1 = P_k M_k + b_k`` where ``P_k = R_1ᵀ R_k`` and ``b_k = R_1ᵀ (o_k − o_1)``.
 
 Every function accepts leading batch axes.
@@ -73,7 +73,7 @@ def angles_from_unit(a: ArrayLike) -> tuple[FloatArray, FloatArray]:
 def unit_from_pixel(
     x: ArrayLike, y: ArrayLike, f: ArrayLike, inverted: ArrayLike = True
 ) -> FloatArray:
-    """Unit direction vector from optical pixel coordinates (SPEC §1.3).
+    """Unit direction vector from optical pixel coordinates (theory §2.3).
 
     ``x, y`` are measured from the principal point, in the same unit as the focal length
     ``f`` (e.g. pixels). ``inverted=True`` gives paper 003's physical focal-plane form
@@ -165,7 +165,7 @@ def look_at_rotation(
 def relative_pose(
     R1: ArrayLike, o1: ArrayLike, Rk: ArrayLike, ok: ArrayLike
 ) -> tuple[FloatArray, FloatArray]:
-    """``P_k = R_1ᵀ R_k`` and ``b_k = R_1ᵀ (o_k − o_1)`` so that ``M_1 = P_k M_k + b_k`` (SPEC §1.1).
+    """``P_k = R_1ᵀ R_k`` and ``b_k = R_1ᵀ (o_k − o_1)`` so that ``M_1 = P_k M_k + b_k`` (theory §2.1).
 
     ``R1, Rk``: local→world rotations ``(..., 3, 3)``; ``o1, ok``: world positions ``(..., 3)``.
     """

@@ -25,7 +25,7 @@ One step (``params.world.dt`` seconds):
    the platform's manoeuvres shrank the bound. The bound does not depend on the noise draw,
    so the reward has no measurement noise in it, only the consequences of the actions.
 
-Without a manoeuvre range is unobservable (SPEC §4, §7 OC-5): a platform that keeps a
+Without a manoeuvre range is unobservable (theory §7.6, §10.5 OC-5): a platform that keeps a
 straight course collects almost no reward after the first bearings.
 
 Several platforms (``params.platforms = K``, each an agent of the PettingZoo env) all take a

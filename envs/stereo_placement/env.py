@@ -25,11 +25,11 @@ class StereoPlacementEnv(CoreEnv):
 
     ``n = 3`` passive receivers ride ground vehicles (speed limit ``max_speed``) inside a
     permitted disc of radius ``arena_radius``. They start clustered within ``cluster_radius``
-    of the origin — the layout SPEC §7 OC-3 calls unsatisfactory (baseline small against the
+    of the origin — the layout theory §10.3 OC-3 calls unsatisfactory (baseline small against the
     range). One drone flies a straight level line. Each step is one scan period ``τ``: receiver
-    ``k`` fixes the drone at its own delay ``d_k`` (SPEC §2.1, OC-4) with angular noise
+    ``k`` fixes the drone at its own delay ``d_k`` (theory §6.4, §10.4 OC-4) with angular noise
     ``σ_ang``, in its own frame (looking at the predicted drone), and the velocity-aware
-    conjugation tracker (SPEC §2.2, n = 3 closed form) solves the period for the ranges, the
+    conjugation tracker (theory §3.5, n = 3 closed form) solves the period for the ranges, the
     position and the velocity. The agent drives the receivers; it is rewarded for the accuracy
     their geometry allows: best with near-orthogonal lines of sight (OC-1) from receivers
     spread around the drone (OC-3). Simulation core: :mod:`sensorgym.envs.stereo_placement.simulation`.

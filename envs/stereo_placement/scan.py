@@ -1,14 +1,14 @@
-"""One scan period of moving ground receivers and its velocity-aware conjugation fix (SPEC §2).
+"""One scan period of moving ground receivers and its velocity-aware conjugation fix (theory §3).
 
 Within a period of length ``τ`` receiver ``k`` fixes the drone at its own delay ``d_k`` after
-the period start (SPEC §2.1, §7 OC-4: scanning receivers fix at different times). Receivers
+the period start (theory §6.4, §10.4 OC-4: scanning receivers fix at different times). Receivers
 are vehicles: they move in a straight line during the period, so receiver ``k`` is at
 ``O_k(d_k)`` when it fixes the drone at ``M(d_k)``. The drone flies a straight line, so
-``M(d_k) = M(d_1) + V (d_k − d_1)`` and the conjugation equations of SPEC §2.2 hold exactly
+``M(d_k) = M(d_1) + V (d_k − d_1)`` and the conjugation equations of theory §3.2 hold exactly
 with the base vectors taken *at the fix times*::
 
     r_1 a_1 − r_k P_k a_k + V Δt_k − b_k = e_k ,   Δt_k = d_k − d_1 ,
-    P_k = R_1ᵀ R_k ,   b_k = R_1ᵀ (O_k(d_k) − O_1(d_1))                        (SPEC §1.1)
+    P_k = R_1ᵀ R_k ,   b_k = R_1ᵀ (O_k(d_k) − O_1(d_1))                        (theory §2.1)
 
 solved for ``(r_1, …, r_n, V)`` by :func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation`
 (``order=1``; for n = 3 its compiled closed form). Each receiver's frame looks at the aim point

@@ -6,9 +6,9 @@ over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, 
 :func:`observe` (the joint view), :func:`observe_agents` (one view per receiver) and
 :func:`info`.
 
-World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (SPEC §1.2). ``n`` (default 3)
+World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (theory §2.2). ``n`` (default 3)
 receivers are ground vehicles (``y = 0``) inside a permitted disc of radius ``arena_radius``
-around the origin; they start clustered (SPEC §7 OC-3's unsatisfactory case). One drone flies a
+around the origin; they start clustered (theory §10.3 OC-3's unsatisfactory case). One drone flies a
 straight level line. One step is one scan period ``τ``:
 
 1. the action sets each receiver's planar velocity (``a · max_speed``, components clipped to
@@ -63,7 +63,7 @@ class PlacementParams:
 
     delays: tuple[float, ...] = (0.0, 0.25, 0.6)
     """Fix time of each receiver after the period start, s; their number is ``n`` (≥ 3). Keep
-    them distinct (SPEC §7 OC-3): equal delays make the velocity unobservable (a degenerate
+    them distinct (theory §10.3 OC-3): equal delays make the velocity unobservable (a degenerate
     conjugation, reward ``−R``)."""
     period: float = 1.0
     """Scan period ``τ`` = one step, s."""

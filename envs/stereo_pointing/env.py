@@ -23,14 +23,14 @@ class StereoPointingEnv(CoreEnv):
 
     ## Description
 
-    ``n`` gimballed passive receivers stand on a circle of radius ``circle_radius`` (SPEC §7
+    ``n`` gimballed passive receivers stand on a circle of radius ``circle_radius`` (theory §10.3
     OC-3); each sees only what lies inside its narrow cone (half-angle ``fov``) and measures
     the direction to it with angular noise ``σ_ang``. ``m`` drones fly straight lines through
     the surveillance volume. A drone seen by two or more receivers is triangulated and its
     constant-velocity Kalman filter updated; otherwise the filter only predicts. The agent
     slews the receivers; it is rewarded for the accuracy its current pointing gives: the
     Cramér–Rao bound of the receivers that see each drone, best with near-orthogonal lines of
-    sight (SPEC §2.2, §7 OC-1). Simulation core: :mod:`sensorgym.envs.stereo_pointing.simulation`.
+    sight (theory §4.4, §10.1 OC-1). Simulation core: :mod:`sensorgym.envs.stereo_pointing.simulation`.
 
     ## Action Space
 

@@ -5,8 +5,8 @@ over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, 
 (:func:`start` builds scenarios from given drones and pointing), :func:`step`, :func:`observe`
 (the joint view), :func:`observe_agents` (one view per receiver) and :func:`info`.
 
-World frame: ``Y`` up, azimuth measured from ``+Z`` towards ``+X`` (SPEC §1.2, the 000/003
-convention applied to world axes). ``n`` gimballed receivers stand on a circle (SPEC §7 OC-3),
+World frame: ``Y`` up, azimuth measured from ``+Z`` towards ``+X`` (theory §2.2, the 000/003
+convention applied to world axes). ``n`` gimballed receivers stand on a circle (theory §10.3 OC-3),
 each pointing its narrow field of view (a cone of half-angle ``fov``) at world azimuth and
 elevation ``(α_k, ε_k)``. ``m`` drones fly straight lines.
 
@@ -25,7 +25,7 @@ One step (``params.dt`` seconds):
    true geometry: ``I(M) = Σ_k (I − u_k u_kᵀ)/(σ² r_k²)``
    (:mod:`sensorgym.trackers.stereo.information`); fewer than two views (or
    parallel lines of sight) give ``−R``. The bound has no noise draw in it: the reward depends
-   only on where the receivers point, and it favours near-orthogonal pairs (SPEC §7 OC-1).
+   only on where the receivers point, and it favours near-orthogonal pairs (theory §10.1 OC-1).
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class PointingParams:
     n_receivers: int = 4
     """Number of gimballed receivers ``n``."""
     circle_radius: float = 50.0
-    """Radius of the circle the receivers stand on, centred at the origin, m (SPEC §7 OC-3)."""
+    """Radius of the circle the receivers stand on, centred at the origin, m (theory §10.3 OC-3)."""
     receiver_angles_deg: tuple[float, ...] | None = None
     """Receiver places on the circle, degrees from ``+Z`` towards ``+X``; None spaces the ``n``
     receivers evenly (90° apart for n = 4, the OC-3 example)."""

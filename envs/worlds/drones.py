@@ -66,7 +66,7 @@ class Trajectories:
 
 @dataclass(frozen=True)
 class GroupSpec:
-    """How :func:`random_group` draws ``m`` objects flying together (SPEC §2.5, §5.5, gap 15/35)."""
+    """How :func:`random_group` draws ``m`` objects flying together (theory §5.6, gaps §13.15, §13.35)."""
 
     centre: tuple[float, float, float]
     """World point around which the objects start, m."""

@@ -1,20 +1,20 @@
-"""Target trajectories and the angles a carrier-mounted gimbal sees (paper 001, SPEC §3.7).
+"""Target trajectories and the angles a carrier-mounted gimbal sees (paper 001, theory §8.7).
 
 World model only: the predictors in :mod:`sensorgym.trackers.angles.prediction` and
 :mod:`sensorgym.trackers.angles.baselines` see nothing but the measured angles produced here.
 
-Frame (SPEC §1.2, §3.2): the carrier body frame ``OXYZ`` of paper 001, ``OXY`` horizontal,
+Frame (theory §2.2, §8.2): the carrier body frame ``OXYZ`` of paper 001, ``OXY`` horizontal,
 ``OZ`` up, carrier at ``O``. Azimuth θ is measured in ``OXY`` from ``OY`` towards ``OX``,
 elevation ϕ from the horizontal plane (:func:`sensorgym.trackers.geometry.zup_angles_from_unit`).
 
-Trajectory (SPEC §3.7)::
+Trajectory (theory §8.7)::
 
     X(n) = X₀ + δ_X n ,  Y(n) = Y₀ + δ_Y n ,  Z(n) = Z₀ + δ_Z n
     δ_Z = V sin β₀ ,  δ_X = V cos β₀ cos α₀ ,  δ_Y = V cos β₀ sin α₀
 
 with ``n`` the frame number, ``V`` the speed per frame, ``β₀`` the climb angle and ``α₀`` the
-heading of the horizontal projection measured from ``OX``. Measurement noise (SPEC §3.7,
-§11.3 item 19): independent ``N(0, σ²)`` on θ and on ϕ, drawn from an explicit generator.
+heading of the horizontal projection measured from ``OX``. Measurement noise (theory §8.7,
+§13.19): independent ``N(0, σ²)`` on θ and on ϕ, drawn from an explicit generator.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class StraightTrajectory:
-    """Uniform rectilinear motion of the target relative to the carrier (SPEC §3.7).
+    """Uniform rectilinear motion of the target relative to the carrier (theory §8.7).
 
     Defaults are the paper's example.
     """
@@ -70,7 +70,7 @@ class StraightTrajectory:
         return np.array([self.x0, self.y0, self.z0]) + n[..., None] * self.velocity
 
     def angles(self, frames: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """True azimuth θ and elevation ϕ (rad) at the given frames (SPEC §1.2, 001 frame).
+        """True azimuth θ and elevation ϕ (rad) at the given frames (theory §2.2, 001 frame).
 
         Raises ``ValueError`` if the target passes through the carrier (zero range).
         """
@@ -80,7 +80,7 @@ class StraightTrajectory:
 @dataclass(frozen=True)
 class TurningTrajectory(StraightTrajectory):
     """Horizontal coordinated turn at constant speed and climb angle: a manoeuvring target that
-    breaks the straight-line assumption of paper 001 (its §3.6 step 7 remark).
+    breaks the straight-line assumption of paper 001 (the remark under step 7 of theory §8.6).
 
     The heading of the horizontal projection is ``α(n) = α₀ + ω n``; with
     ``v_h = V cos β₀``::

@@ -1,4 +1,4 @@
-"""Simulated co-boresighted imaging channels watching one object (paper 004, SPEC §6.1, §6.4).
+"""Simulated co-boresighted imaging channels watching one object (paper 004, theory §9.1, §9.4).
 
 World model only: it imports no tracker. The tracker that sees these images,
 :class:`sensorgym.trackers.fusion.tracker.FusionTracker`, is run in the loop (its matched model
@@ -8,7 +8,7 @@ One tracking plane. The object's line-of-sight angle λ (mrad) follows the Gauss
 ``λ_k = R_λ λ_{k−1} + σ_λ √(1 − R_λ²) ξ_k`` with ``σ_λ = θ₀`` (angles here, so the paper's
 ``σ_λ = θ₀ L`` is ``θ₀`` in angular units). Each channel ``n`` forms a 1-D image of ``J``
 pixels across the plane, centred on the optical axis ``a_k``; the object is the paper's
-rectangle of constant contrast on a uniform background (SPEC §6.4), of angular size ``g``,
+rectangle of constant contrast on a uniform background (theory §9.4), of angular size ``g``,
 blurred by a Gaussian point-spread function::
 
     s_m(x) = c_{n,m}/2 · [erf((x + g/2)/(√2 σ_psf)) − erf((x − g/2)/(√2 σ_psf))]

@@ -4,7 +4,7 @@ A 2-D platform (position, heading, speed) is commanded each step by a heading-ra
 speed change; a target moves with nearly constant velocity (continuous white-noise
 acceleration of intensity ``q̃``); the platform measures the absolute bearing of the target
 (from North clockwise) with Gaussian noise ``σ``. Range is observable only when the
-platform manoeuvres (SPEC §4, §7 OC-5).
+platform manoeuvres (theory §7.6, §10.5 OC-5).
 
 Frame: ``x`` East, ``y`` North (m); heading from North clockwise (rad), so the platform
 velocity is ``v (sin ψ, cos ψ)``.

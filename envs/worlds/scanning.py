@@ -3,9 +3,9 @@
 Papers 000 and 003 pair each optical receiver with a *scanning* radiometric receiver. The
 radiometer's line of sight (LOS) sweeps its sector in TV-raster order once per period τ, so an
 object is fixed when the LOS passes it: the fix time depends on where the object lies in the
-raster (SPEC §1.4, §5.5). An optical receiver fixes every object at once.
+raster (theory §2.4, §6.1). An optical receiver fixes every object at once.
 
-Raster (SPEC §5.5, gap 29). The paper's "0–30° in azimuth and elevation, step 0.03°, 100 × 100
+Raster (theory §6.2, gap §13.29). The paper's "0–30° in azimuth and elevation, step 0.03°, 100 × 100
 image, 2 ms per step, τ = 20 s" is inconsistent (30°/0.03° = 1000). We keep what fixes the
 timing — a 100 × 100 image swept in τ = 20 s (2 ms per pixel) — and read the step as 0.3° over
 a 30° sector (``RasterScan.paper003()``). The sector is centred on the boresight: azimuth
@@ -41,7 +41,7 @@ VISIT_ITERATIONS = 4
 
 @dataclass(frozen=True)
 class ReceiverLayout:
-    """World poses of ``n`` receivers (SPEC §1.1); receiver 0 is the papers' receiver 1.
+    """World poses of ``n`` receivers (theory §2.1); receiver 0 is the papers' receiver 1.
 
     Leading batch axes are allowed (many layouts at once, e.g. candidate placements).
     """
@@ -74,7 +74,7 @@ class ReceiverLayout:
 
     @property
     def relative(self) -> tuple[FloatArray, FloatArray]:
-        """``(P, b)``: (n−1, 3, 3) and (n−1, 3) with ``M_1 = P_k M_k + b_k`` (SPEC §1.1)."""
+        """``(P, b)``: (n−1, 3, 3) and (n−1, 3) with ``M_1 = P_k M_k + b_k`` (theory §2.1)."""
         R, o = self.rotations, self.positions
         return relative_pose(R[..., :1, :, :], o[..., :1, :], R[..., 1:, :, :], o[..., 1:, :])
 
@@ -125,7 +125,7 @@ class ReceiverLayout:
 
 @dataclass(frozen=True)
 class RasterScan:
-    """A TV-raster scan of a sector centred on the boresight, one sweep per period (SPEC §5.5)."""
+    """A TV-raster scan of a sector centred on the boresight, one sweep per period (theory §6.1)."""
 
     az_span_deg: float = 30.0
     """Azimuth extent of the sector, degrees (centred on the boresight)."""
@@ -182,7 +182,7 @@ class RasterScan:
 @dataclass(frozen=True)
 class FixedDelay:
     """A receiver that fixes every object at one instant of the period (optical, or paper 000's
-    scanning receivers whose output lags receiver 1 by a constant delay Δt_k, SPEC §2.5)."""
+    scanning receivers whose output lags receiver 1 by a constant delay Δt_k, theory §6.1)."""
 
     delay: float = 0.0
     """Fix time after the period start, s."""

@@ -2,17 +2,17 @@
 
 Per period ``i`` (start ``t = i τ``) each receiver ``k`` reports a list of fixes: unit direction
 vectors in its **own** frame, their formation times ``t_k`` and normalised received powers
-``w_k ∈ [0, 1]`` (SPEC §2.1, §5.1). The list is in order of formation time (ties broken at
+``w_k ∈ [0, 1]`` (theory §3.1). The list is in order of formation time (ties broken at
 random), so the position in the list says nothing about the object's identity. Ground truth
 (object states and which object each fix came from, −1 for a false fix) is returned apart;
 trackers only ever see :class:`ReceiverFixes`.
 
-Noise models (SPEC §2.5, §11.1 item 4), selectable and combinable:
+Noise models (theory §4.1, §13.4), selectable and combinable:
 
 * ``position_sigma`` — the papers' i.i.d. error on the position vector ``M(i, j)``: each object
   is seen by all receivers of one period displaced by one draw ``δ ~ N(0, σ_x² I₃)`` (an
   apparent-centre error). A consistent velocity-aware solve then returns ``M(i, j) = M + δ``,
-  which is exactly the SPEC §2.5 recommended injection point, realised inside the world.
+  which is exactly the theory §4.1 recommended injection point, realised inside the world.
 * ``angle_sigma`` — independent Gaussian errors on the azimuth φ and elevation θ of each
   direction vector (003 variant 2: 0.03°).
 

@@ -1,4 +1,4 @@
-"""Static stereo scenes: receivers at world poses looking at one point (SPEC §1.1, §2.2).
+"""Static stereo scenes: receivers at world poses looking at one point (theory §2.1, §3.2).
 
 The smallest world the conjugation trackers can watch: a :class:`~.scanning.ReceiverLayout`
 (the same receiver poses the scanning world uses) of ``n`` receivers with local→world
@@ -137,7 +137,7 @@ def perturb_directions(a: ArrayLike, sigma_ang: ArrayLike, rng: np.random.Genera
 
 
 def perturb_positions(M: ArrayLike, sigma: ArrayLike, rng: np.random.Generator) -> FloatArray:
-    """Papers' model: i.i.d. ``N(0, σ²)`` on every coordinate of the position vectors (SPEC §2.5)."""
+    """Papers' model: i.i.d. ``N(0, σ²)`` on every coordinate of the position vectors (theory §4.1)."""
     M = finite_array(M, "M", tail=(3,))
     s = finite_array(sigma, "sigma")
     if np.any(s < 0.0):

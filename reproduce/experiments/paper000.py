@@ -1,15 +1,15 @@
-"""Paper 000, Tables 1–2: alternative (n = 2) vs proposed (n = 3) tracking (SPEC §2.5–2.6).
+"""Paper 000, Tables 1–2: alternative (n = 2) vs proposed (n = 3) tracking (theory §5.6–5.7).
 
-Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (SPEC §2.5, gap
-15), and our choices are the fields of :class:`Scenario000`, printed with the tables:
+Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (theory §5.6, gap
+§13.15), and our choices are the fields of :class:`Scenario000`, printed with the tables:
 
 * receivers on an arc of radius 120 m at azimuths 0°, 90°, 270° (receiver 1 at 0°, so both
   other lines of sight are orthogonal to it), at ground level, aimed at the objects' area
-  40 m up (the elevation keeps the three lines of sight non-coplanar, SPEC §2.2);
+  40 m up (the elevation keeps the three lines of sight non-coplanar, theory §3.5);
 * m objects start a few metres apart (uniform in a ±3 m cube, ≥ 2 m apart) around that point
   and fly close straight paths ("close trajectories"): a group direction uniformly random in
   3-D and a group speed uniform in ``speed`` — calibrated so the mean |a₁·V| gives Table 1's
-  d_avg(Δt = 0.1) (SPEC §2.6: ≈ 12.5 m/s) — from which each object deviates by up to
+  d_avg(Δt = 0.1) (theory §5.7: ≈ 12.5 m/s) — from which each object deviates by up to
   ``heading_spread_deg`` in direction and ``speed_jitter`` in relative speed;
 * receiver k fixes every object ``Δt_k`` after receiver 1 (same delay for all objects);
 * the papers' noise, σ_x = 0.1 m on each coordinate of the position vector M(i, j), realised in
@@ -17,7 +17,7 @@ Seeded Monte Carlo of the paper's scenario; the paper is silent on much of it (S
   (:class:`~sensorgym.envs.worlds.stereo.NoiseModel`);
 * N = 5 periods of τ = 1 s; d = distance between each object's estimate in period N and its
   true position at that estimate's time; Pr_m = fraction of runs in which every object is
-  identified (one-to-one) with a found track within 4 m (SPEC §2.6 hypothesis).
+  identified (one-to-one) with a found track within 4 m (theory §5.7 hypothesis).
 """
 
 from __future__ import annotations
@@ -150,7 +150,7 @@ def _cell_job(job: tuple) -> dict:
 def reproduce(
     runs: int = 1000, seed: int = 0, scenario: Scenario000 = Scenario000(), jobs: int = 1
 ) -> dict:
-    """Run every cell of Tables 1–2 and evaluate RT-2..RT-5 (SPEC §8). Pure; no printing.
+    """Run every cell of Tables 1–2 and evaluate RT-2..RT-5 (theory §12). Pure; no printing.
 
     Each cell draws from its own child of ``SeedSequence(seed)``, so results do not depend on
     ``jobs`` (worker processes).

@@ -1,10 +1,10 @@
-"""Paper 001: predicting azimuth and elevation through a loss of the target image (SPEC §3.7–3.8).
+"""Paper 001: predicting azimuth and elevation through a loss of the target image (theory §8.7–8.8).
 
-The paper's example (SPEC §3.7): ``X₀ = −5700 m, Y₀ = 1000 m, Z₀ = 500 m, V = 5.7 m/frame,
+The paper's example (theory §8.7): ``X₀ = −5700 m, Y₀ = 1000 m, Z₀ = 500 m, V = 5.7 m/frame,
 β₀ = 30°, α₀ = 0°``, Gaussian angle noise σ = 0.001° on θ and ϕ, ``N = 50``, filter memory 10.
 Its results are figures only (Figs. 3–9, one noise realisation; "several realisations gave
-errors of the same order of smallness"). Our choices where the paper is silent (SPEC §11.3
-item 19): estimation from frame N, the image lost at frame ``--loss-frame`` (default 400), a
+errors of the same order of smallness"). Our choices where the paper is silent (theory
+§13.19): estimation from frame N, the image lost at frame ``--loss-frame`` (default 400), a
 prediction gate of ``--gate`` frames (default 200), ``--runs`` seeded realisations.
 
 Three predictors, each fed the same measurements until the loss:
@@ -13,8 +13,8 @@ Three predictors, each fed the same measurements until the loss:
 * ``linefit`` — least-squares fit of the same range-free straight line to all N + 1 samples;
 * ``kalman`` — constant-velocity Kalman filter in angle space.
 
-Targets (SPEC §8): RT-6 exactness without noise (paper and oblique α₀ = 35° trajectories),
-RT-7 noisy errors "of the same small order" (the SPEC §3.8 reference run, not a paper number,
+Targets (theory §12): RT-6 exactness without noise (paper and oblique α₀ = 35° trajectories),
+RT-7 noisy errors "of the same small order" (the theory §8.8 reference run, not a paper number,
 is printed beside ours).
 """
 
@@ -28,8 +28,8 @@ from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPre
 from sensorgym.trackers.angles.prediction import ABCPredictor
 
 HORIZONS = (1, 10, 25, 50, 100, 150, 200)
-#: SPEC §3.8 reference run (20 realisations, loss at frame 400, γ = 0.1): k -> (az °, el °)
-SPEC_REFERENCE = {1: (0.001, 0.0005), 25: (0.0013, 0.0023), 100: (0.007, 0.019)}
+#: theory §8.8 reference run (20 realisations, loss at frame 400, γ = 0.1): k -> (az °, el °)
+REFERENCE_RUN = {1: (0.001, 0.0005), 25: (0.0013, 0.0023), 100: (0.007, 0.019)}
 
 
 def predictors(window: int, memory: float, sigma: float) -> dict[str, object]:
@@ -85,7 +85,7 @@ def manoeuvre(
     horizons: tuple[int, ...] = (1, 25, 100),
 ) -> dict:
     """RMS errors (deg) at ``horizons`` for the paper's example turned into a coordinated turn
-    of each rate (deg/frame): how the straight-line assumption degrades (SPEC §3.6 step 7)."""
+    of each rate (deg/frame): how the straight-line assumption degrades (theory §8.6 step 7)."""
     out = {}
     k = np.asarray(horizons, dtype=np.float64)
     for rate in turn_rates_deg:
@@ -188,7 +188,7 @@ def reproduce(
     ratio = abc["rms_azimuth_deg"][99] / errors["kalman"]["rms_azimuth_deg"][99]
     checks.append(
         {
-            "id": "§3.1",
+            "id": "§8.1",
             "what": "kinematic model beats angle-polynomial extrapolation (k = 100, azimuth)",
             "paper": "kinematic model preferred",
             "ours": f"A-B-C / Kalman RMS = {ratio:.3f}",
@@ -230,15 +230,15 @@ def format_report(result: dict) -> str:
         f"{result['loss_frame']}, N = {result['window']}, memory {result['memory']:g}, "
         f"σ = {result['sigma_deg']:g}°",
         "",
-        "RMS prediction error after the loss (deg); 'SPEC ref' is the SPEC §3.8 reference run",
-        f"  {'k':>4} | {'azimuth: abc':>12} {'linefit':>9} {'kalman':>9} {'SPEC ref':>9}"
-        f" | {'elevation: abc':>14} {'linefit':>9} {'kalman':>9} {'SPEC ref':>9}",
+        "RMS prediction error after the loss (deg); 'ref. run' is the theory §8.8 reference run",
+        f"  {'k':>4} | {'azimuth: abc':>12} {'linefit':>9} {'kalman':>9} {'ref. run':>9}"
+        f" | {'elevation: abc':>14} {'linefit':>9} {'kalman':>9} {'ref. run':>9}",
     ]
     for h in HORIZONS:
         if h > result["gate"]:
             continue
         i = h - 1
-        ref = SPEC_REFERENCE.get(h)
+        ref = REFERENCE_RUN.get(h)
         ra = f"{ref[0]:.4f}" if ref else "—"
         re_ = f"{ref[1]:.4f}" if ref else "—"
         lines.append(

@@ -1,12 +1,12 @@
-"""Paper 002: the fictitious-bearing method, ideal and noisy (SPEC §4.6).
+"""Paper 002: the fictitious-bearing method, ideal and noisy (theory §7.10).
 
-The paper gives no platform/target kinematics (SPEC §11.4 gap 24). Our scenario: platform at
+The paper gives no platform/target kinematics (theory §13.24). Our scenario: platform at
 the origin, target 30 km away on bearing 30°, moving at 40 km/h on course 300° (crossing the
 line of sight); assumed distance D = 50 km (RT-8: "assumed 50 km, computed start 30 km").
 The platform heads along the first bearing at 30 km/h; right after base bearing 3 it turns
 perpendicular to base bearing 2 — to the side opposite the bearing drift, which lengthens
-the baseline across the line of sight — and doubles its speed to 60 km/h (SPEC §7 OC-5).
-Bearings every 2 s; base bearings every 1.5 min (blocks of 45, SPEC §4.5), at 1.5 … 9 min.
+the baseline across the line of sight — and doubles its speed to 60 km/h (theory §10.5 OC-5).
+Bearings every 2 s; base bearings every 1.5 min (blocks of 45, theory §7.5), at 1.5 … 9 min.
 
 * RT-8 (noise-free): base bearings are the true bearings at the block ends; the fix at
   bearings 4, 5, 6 must be within 50 m of the truth.
@@ -14,7 +14,7 @@ Bearings every 2 s; base bearings every 1.5 min (blocks of 45, SPEC §4.5), at 1
   base bearing 6 (9 min). Refinement readings (gap 26): "continued" = λ from bearings 4–6 by
   least squares with the course from bearings 1–3; "literal" = the paper's re-projection
   (course from bearings 4–6, scale from the preliminary fix); "ML(base)" = batch ML on base
-  bearings 1–6 (SPEC's robust alternative); "ML(raw)" = batch ML on every 2-s bearing, with
+  bearings 1–6 (the robust alternative of theory §13.26); "ML(raw)" = batch ML on every 2-s bearing, with
   the deterministic CRLB of the raw bearings for scale.
 """
 
@@ -301,7 +301,7 @@ def format_report(result: dict) -> str:
         )
     lines.append(
         f"{'course error from Q, uncorrected':<38}{'(not given)':<26}"
-        f"{ideal['course_error_uncorrected_deg']:<+22.2f}deg (SPEC §11.4-25)"
+        f"{ideal['course_error_uncorrected_deg']:<+22.2f}deg (theory §13.25)"
     )
     lines.append(
         f"{'course error, corrected V':<38}{'(not given)':<26}"

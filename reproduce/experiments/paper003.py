@@ -1,4 +1,4 @@
-"""Paper 003: algebraic accuracy (variants 1, 2) and the algorithmic P(m) table (SPEC §5.5).
+"""Paper 003: algebraic accuracy (variants 1, 2) and the algorithmic P(m) table (theory §5.6, §12.4).
 
 Scenario choices where the paper is silent (printed with the tables):
 

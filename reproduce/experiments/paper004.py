@@ -1,18 +1,18 @@
-"""Paper 004: accuracy of multi-channel fused tracking (SPEC §6.4–6.5, RT-14..RT-16).
+"""Paper 004: accuracy of multi-channel fused tracking (theory §9.4–9.5, RT-14..RT-16).
 
-* RT-14 — eqs. (9) and (13) at ``F = 0.01`` (exact target, SPEC AT-8).
+* RT-14 — eqs. (9) and (13) at ``F = 0.01`` (exact target, theory §12.6 AT-8).
 * RT-15 — steps of recurrence (11) to 5 % of its stationary value (paper: "5…20 steps").
 * RT-16 — Fig. 2: tracking error ``Δ = θ₀ L √δ_∞`` versus the detection parameter q and the
   detection probability P at several ranges (θ₀ = 5 mrad, R_λ = 0.99, F = 0.01; the paper
   gives no range values, ours are ``--ranges``), plus eq. (12) for an object of ``g × v``.
-* §6.5 claim 4 — "several mediocre channels track what one sensor cannot": seeded closed-loop
+* theory §9.5 claim 4 — "several mediocre channels track what one sensor cannot": seeded closed-loop
   Monte Carlo (:mod:`~sensorgym.reproduce.experiments.paper004_closed_loop`) of
   :class:`~sensorgym.trackers.fusion.tracker.FusionTracker` on the default
   :class:`~sensorgym.envs.worlds.imaging.ImagingScene` (four channels of q ≈ 3.3, each showing
   background 23 % of the time), fused versus each channel alone versus one channel of twice the
   contrast (q ≈ 6.5, the root-sum-square (10) of the four) with the same visibility.
 
-Reconstruction choices (SPEC §11.6): (11) in its mixture form (a) and its information form (b),
+Reconstruction choices (theory §13.36–13.41): (11) in its mixture form (a) and its information form (b),
 ``z² = q²/2``, (10) as root-sum-square.
 """
 
@@ -43,7 +43,7 @@ from sensorgym.trackers.fusion.variance import (
 F = 0.01
 R_LAMBDA = 0.99
 THETA0 = 5e-3  # rad
-#: SPEC §6.4 [V]: P(q) at F = 0.01
+#: theory §9.4 [V]: P(q) at F = 0.01
 RT14_Q = (1.0, 2.0, 3.0, 5.0, 7.0)
 RT14_P = (0.0924, 0.3721, 0.7497, 0.9962, 0.999999)
 RT15_Q = (2.0, 3.0, 5.0, 7.0, 10.0)
@@ -160,7 +160,7 @@ def synergy(runs: int, frames: int, seed: int) -> dict:
 
 
 def bridge(runs: int, frames: int, seed: int) -> dict:
-    """Which reconstruction of (11) describes the synthesised filter? (SPEC §11.6 item 36)
+    """Which reconstruction of (11) describes the synthesised filter? (theory §13.36)
 
     One channel, one object view visible in each frame independently with probability P (the
     Bernoulli detection model behind (11)), contrast high enough that the view posterior is
@@ -231,7 +231,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
             entry(
                 "RT-15",
                 f"(11{'a' if form == 'mixture' else 'b'}) steps to 5 % of δ_∞, q = 2,3,5,7,10",
-                "5…20 steps (SPEC RT-15 tolerance 3–20)",
+                "5…20 steps (RT-15 tolerance 3–20, theory §12.5)",
                 "/".join(str(x) for x in steps),
                 max(steps) <= 20 and min(steps) >= 3,
                 "outside the 3–20 steps of the reconstructed recurrences",
@@ -265,7 +265,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
                 f"{100 * drop_high:.0f} % lower at q = 10",
                 drop_high < 0.05,
                 "the reconstructed (11) keeps improving (Δ ∝ q^-1/2 once P ≈ 1); the "
-                "paper's saturation is not reproduced by any reconstruction (SPEC §11.6 item 41)",
+                "paper's saturation is not reproduced by any reconstruction (theory §13.41)",
             )
         )
     fused = s["fused (4 weak)"]["lost_fraction"]
@@ -273,7 +273,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
     strong = s["one strong channel"]["lost_fraction"]
     out.append(
         entry(
-            "§6.5-4",
+            "§9.5-4",
             "several mediocre channels keep lock where one channel cannot",
             "synergy (qualitative)",
             f"lost: fused {fused:.2f}, single {min(singles):.2f}–{max(singles):.2f}, "
@@ -287,7 +287,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
         dev_b = max(abs(r["tracker_mean_delta"] / r["eq11b_delta"] - 1.0) for r in b["rows"])
         out.append(
             entry(
-                "§11.6-36",
+                "§13.36",
                 "the synthesised filter's mean posterior variance follows (11a), not (11b)",
                 "(11) illegible",
                 f"max deviation {100 * dev_a:.1f} % from (11a), {100 * dev_b:.0f} % from (11b)",
@@ -299,7 +299,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
     flat = s["fused, uniform π"]["view_accuracy_kept"]
     out.append(
         entry(
-            "§6.2",
+            "§9.2",
             "transition probabilities reject implausibly fast view changes",
             "interference immunity (qualitative)",
             f"MAP view accuracy {chain:.3f} with the chain, {flat:.3f} with uniform π",
@@ -338,7 +338,7 @@ def reproduce(
 def format_report(result: dict) -> str:
     f, s = result["formulas"], result["synergy"]
     lines = [f"Paper 004 — F = {F}, R_λ = {R_LAMBDA}, θ₀ = {1e3 * THETA0:g} mrad", ""]
-    lines.append("RT-14  eq. (9) P(q), F = 0.01   (paper value via SPEC §6.4)")
+    lines.append("RT-14  eq. (9) P(q), F = 0.01   (paper value via theory §9.4)")
     lines.append(f"  {'q':>5} {'paper':>9} {'ours':>9}")
     for q, p, o in zip(
         f["rt14"]["q"], f["rt14"]["paper_or_spec_P"], f["rt14"]["ours_P"], strict=True
@@ -375,7 +375,7 @@ def format_report(result: dict) -> str:
     sc = s["_scene"]
     lines += [
         "",
-        f"§6.5 claim 4 — closed loop, {sc['runs']} runs × {sc['frames']} frames, {sc['loss_rule']}",
+        f"theory §9.5 claim 4 — closed loop, {sc['runs']} runs × {sc['frames']} frames, {sc['loss_rule']}",
         f"  object {sc['object_size_mrad']:g} mrad, blur σ {sc['psf_std_mrad']:g} mrad, "
         f"{sc['pixels']} px × {sc['pixel_pitch_mrad']:g} mrad, θ₀ {sc['theta0_mrad']:g} mrad, "
         f"R_λ {sc['correlation']}, "

@@ -7,12 +7,12 @@ from typing import Any
 
 
 def format_checks(checks: list[dict]) -> list[str]:
-    """The "Targets (SPEC §8)" block: one line per check with the paper's value beside ours.
+    """The "Targets (theory §12)" block: one line per check with the paper's value beside ours.
 
     Each check is a dict with ``id``, ``status`` (matched / missed / …), ``what``, ``paper``,
     ``ours`` and ``reason`` (why it was missed, or empty).
     """
-    lines = ["", "Targets (SPEC §8):"]
+    lines = ["", "Targets (theory §12):"]
     for ch in checks:
         tail = f" — {ch['reason']}" if ch["reason"] else ""
         lines.append(

@@ -1,4 +1,4 @@
-"""Direction vectors, angle conventions and poses (SPEC §1)."""
+"""Direction vectors, angle conventions and poses (theory §2)."""
 
 from __future__ import annotations
 
@@ -95,7 +95,7 @@ def test_relative_pose_maps_points_into_frame_one(rng):
     # M_k = R_kᵀ (M − o_k)
     M_local = np.einsum("kji,kj->ki", R, M_world - o)
     P, b = relative_pose(R[:1], o[:1], R[1:], o[1:])
-    # M_1 = P_k M_k + b_k   (SPEC §1.1)
+    # M_1 = P_k M_k + b_k   (theory §2.1)
     np.testing.assert_allclose(
         np.einsum("kij,kj->ki", P, M_local[1:]) + b, np.tile(M_local[0], (3, 1)), atol=1e-10
     )

@@ -1,4 +1,4 @@
-"""Baselines for the paper 001 angle predictor (SPEC §3, §11.3 item 21).
+"""Baselines for the paper 001 angle predictor (theory §8.9, §13.21).
 
 Both share the interface of :class:`~sensorgym.trackers.angles.prediction.ABCPredictor`
 (``initial_state(B)``, ``update(state, θ, ϕ, mask)``, ``predict(state, k)``), are pure and
@@ -6,7 +6,7 @@ batched over a leading track axis.
 
 * :class:`LineFitPredictor` — the same range-free straight-line model as the A-B-C predictor,
   but fitted by least squares to **all** ``N + 1`` samples of the window instead of three
-  (SPEC §11.3 item 21). With ``j = −N…0`` the frame offset from the latest sample C, the
+  (theory §13.21). With ``j = −N…0`` the frame offset from the latest sample C, the
   conditional horizontal trajectory ``(X_C + j δ_X, Y_C + j δ_Y)`` must lie on every measured
   azimuth ray: ``(X_C + j δ_X) cos θ_j − (Y_C + j δ_Y) sin θ_j = 0``. These ``N + 1`` homogeneous
   equations in ``p = (X_C, Y_C, δ_X, δ_Y)`` are solved in the total-least-squares sense
@@ -15,7 +15,7 @@ batched over a leading track axis.
   range of sample j on the fitted line) by an ordinary least-squares line ``Z_C + j δ_Z``.
   Exact for noise-free uniform rectilinear motion.
 * :class:`AngleKalmanPredictor` — a constant-velocity Kalman filter run independently on θ and
-  ϕ (the paper's "low-order polynomial of past angles" approach, SPEC §3.1 (a)), with wrapped
+  ϕ (the paper's "low-order polynomial of past angles" approach, theory §8.1 (a)), with wrapped
   azimuth residuals. Not exact for rectilinear motion: the angles of a straight path are not
   linear in time, so its error grows with the horizon.
 """
@@ -174,7 +174,7 @@ class AngleKalmanPredictor:
     """σ of each measured angle (rad); default the paper's 0.001°."""
     accel_psd: float = 1e-11
     """q: spectral density of the angular acceleration (rad²/frame³); the default suits the
-    §3.7 example, whose angular accelerations are ≈ 1e-6 rad/frame²."""
+    theory §8.7 example, whose angular accelerations are ≈ 1e-6 rad/frame²."""
     initial_rate_std: float = 1e-2
     """Prior standard deviation of the angular rate at the first measurement (rad/frame)."""
 

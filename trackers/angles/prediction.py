@@ -1,29 +1,29 @@
-"""Azimuth and elevation prediction through a short loss of the target image (paper 001, SPEC §3).
+"""Azimuth and elevation prediction through a short loss of the target image (paper 001, theory §8).
 
-Frame (SPEC §1.2, §3.2): carrier frame ``OXYZ``, ``OXY`` horizontal, ``OZ`` up; azimuth θ from
+Frame (theory §2.2, §8.2): carrier frame ``OXYZ``, ``OXY`` horizontal, ``OZ`` up; azimuth θ from
 ``OY`` towards ``OX`` (``X = Y tan θ``), elevation ϕ from the horizontal plane.
 
 The target is assumed to move uniformly along a straight line relative to the carrier over the
 last ``N + 1`` frames. Range is not measured, so the predictor works on one member of the family
 of parallel *conditional* trajectories with the same angles, fixed by an arbitrary ``Y_C > 0``
-(SPEC §3.1, §3.3). Of the window it uses three samples: A (oldest, ``i = N``), B (middle,
+(theory §8.1, §8.3). Of the window it uses three samples: A (oldest, ``i = N``), B (middle,
 ``i = N/2``) and C (latest, ``i = 0``)::
 
     (6)  Δ_Y/Δ_X = (tA − 2 tB + tC) / (2 tA tC − tA tB − tB tC) ,   t = tan θ
     (4)  X_C = Y_C tan θ_C
          A = the point of the line through C with slope Δ_Y/Δ_X seen at azimuth θ_A
          δ_X = (X_C − X_A)/N ,  δ_Y = (Y_C − Y_A)/N
-    §3.5 θ_P = −atan(Δ_Y/Δ_X) ,  R = OC′ cos(θ_P − θ_C) ,  OA′ = R / cos(θ_P − θ_A)
+    §8.5 θ_P = −atan(Δ_Y/Δ_X) ,  R = OC′ cos(θ_P − θ_C) ,  OA′ = R / cos(θ_P − θ_A)
          Z_A = OA′ tan ϕ_A ,  Z_C = OC′ tan ϕ_C ,  δ_Z = (Z_C − Z_A)/N
-    §3.6 θ_пр = atan2(X_C + δ_X k, Y_C + δ_Y k) ,  ϕ_пр = atan2(Z_C + δ_Z k, OS′)
+    §8.6 θ_пр = atan2(X_C + δ_X k, Y_C + δ_Y k) ,  ϕ_пр = atan2(Z_C + δ_Z k, OS′)
 
 and smooths the time-constant parameters with an exponential filter ``x̂ ← x̂ + γ(x − x̂)``
-(SPEC §3.4). The predictions are invariant to ``Y_C`` and exact for noise-free uniform
-rectilinear motion (SPEC AT-6).
+(theory §8.4). The predictions are invariant to ``Y_C`` and exact for noise-free uniform
+rectilinear motion (theory §12.6 AT-6).
 
-Documented choices for the SPEC gaps (§11.3 items 16–21):
+Documented choices for the gaps (theory §13.16–13.21):
 
-* 16 — ``tan ϕ`` in the δ_Z formula, ``R = OC′ cos(θ_P − θ_C)`` (SPEC §3.5 reconstruction).
+* 16 — ``tan ϕ`` in the δ_Z formula, ``R = OC′ cos(θ_P − θ_C)`` (theory §8.5 reconstruction).
 * 17 — gain ``γ = 1/memory`` (``gain_rule="inverse"``, default) or ``2/(memory + 1)``
   (``"equivalent"``); the filters start at the first raw value; δ_Z is smoothed too
   (``smooth_delta_z=True``): the paper's list of filtered "time-constant parameters" omits
@@ -172,12 +172,12 @@ class ABCPredictor:
     memory: float = 10.0
     """Effective memory of the exponential filter (frames)."""
     gain_rule: Literal["inverse", "equivalent"] = "inverse"
-    """How ``memory`` sets the filter gain γ: ``1/memory`` or ``2/(memory + 1)`` (SPEC §3.4)."""
+    """How ``memory`` sets the filter gain γ: ``1/memory`` or ``2/(memory + 1)`` (theory §8.4)."""
     initial_scale: float = 1000.0
     """Horizontal range ``OC′ = ρ₀`` of C at the first estimate, so ``Y_C = ρ₀ cos θ_C``: selects
     the conditional trajectory (conditional metres, > 0)."""
     smooth_delta_z: bool = True
-    """Smooth δ_Z with the same filter (SPEC §11.3 item 17; not stated by the paper)."""
+    """Smooth δ_Z with the same filter (theory §13.17; not stated by the paper)."""
 
     def __post_init__(self) -> None:
         if self.window < 2 or self.window % 2:
@@ -219,7 +219,7 @@ class ABCPredictor:
         elevation: ArrayLike,
         mask: ArrayLike | None = None,
     ) -> ABCState:
-        """Advance every track by one frame (SPEC §3.6 steps 1–7).
+        """Advance every track by one frame (theory §8.6 steps 1–7).
 
         ``azimuth``, ``elevation``: the measured angles ``(B,)`` (rad). Where ``mask`` is False
         the image is lost this frame and the track *coasts* (step 7): point C moves one frame
@@ -249,7 +249,7 @@ class ABCPredictor:
         ph_A, ph_C = ph[:, 0], ph[:, N]
         sA, cA, cC = np.sin(th_A), np.cos(th_A), np.cos(th_C)
         alpha_raw = trajectory_direction(th_A, th_B, th_C)  # tan α = Δ_Y/Δ_X     (5), (6)
-        # α̂_n = α̂_{n−1} + γ (α_n − α̂_{n−1}), the difference taken modulo π           (§3.4)
+        # α̂_n = α̂_{n−1} + γ (α_n − α̂_{n−1}), the difference taken modulo π           (§8.4)
         alpha = np.where(
             first,
             alpha_raw,
@@ -257,12 +257,12 @@ class ABCPredictor:
         )
 
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            # Y_C^{n+1} = Y_C^n + δ̂_Y^n (scale consistency, §3.4);  X_C = Y_C tan θ_C   (4)
+            # Y_C^{n+1} = Y_C^n + δ̂_Y^n (scale consistency, §8.4);  X_C = Y_C tan θ_C   (4)
             # first estimate: Y_C = ρ₀ cos θ_C puts C on the measured ray (OC′ = ρ₀) also
             # behind OX, where the paper's "any Y_C > 0" would pick the opposite ray
             Y_C = np.where(first, self.initial_scale * cC, state.anchor[:, 1] + state.delta[:, 1])
             X_C = Y_C * np.tan(th_C)
-            # θ_P = −α̂;  R = OC′ cos(θ_P − θ_C);  OA′ = R / cos(θ_P − θ_A)            (§3.5)
+            # θ_P = −α̂;  R = OC′ cos(θ_P − θ_C);  OA′ = R / cos(θ_P − θ_A)            (§8.5)
             theta_P = -alpha
             OC = np.hypot(X_C, Y_C)
             R = OC * np.cos(theta_P - th_C)
@@ -270,7 +270,7 @@ class ABCPredictor:
             # A: the point of the line through C (direction α̂) seen at θ_A,
             # (X_A, Y_A) = OA′ (sin θ_A, cos θ_A)
             X_A, Y_A = OA * sA, OA * cA
-            # Z_A = OA′ tan ϕ_A,  Z_C = OC′ tan ϕ_C                                        (§3.5)
+            # Z_A = OA′ tan ϕ_A,  Z_C = OC′ tan ϕ_C                                        (§8.5)
             Z_A, Z_C = OA * np.tan(ph_A), OC * np.tan(ph_C)
             # δ_X = 2Δ_X/N = (X_C − X_A)/N, same for Y;  δ_Z = (Z_C − Z_A)/N
             raw = np.stack([X_C - X_A, Y_C - Y_A, Z_C - Z_A], axis=-1) / N
@@ -280,7 +280,7 @@ class ABCPredictor:
         previous = np.where(first[:, None], 0.0, state.delta)
         raw = np.where(finite[:, None], raw, previous)
         anchor = np.where(finite[:, None], anchor, state.anchor)
-        # x̂_n = x̂_{n−1} + γ (x_n − x̂_{n−1}), started at the first raw value          (§3.4)
+        # x̂_n = x̂_{n−1} + γ (x_n − x̂_{n−1}), started at the first raw value          (§8.4)
         smoothed = state.delta + g * (raw - state.delta)
         if not self.smooth_delta_z:
             smoothed[:, 2] = raw[:, 2]
@@ -298,7 +298,7 @@ class ABCPredictor:
         )
 
     def predict(self, state: ABCState, steps: ArrayLike) -> tuple[FloatArray, FloatArray]:
-        """Predicted azimuth and elevation ``k`` frames after the current one (SPEC §3.6 step 7).
+        """Predicted azimuth and elevation ``k`` frames after the current one (theory §8.6 step 7).
 
         ``steps``: k (any shape, ≥ 0). Returns θ, ϕ of shape ``(B, *k.shape)`` (rad). Tracks
         without a first estimate hold their latest measurement.

@@ -1,10 +1,10 @@
-"""Paper 002: the method of fictitious bearings (SPEC §4), ideal and block-smoothed variants.
+"""Paper 002: the method of fictitious bearings (theory §7), ideal and block-smoothed variants.
 
 The platform takes bearing 1 on detection, moves uniformly (the paper: along bearing 1) while
 taking bearings 2 and 3 at equal intervals Δ, then turns perpendicular to bearing 2 and
-speeds up; bearing 4 fixes the target (SPEC §4.4, §7 OC-5).
+speeds up; bearing 4 fixes the target (theory §7.3, §10.5 OC-5).
 
-Geometry (SPEC §4.2–4.3). A is put on bearing 1 at an assumed distance D; line AE ⊥ bearing 1;
+Geometry (theory §7.1–7.2). A is put on bearing 1 at an assumed distance D; line AE ⊥ bearing 1;
 bearings 2 and 3 cut AE at B and E (signed offsets c₁ = AB, c₂ = AE along ``e`` = bearing 1
 rotated 90° clockwise); ``α_k = atan2(u_k·u₁, u_k·e)``; then (paper eq. 1–3)::
 
@@ -12,7 +12,7 @@ rotated 90° clockwise); ``α_k = atan2(u_k·u₁, u_k·e)``; then (paper eq. 1�
     β = arctg(tan β),   Q = π − β,   d = cos Q e + sin Q u₁
 
 and the fictitious track A B′ C′ (direction d) has AB′ = B′C′. Equivalent direct solve
-(SPEC §4.4, recommended; exact for any *uniformly* moving platform, since M₃ − 2M₂ + M₁ = 0)::
+(theory §7.3–7.4, recommended; exact for any *uniformly* moving platform, since M₃ − 2M₂ + M₁ = 0)::
 
     2 s₂ u₂ − s₃ u₃ = D u₁,   F₁ = D u₁,  F₂ = s₂ u₂,  W_f = (F₂ − F₁)/Δ
 
@@ -23,14 +23,14 @@ fictitious one scaled by λ, so bearing k (k ≥ 4) gives, with ``n_k ⊥ u_k``:
 
     λ F_k − ρ_k u_k = M_k − M_kᴹ   ⇒   λ = ((M_k − M_kᴹ)·n_k) / (F_k·n_k)
 
-Course and speed use the moving-platform correction (SPEC §11.4 item 25; the paper's β is
+Course and speed use the moving-platform correction (theory §13.25; the paper's β is
 the target course only for a stationary platform)::
 
     V = λ W_f + v_p0,     position at t₁: M₁ + λ D u₁,     range at t₁: λ D
 
 Several post-turn bearings give λ by least squares, ``λ = Σ a_k b_k / Σ a_k²`` with
 ``a_k = F_k·n_k``, ``b_k = (M_k − M_kᴹ)·n_k`` (our reading of "intersect every real bearing
-with its imaginary one", SPEC §4.4 step 9). Everything is batched over leading axes.
+with its imaginary one", theory §7.3 step 9). Everything is batched over leading axes.
 """
 
 from __future__ import annotations
@@ -97,7 +97,7 @@ class FictitiousTrack:
 
 def paper_construction(M: ArrayLike, z: ArrayLike, D: ArrayLike) -> FictitiousTrack:
     """Eq. (1)–(3) construction from platform positions ``M`` ``(..., 3, 2)`` and bearings ``z``
-    ``(..., 3)`` (rad), with the assumed distance ``D`` (m). Signs as in SPEC §4.3."""
+    ``(..., 3)`` (rad), with the assumed distance ``D`` (m). Signs as in theory §7.2."""
     M = finite_array(M, "M", tail=(3, 2))
     z = finite_array(z, "z", tail=(3,))
     D = finite_array(D, "D")
@@ -178,7 +178,7 @@ def fictitious_bearing_fix(
     *,
     equal_tolerance: float = 1e-6,
 ) -> FictitiousFix:
-    """Fix from bearings 1–3 (course) and bearings 4… (scale), SPEC §4.4.
+    """Fix from bearings 1–3 (course) and bearings 4… (scale), theory §7.3.
 
     ``times`` ``(K,)`` with ``K ≥ 4`` and ``t₂ − t₁ = t₃ − t₂``; ``platform_positions``
     ``(..., K, 2)``: the platform must move uniformly through bearings 1–3 (``v_p0 = (M₂ − M₁)/Δ``);
@@ -212,13 +212,13 @@ def fictitious_bearing_fix(
     if np.any(den < 1e-12 * np.maximum(np.sum(Fk * Fk, axis=(-1, -2)), 1e-300)):
         raise ValueError(
             "z: the post-turn bearings coincide with their imaginary bearings; the range is "
-            "unobservable (turn and speed up, SPEC §7 OC-5)"
+            "unobservable (turn and speed up, theory §10.5 OC-5)"
         )
     lam = np.sum(a * b, axis=-1) / den
     if np.any(np.abs(lam) < 1e-9):
         raise ValueError(
             "platform_positions: no displacement across the bearings after the turn; "
-            "the range is unobservable (turn and speed up, SPEC §7 OC-5)"
+            "the range is unobservable (turn and speed up, theory §10.5 OC-5)"
         )
     return FictitiousFix(
         t_ref=float(times[0]),
@@ -234,7 +234,7 @@ def literal_refinement(
     platform_positions: ArrayLike,
     z: ArrayLike,
 ) -> FictitiousFix:
-    """The paper's refinement read literally (SPEC §4.5 step 7; gap 26).
+    """The paper's refinement read literally (theory §7.5 step 7; gap §13.26).
 
     Bearings 4–6 (taken after the turn, platform uniform again) are "projected onto a new
     line A_nE_n" with A_n at the preliminary position on bearing 4; the fictitious track from
@@ -263,7 +263,7 @@ def literal_refinement(
 def block_base_bearings(
     times: ArrayLike, z: ArrayLike, block_size: int, degree: int = 1
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Base bearings by polynomial smoothing over consecutive blocks (SPEC §4.5 steps 2–4).
+    """Base bearings by polynomial smoothing over consecutive blocks (theory §7.5 steps 2–4).
 
     Each block of ``block_size`` samples (causal: only the block's own samples) is fitted by
     least squares with a polynomial of ``degree`` in time, and the fit is evaluated at the

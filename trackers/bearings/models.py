@@ -11,7 +11,7 @@ Conventions (fixed for all of sensorgym's 2-D bearings code)
   the environments need.
 * Bearing: absolute, from North clockwise, radians::
 
-      β = atan2(x_t − x_p, y_t − y_p)                                (SPEC §1.2, lead's note)
+      β = atan2(x_t − x_p, y_t − y_p)                                (theory §2.5)
 
   Residuals are wrapped with :func:`sensorgym.trackers.geometry.wrap_angle`.
 * Motion: nearly constant velocity with continuous white-noise acceleration of intensity

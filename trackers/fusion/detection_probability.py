@@ -1,4 +1,4 @@
-"""Detection probability and detection parameter of an imaging channel (paper 004, SPEC §6.4).
+"""Detection probability and detection parameter of an imaging channel (paper 004, theory §9.4).
 
 Paper 004 writes the detection probability of a rectangle of constant contrast on a uniform
 background with the Laplace function ``Φ₀(x) = (2π)^{-1/2} ∫₀ˣ exp(−t²/2) dt``::
@@ -8,12 +8,12 @@ background with the Laplace function ``Φ₀(x) = (2π)^{-1/2} ∫₀ˣ exp(−t
 
 Because ``Φ₀(x) = Φ(x) − ½`` with ``Φ`` the standard normal CDF, (9) is
 ``P = Φ(q − z_{1−F})`` with ``z_{1−F} = Φ⁻¹(1 − F)``, and (13) is its inverse
-``q = z_{1−F} + Φ⁻¹(P)`` (SPEC §6.4 [R,V]). Both are evaluated with ``scipy.stats.norm``
+``q = z_{1−F} + Φ⁻¹(P)`` (theory §9.4 [R,V]). Both are evaluated with ``scipy.stats.norm``
 (``isf``/``sf`` keep full precision for small ``F`` and for ``P`` close to one).
 
 The detection parameter of ``N`` channels observed together is eq. (10); the paper's print is
 garbled between the root-sum-square ``q = √(Σ q_n²)`` (the matched-filter SNR of independent
-channels, our default) and the plain sum ``Σ q_n`` (SPEC §11.6 item 36), so both are offered.
+channels, our default) and the plain sum ``Σ q_n`` (theory §13.36), so both are offered.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Multi-channel fused angle tracker with weighted discriminators (paper 004, SPEC §6.1–6.3).
+"""Multi-channel fused angle tracker with weighted discriminators (paper 004, theory §9.1–9.3).
 
 ``N`` co-boresighted imaging channels watch one object; one tracking plane is treated, with the
 continuous parameter λ (deviation of the line of sight from the optical axis). Each channel n
@@ -11,13 +11,13 @@ background** (the object is not visible in that channel, ``s ≡ 0``). λ is Gau
 Closed loop (Fig. 1): before frame k the axis is pointed at the extrapolated estimate
 ``λ_k^э = R_λ λ̂_{k−1}`` (:meth:`FusionTracker.command`), so the images arrive centred on
 ``λ_k^э`` and the tracker needs the templates and their slopes at zero shift only. One step
-(:meth:`FusionTracker.update`, SPEC §6.2 reconstructions, §11.6 choices):
+(:meth:`FusionTracker.update`, theory §9.2 reconstructions, §13.36–13.41 choices):
 
 * extrapolation: ``D_k = R_λ² d_{k−1} + d₀``, ``d₀ = (1 − R_λ²) σ_λ²``;
-* per channel and view, the log-likelihood ratio with its energy term (§11.6 item 37)
+* per channel and view, the log-likelihood ratio with its energy term (theory §13.37)
   ``Π = σ⁻² Σ_j y_j s_j − ½ σ⁻² Σ_j s_j²``, its derivative (the discriminator output)
   ``Π′ = σ⁻² Σ_j (y_j − s_j) ∂s_j/∂λ = −σ⁻² Σ_j (y_j − s_j) s′_j`` and the Fisher information
-  ``I = σ⁻² Σ_j s′_j²`` (§11.6 item 38); background: ``Π = Π′ = I = 0``;
+  ``I = σ⁻² Σ_j s′_j²`` (theory §13.38); background: ``Π = Π′ = I = 0``;
 * (3) view posteriors: ``P_k(ϑ_m) ∝ exp{Π_m}·g_m·Σ_μ π(ϑ_m | ϑ_μ) P_{k−1}(ϑ_μ)`` — detection
   likelihood × transition prediction — where ``g_m = (1 + D_k I_m)^{-1/2}
   exp{½ D_k Π′_m² / (1 + D_k I_m)}`` is the Gaussian factor of integrating the quadratic LLR
@@ -29,7 +29,7 @@ Closed loop (Fig. 1): before frame k the axis is pointed at the extrapolated est
   each channel's information once (summing per-channel ``D_k(ϑ^{(n)})`` would over-count it);
 * (7), optional (``gain="stationary"``): the block diagram's simplified estimator with a constant
   gain, the stationary ``d`` with all channels seeing the object;
-* loop opening (§6.3): when the object posterior ``1 − P_k(background)`` of **every** channel is
+* loop opening (theory §9.3): when the object posterior ``1 − P_k(background)`` of **every** channel is
   below ``open_threshold`` the loop opens, ``λ̂_k = λ_k^э`` and ``d_k = D_k`` (coasting).
 
 Everything is batched over a leading scenario axis ``B`` and deterministic.
@@ -80,7 +80,7 @@ class FusionModel:
     """Include the Gaussian marginalisation factor ``g_m`` in (3)."""
     gain: Literal["posterior", "stationary"] = "posterior"
     """``"posterior"``: gain ``d_k`` of (4)–(5). ``"stationary"``: the simplified estimator (7)
-    of the block diagram, with the constant gain :attr:`stationary_gain` (SPEC §11.6 item 39)."""
+    of the block diagram, with the constant gain :attr:`stationary_gain` (theory §13.39)."""
 
     def __post_init__(self) -> None:
         s = finite_array(self.templates, "templates")
@@ -190,7 +190,7 @@ class FusionTracker:
         self, batch_size: int, estimate: ArrayLike = 0.0, variance: float | None = None
     ) -> FusionState:
         """State at lock-on: the object designated at ``estimate`` (default 0, the axis) with
-        variance ``variance`` (default σ_λ²); uniform view prior ``1/M`` (SPEC §6.1)."""
+        variance ``variance`` (default σ_λ²); uniform view prior ``1/M`` (theory §9.1)."""
         if batch_size < 1:
             raise ValueError("batch_size: must be ≥ 1")
         var = self.model.prior_std**2 if variance is None else float(variance)
@@ -223,7 +223,7 @@ class FusionTracker:
         # λ^э = R_λ λ̂_{k−1};  D_k = R_λ² d_{k−1} + d₀
         lam_e = R * state.estimate
         D = R * R * state.variance + mdl.transition_variance
-        # Π = σ⁻² Σ y s − ½ σ⁻² Σ s²                                   (LLR, SPEC §6.2, item 37)
+        # Π = σ⁻² Σ y s − ½ σ⁻² Σ s²                                   (LLR, theory §9.2, §13.37)
         Pi = inv_var[:, None] * (np.einsum("bnj,nmj->bnm", y, s) - 0.5 * np.sum(s * s, axis=-1))
         # Π′ = −σ⁻² Σ (y − s) s′   (the image is s(x − (λ − λ^э)))     (discriminator output)
         dPi = -inv_var[:, None] * (np.einsum("bnj,nmj->bnm", y, ds) - np.sum(s * ds, axis=-1))
@@ -245,7 +245,7 @@ class FusionTracker:
         # (4) λ̂_k = λ^э + d_k Σ_n Σ_m P Π′   or   (7) λ̂_k = λ^э + γ Σ_n Σ_m P Π′
         gain = d if mdl.gain == "posterior" else mdl.stationary_gain
         lam = lam_e + gain * np.sum(post * dPi, axis=(1, 2))
-        # §6.3: the loop opens when no channel holds the object
+        # theory §9.3: the loop opens when no channel holds the object
         open_loop = np.all(1.0 - post[..., 0] < mdl.open_threshold, axis=-1)
         return FusionState(
             estimate=np.where(open_loop, lam_e, lam),

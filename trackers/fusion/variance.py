@@ -1,14 +1,14 @@
-"""Accuracy of the integrated tracking system: relative posterior variance (paper 004, SPEC §6.4).
+"""Accuracy of the integrated tracking system: relative posterior variance (paper 004, theory §9.4).
 
 With ``δ_k = d_k / σ_λ²`` the posterior variance relative to the prior ``σ_λ² = (θ₀ L)²`` and
 ``D̃_k = R_λ² δ_{k−1} + (1 − R_λ²)`` the relative variance of the extrapolated estimate, the
-garbled eq. (11) is reconstructed in two forms (SPEC §6.4 [R], §11.6 item 36)::
+garbled eq. (11) is reconstructed in two forms (theory §9.4 [R], §13.36)::
 
     (11a) mixture:      δ_k = (1 − P)·D̃_k + P·D̃_k / (1 + z² D̃_k)   (object detected with prob. P)
     (11b) information:  δ_k = [ D̃_k⁻¹ + P z² ]⁻¹                     (information averaged over P)
 
 where ``z`` is the generalised detection parameter, read as ``z² = q²/2`` (the print shows
-"z … q … 2"; SPEC §11.6 item 36). The mixture form is the default. The stationary
+"z … q … 2"; theory §13.36). The mixture form is the default. The stationary
 solution ``δ_∞`` gives the tracking error ``Δ = θ₀ L √δ_∞`` (metres when ``θ₀`` is in rad and
 ``L`` in m) and, through eq. (12), the probability of holding the axis on the object.
 """
@@ -27,7 +27,7 @@ VarianceForm = Literal["mixture", "information"]
 
 
 def generalised_detection_parameter_sq(q: ArrayLike) -> FloatArray:
-    """``z² = q²/2``: the reading of the garbled definition under eq. (11) (SPEC §11.6 item 36)."""
+    """``z² = q²/2``: the reading of the garbled definition under eq. (11) (theory §13.36)."""
     q = finite_array(q, "q")
     return 0.5 * q * q
 
@@ -146,7 +146,7 @@ def steps_to_stationarity(
 ) -> NDArray[np.int64]:
     """First step ``k`` with ``|δ_k − δ_∞| ≤ tolerance·δ_∞``, starting from ``δ_0 = delta0``.
 
-    This is the "stationary δ is reached after 5…20 steps" of SPEC §6.4 (RT-15).
+    This is the "stationary δ is reached after 5…20 steps" of theory §9.4 (RT-15).
     Raises ``ValueError`` if it is not reached within ``max_steps``.
     """
     if tolerance <= 0.0:
@@ -169,7 +169,7 @@ def steps_to_stationarity(
 
 
 def tracking_error(delta_inf: ArrayLike, theta0: ArrayLike, distance: ArrayLike) -> FloatArray:
-    """``Δ = σ_λ √δ_∞ = θ₀ L √δ_∞`` (SPEC §6.4): RMS tracking error in the unit of ``L``.
+    """``Δ = σ_λ √δ_∞ = θ₀ L √δ_∞`` (theory §9.4): RMS tracking error in the unit of ``L``.
 
     ``theta0``: RMS angular deviation of the line of sight without tracking (rad);
     ``distance``: observation range ``L``.

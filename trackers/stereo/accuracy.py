@@ -1,4 +1,4 @@
-"""Accuracy of stereo / multi-receiver location: closed forms and Fisher information (SPEC §2.2, §9).
+"""Accuracy of stereo / multi-receiver location: closed forms and Fisher information (theory §3.4, §4).
 
 Two noise models, and when each applies:
 
@@ -25,7 +25,7 @@ covariance ``σ_k² (I − a_k a_kᵀ)``. Then
   ``I(M) = Σ_k (I − u_k u_kᵀ) / (σ_k² r_k²)`` (``u_k`` the world line of sight), and
   ``I(M)⁻¹`` is the Cramér–Rao bound that :func:`triangulate_ml` attains to first order.
 
-Both optima are at orthogonal lines of sight for fixed ranges (SPEC §7 OC-1). All functions
+Both optima are at orthogonal lines of sight for fixed ranges (theory §10.1 OC-1). All functions
 take leading batch axes.
 """
 
@@ -104,7 +104,7 @@ def triple_covariance(alpha: ArrayLike, beta: ArrayLike, sigma_e: ArrayLike = 1.
 
 
 def range_sigma_general(a1: ArrayLike, c: ArrayLike, sigma_e: ArrayLike = 1.0) -> FloatArray:
-    """``σ[r̂_1] = σ_e / √(Σ_k sin²γ_k)`` for any n, ranges only (SPEC §2.2, Schur complement).
+    """``σ[r̂_1] = σ_e / √(Σ_k sin²γ_k)`` for any n, ranges only (theory §3.4, Schur complement).
 
     ``a1 (..., 3)``; ``c (..., n−1, 3)`` lines of sight of receivers 2..n in frame 1.
     Returns ``inf`` when every line of sight is parallel to ``a_1`` (range unobservable).
@@ -121,7 +121,7 @@ def range_sigma_general(a1: ArrayLike, c: ArrayLike, sigma_e: ArrayLike = 1.0) -
 def pair_range_sigma_angle_noise(
     r1: ArrayLike, r2: ArrayLike, gamma: ArrayLike, sigma_ang: ArrayLike
 ) -> FloatArray:
-    """First-order ``σ[r̂_1] = σ_ang √(r_2² + r_1² cos²γ) / sin γ`` of the LS pair (SPEC §2.2).
+    """First-order ``σ[r̂_1] = σ_ang √(r_2² + r_1² cos²γ) / sin γ`` of the LS pair (theory §4.1).
 
     Equal isotropic angular noise ``σ_ang`` (radians) on both directions; ranges in metres.
     At ``γ = 90°`` this is ``r_2 σ_ang``; it exceeds the papers' ``σ_e/sin γ`` with

@@ -1,4 +1,4 @@
-"""Paper 003, algebraic approach: motion parameters from one scan period (SPEC §5.3).
+"""Paper 003, algebraic approach: motion parameters from one scan period (theory §5.4).
 
 *Single object.* Each period the n direction vectors (fixed at different times by scanning
 receivers) are conjugated with the velocity term (003 eq. 2, 4, 6) or power-weighted (eq. 7):
@@ -40,7 +40,7 @@ FloatArray = NDArray[np.float64]
 
 @dataclass(frozen=True)
 class AlgebraicParams:
-    """Gate γ of the multi-object algebraic index (8), solver options (SPEC §5.3, §11.1 item 6)."""
+    """Gate γ of the multi-object algebraic index (8), solver options (theory §5.4, §13.6)."""
 
     position_sigma: float = 0.3
     """Std of each coordinate of a subgroup's position estimate, m."""
@@ -170,7 +170,7 @@ def algebraic_multi(
             )
         )
     index, pos, vel = _subgroup_index(a[0], t[0], (sols[0], sols[1]), t_end)
-    # I_j ≤ γ (003 §5.3), ranges in front of the receivers
+    # I_j ≤ γ (003, theory §5.4), ranges in front of the receivers
     keep = (
         (index <= params.gamma)
         & np.all(sols[0].ranges > 0, axis=-1)
@@ -188,7 +188,7 @@ def economical(
     t_end: float,
     params: AlgebraicParams = AlgebraicParams(),
 ) -> assoc.Detection:
-    """Economical algebraic variant: n = 2 receivers over N = 2 periods (003 §5.3).
+    """Economical algebraic variant: n = 2 receivers over N = 2 periods (003, theory §5.4).
 
     Period ``i``'s position/velocity is subgroup ``i``'s estimate at receiver 1's fix time
     ``t_1(i)``; ``t_end`` is the end of the second period.

@@ -1,4 +1,4 @@
-"""Paper 003, algorithmic approach: velocity-aware group track initiation, n = 2 (SPEC §5.4).
+"""Paper 003, algorithmic approach: velocity-aware group track initiation, n = 2 (theory §5.5).
 
 Period 1 (and every birth): each pair ``(a_1k, a_2j)`` is conjugated by least squares (003 eq.
 6); ``J_1 = ‖M̂_1k − P_2 M̂_2j − b_2‖ ≤ α_1`` opens a group with index ``I = c_1 J_1``.
@@ -16,7 +16,7 @@ Periods i ≥ 2, for every group g and pair (k, j), all at once:
 * ``J = c_1 J_1 + c_2 J_2 [+ c_3 J_3] ≤ α_i`` attaches the pair: ``I ← I + J``; velocities are
   stored as they come (first estimate) and then recursively averaged (3.5).
 
-Decisions for the gaps (SPEC §11.5):
+Decisions for the gaps (theory §13.28–13.35):
 
 * gap 31 (``J_2 ≡ 0`` when read literally): the extrapolation ``M^э`` uses the velocity of step
   2.1 (before refinement) for a group's first continuation and the stored group velocity
@@ -33,7 +33,7 @@ Decisions for the gaps (SPEC §11.5):
 * selection (step 5): groups confirmed in at least ``min_confirmed`` periods, greedy by ``I``,
   each sharing at most π vectors with every group selected before (:func:`.association.select`).
 
-Normalisers and gates default to the noise level (SPEC §11.1 item 6): ``c_1 = 1/σ_e``,
+Normalisers and gates default to the noise level (theory §13.6): ``c_1 = 1/σ_e``,
 ``c_2 = 1/(2√2 σ_p)``, ``c_3 = τ/(2√2 σ_p)`` put every term in units of its standard deviation,
 and ``α_i = gate · (number of terms)``; a group's first continuation normalises ``J_2`` by
 :attr:`AlgorithmicParams.c2_first`, which allows for the range change it contains.
@@ -145,7 +145,7 @@ class AlgorithmicParams:
 
 @dataclass(frozen=True)
 class _Groups:
-    """Group arrays of 003 §5.4 (one row per group)."""
+    """Group arrays of 003's algorithmic approach (theory §5.5; one row per group)."""
 
     score: FloatArray  # I
     members: IntArray  # (G, N, 2): k_1i, j_2i
@@ -324,7 +324,7 @@ def detect_algorithmic(
     b2: ArrayLike,
     params: AlgorithmicParams = AlgorithmicParams(),
 ) -> assoc.Detection:
-    """Paper 003's algorithmic detector over ``N ≥ 1`` periods of two receivers (SPEC §5.4).
+    """Paper 003's algorithmic detector over ``N ≥ 1`` periods of two receivers (theory §5.5).
 
     ``P2 (3, 3)``, ``b2 (3,)`` relative pose of receiver 2 (or per period with a leading ``N``).
     Returns the m̂ selected groups with their member indices and frame-1 positions per period.

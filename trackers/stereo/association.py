@@ -1,10 +1,10 @@
-"""Grouping, gating, beam and final selection shared by every stereo tracker (SPEC §2.3–5.4).
+"""Grouping, gating, beam and final selection shared by every stereo tracker (theory §5).
 
 Papers 000 and 003 detect objects the same way: candidates (pairs or triples of direction
 vectors, one per receiver) are formed each period; groups of candidates across periods are
 grown by attaching the candidates whose index passes a gate; groups are kept sorted by their
 cumulative index; after the last period the groups with the smallest index that share (almost)
-no direction vectors are selected, and their number is the estimate m̂ (SPEC §11.1 item 7).
+no direction vectors are selected, and their number is the estimate m̂ (theory §13.7).
 This module holds that machinery once; the trackers only compute their indices.
 
 Members. A group's members are stored as an integer array ``(N, S)``: for every period and
@@ -44,7 +44,7 @@ def combinations(counts: Sequence[int]) -> IntArray:
 def norm_quantile(sigma: float, probability: float = 0.999, dof: int = 3) -> float:
     """``q`` with ``P(‖x‖ ≤ q) = probability`` for ``x ~ N(0, σ² I_dof)`` (chi quantile × σ).
 
-    The 99.9 % point for 3-D is 4.03 σ (SPEC §11.1 item 6).
+    The 99.9 % point for 3-D is 4.03 σ (theory §13.6).
     """
     if not (sigma >= 0.0 and 0.0 < probability < 1.0 and dof >= 1):
         raise ValueError("norm_quantile: need sigma >= 0, 0 < probability < 1, dof >= 1")
@@ -107,7 +107,7 @@ def select(
     eligible: NDArray[np.bool_] | None = None,
     max_objects: int | None = None,
 ) -> IntArray:
-    """Greedy final selection (000 temporal step 5, 003 step 5, SPEC §11.1 item 7).
+    """Greedy final selection (000 temporal step 5, 003 step 5, theory §13.7).
 
     Walk the groups in ascending ``score``; accept a group when it shares at most
     ``max_shared`` vectors (the papers' π) with **every** group accepted so far. Groups with
@@ -157,7 +157,7 @@ def extrapolation_residual(
 
 
 def match_tracks(distance: FloatArray, gate: float) -> IntArray:
-    """Identify simulated and found objects by proximity (000 "Pr_m", SPEC §2.5, gap 15).
+    """Identify simulated and found objects by proximity (000 "Pr_m", theory §5.6, gap §13.15).
 
     ``distance (m, K)``: distance between true object ``i`` and estimate ``k`` at the same
     instant. Greedy nearest pairs (globally smallest distance first), one-to-one, only within

@@ -1,4 +1,4 @@
-"""Least-squares conjugation of direction vectors from n receivers (SPEC §2.2, §5.2).
+"""Least-squares conjugation of direction vectors from n receivers (theory §3.2–3.3).
 
 Receiver 1 is the reference frame. Receiver ``k`` (``k = 2..n``) reports the unit vector
 ``a_k`` in its own frame at time ``t_k``; ``c_k = P_k a_k`` is that direction in frame 1 and
@@ -12,7 +12,7 @@ stacked as ``A X − B = E`` with ``X = (r_1, …, r_n, V, V̇)`` (003 eq. 4)::
     row block k:  [ a_1 | −c_k in column k | Δt_k I₃ | Δt_k²/2 I₃ ]      B block k: b_k
 
 Motion order 0 keeps only the ranges (3(n−1) equations, n unknowns), order 1 adds ``V``
-(needs n ≥ 3), order 2 adds ``V̇`` (needs n ≥ 5, 003 §5.2 table).
+(needs n ≥ 3), order 2 adds ``V̇`` (needs n ≥ 5, theory §3.3 table).
 
 Solution (003 eq. 6–7)::
 
@@ -59,7 +59,7 @@ from sensorgym.trackers.validation import check_unit_norms, finite_array, unit_v
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-#: default switch to the pseudo-inverse branch (SPEC §11.2 item 14 suggests 1e6 for κ₂;
+#: default switch to the pseudo-inverse branch (theory §13.14 suggests 1e6 for κ₂;
 #: κ_F ≤ p κ₂, so 1e7 keeps well-conditioned 6×6 systems off the fallback)
 DEFAULT_COND_MAX = 1e7
 
@@ -68,7 +68,7 @@ _EYE.flags.writeable = False
 
 #: number of unknowns in X beyond the n ranges, per motion order
 _MOTION_UNKNOWNS = {0: 0, 1: 3, 2: 6}
-#: smallest n for which the motion order is determined (003 §5.2 table)
+#: smallest n for which the motion order is determined (theory §3.3 table)
 _MIN_RECEIVERS = {0: 2, 1: 3, 2: 5}
 
 
@@ -95,7 +95,7 @@ class ConjugationSolution:
 
     @property
     def conjugation_error(self) -> FloatArray:
-        """``‖E‖ = √J``, metres (003 §5.4 thresholds the norm, not its square)."""
+        """``‖E‖ = √J``, metres (theory §5.5: 003 thresholds the norm, not its square)."""
         return np.sqrt(self.residual)
 
     @property
@@ -432,7 +432,7 @@ def solve_pair(
     ``a1, a2 (..., 3)`` unit vectors in their own frames, ``P2 (..., 3, 3)`` or ``None``,
     ``b2 (..., 3)``. With a known ``velocity`` ``(..., 3)`` (frame 1) and delay ``dt2`` the
     displacement is moved to the right-hand side: ``B̂_2 = b_2 − V Δt_2`` (000 §"range
-    re-solve", 003 §5.4 step 2.2). Parallel lines of sight take the pseudo-inverse fallback.
+    re-solve", 003 step 2.2, theory §5.5). Parallel lines of sight take the pseudo-inverse fallback.
     """
     b2 = finite_array(b2, "b2", tail=(3,))
     if (velocity is None) != (dt2 is None):
@@ -463,12 +463,12 @@ def solve_proposed(
     sigma_e: float = 1.0,
     cond_max: float = DEFAULT_COND_MAX,
 ) -> ConjugationSolution:
-    """Paper 000's proposed spatial step (SPEC §2.4, n = 3).
+    """Paper 000's proposed spatial step (theory §5.3, n = 3).
 
     ``V̂`` comes from the 6×6 velocity-aware system (000 eq. 10–11); ``r̂_1, r̂_2`` are then
     re-solved from the pair ``(a_1, a_2)`` with ``B̂_2 = b_2 − V̂ Δt_2``, "more stable to matrix
     inversion". Where the 6×6 ``A`` is invertible the re-solve returns the same ``r̂_1``
-    (SPEC §9 CHECK 4); it matters on the pseudo-inverse branch. ``r̂_3``, ``covariance``,
+    (theory §4.5 CHECK 4); it matters on the pseudo-inverse branch. ``r̂_3``, ``covariance``,
     ``condition`` and ``used_pinv`` are those of the 6×6 system.
     """
     full = solve_conjugation(a1, ak, P, b, dt, order=1, sigma_e=sigma_e, cond_max=cond_max)

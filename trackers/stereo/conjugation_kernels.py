@@ -1,4 +1,4 @@
-"""Compiled closed forms of the two conjugation systems the papers solve (SPEC §2.2).
+"""Compiled closed forms of the two conjugation systems the papers solve (theory §3.2).
 
 n = 2 order 0 (000 eq. 7–9, 12) and n = 3 order 1 (000 eq. 10–11, 003 eq. 4) are solved
 element by element in registers by numba kernels: no temporaries, no transposing copies, the
@@ -155,7 +155,7 @@ def triple_velocity_kernel(
     outputs ``X (N, 6)``, ``J (N,)``, ``Q (N, 6, 6)``, ``κ_F (N,)``, ``M̂_1 (N, 3)``.
 
     ``Δt_3·(block 2) − Δt_2·(block 3)`` removes ``V``:
-    ``r_1 (Δt_3 − Δt_2) a_1 − r_2 Δt_3 c_2 + r_3 Δt_2 c_3 = Δt_3 b_2 − Δt_2 b_3 = d`` (SPEC §2.2),
+    ``r_1 (Δt_3 − Δt_2) a_1 − r_2 Δt_3 c_2 + r_3 Δt_2 c_3 = Δt_3 b_2 − Δt_2 b_3 = d`` (theory §3.5),
     ``M R = d`` solved by Cramer's rule; then ``V̂`` is the least-squares fit of both blocks,
     ``V̂ = (Δt_2 b_2 + Δt_3 b_3 + G R)/Δ²`` with ``Δ² = Δt_2² + Δt_3²`` and ``G`` the columns
     ``(−(Δt_2+Δt_3) a_1, Δt_2 c_2, Δt_3 c_3)``. As a map of ``(b_2, b_3)`` this is

@@ -1,6 +1,6 @@
 """A 3-D constant-velocity Kalman filter fed by multi-receiver position fixes (batched).
 
-The tracker of the receiver-pointing environments (SPEC §2.2, §7 OC-1). Each step, for each
+The tracker of the receiver-pointing environments (theory §4.2, §10.1 OC-1). Each step, for each
 object, the receivers that see it give unit lines of sight ``u_k`` from their origins ``o_k``;
 the *measurement model* (:func:`~sensorgym.trackers.stereo.information.weighted_fix`) turns
 them into one position fix, the *updater* fuses the fix into a constant-velocity track, the

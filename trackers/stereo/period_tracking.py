@@ -1,6 +1,6 @@
-"""Paper 000: detection and tracking of several objects by 2 or 3 receivers (SPEC §2.3–2.4).
+"""Paper 000: detection and tracking of several objects by 2 or 3 receivers (theory §5.2–5.3).
 
-*Alternative algorithm* (n = 2, the "existing approach", SPEC §2.3): every pair of direction
+*Alternative algorithm* (n = 2, the "existing approach", theory §5.2): every pair of direction
 vectors ``(a_1(i, j1), a_2(i, j2))`` of a period is conjugated by least squares (000 eq. 7–8);
 pairs with ``J = ‖e_2‖² ≤ ε_J`` (eq. 9) become candidate positions ``M(i, j)``. Groups of
 candidates across periods start as all pairs of periods 1 and 2, are extended by
@@ -8,13 +8,13 @@ extrapolating a straight-line fit over their members and gating ``ΔJ ≤ δ``, 
 least-index groups sharing no vector are output. The motion between fixes (``Δt``) is
 ignored in the spatial step, so positions carry the dynamic error ``≈ (a_1·V) Δt``.
 
-*Proposed algorithm* (n = 3, velocity-aware, SPEC §2.4): every triple is solved by the 6×6
+*Proposed algorithm* (n = 3, velocity-aware, theory §5.3): every triple is solved by the 6×6
 system (000 eq. 10–11) for ranges and velocity, ``r̂_1`` re-solved from the pair with
 ``B̂_2 = b_2 − V̂ Δt_2``; every triple is a candidate ``(M, V)`` (the square system cannot
 reject any), groups are extended by ``ΔJ = ‖M(i, j) − (M̂_s + V̂_s Δt)‖ ≤ δ`` and keep the
 latest spatial estimate. False triples die in the temporal stage.
 
-Gating and pruning (SPEC §11.2 item 13): spatial candidates with a non-positive range or a
+Gating and pruning (theory §13.13): spatial candidates with a non-positive range or a
 speed above ``max_speed`` are dropped, and the G_max beam bounds the number of groups. The
 least squares are the conjugation core's (:mod:`.conjugation`), called once per period on
 all candidates.
@@ -38,7 +38,7 @@ IntArray = NDArray[np.int64]
 
 @dataclass(frozen=True)
 class AlternativeParams:
-    """Thresholds of the alternative algorithm (SPEC §2.3, §11.1 item 6)."""
+    """Thresholds of the alternative algorithm (theory §5.2, §13.6)."""
 
     position_sigma: float = 0.1
     """σ_x: std of each coordinate of the error of a candidate position M(i, j), m."""
@@ -89,7 +89,7 @@ class AlternativeParams:
 
 @dataclass(frozen=True)
 class ProposedParams:
-    """Thresholds of the proposed velocity-aware algorithm (SPEC §2.4, §11.1 item 6)."""
+    """Thresholds of the proposed velocity-aware algorithm (theory §5.3, §13.6)."""
 
     position_sigma: float = 0.1
     """σ_x: std of each coordinate of the error of a candidate position M(i, j), m."""
@@ -122,7 +122,7 @@ class ProposedParams:
     @property
     def delta(self) -> float:
         """δ, m: ``q_{3D}(√(2σ_x² + σ_v²τ²))`` — the difference of two independent candidate
-        errors plus the velocity error over one period (SPEC §11.1 item 6: 5.7 σ_x at 99.9 %)."""
+        errors plus the velocity error over one period (theory §13.6: 5.7 σ_x at 99.9 %)."""
         if self.delta_override is not None:
             return self.delta_override
         s = np.sqrt(2.0 * self.position_sigma**2 + (self.velocity_sigma * self.period) ** 2)
@@ -131,7 +131,7 @@ class ProposedParams:
 
 @dataclass(frozen=True)
 class Candidates:
-    """Spatial-processing output of one period (SPEC §2.3 step 3, §2.4 step 2)."""
+    """Spatial-processing output of one period (theory §5.2 step 3, §5.3 step 2)."""
 
     members: IntArray
     """(C, n) fix index in each receiver's list."""
@@ -185,7 +185,7 @@ def proposed_candidates(
 def _line_fit(S: FloatArray, t_ref: FloatArray) -> tuple[FloatArray, FloatArray]:
     """LS straight line ``M(t) = M̂ + V̂ (t − t_ref)`` from sums ``(S0, St, Stt, SM(3), StM(3))``.
 
-    SPEC §11.2 item 11: the alternative's "re-estimate from all vectors of the group, taking
+    theory §13.11: the alternative's "re-estimate from all vectors of the group, taking
     their formation times into account" as a least-squares line fit over the members.
     """
     S0, St, Stt = S[:, 0:1], S[:, 1:2], S[:, 2:3]
@@ -208,7 +208,7 @@ def track_alternative(
     b2: ArrayLike,
     params: AlternativeParams = AlternativeParams(),
 ) -> assoc.Detection:
-    """Paper 000's alternative algorithm (SPEC §2.3) over ``N ≥ 2`` periods of two receivers.
+    """Paper 000's alternative algorithm (theory §5.2) over ``N ≥ 2`` periods of two receivers.
 
     ``P2 (3, 3)``, ``b2 (3,)`` relative pose of receiver 2 (or per period: ``(N, 3, 3)``,
     ``(N, 3)``). Positions are fitted lines evaluated at each group's latest member time.
@@ -271,7 +271,7 @@ def track_proposed(
     b: ArrayLike,
     params: ProposedParams = ProposedParams(),
 ) -> assoc.Detection:
-    """Paper 000's proposed algorithm (SPEC §2.4) over ``N ≥ 1`` periods of three receivers.
+    """Paper 000's proposed algorithm (theory §5.3) over ``N ≥ 1`` periods of three receivers.
 
     ``P (2, 3, 3)``, ``b (2, 3)`` relative poses of receivers 2, 3 (or per period with a leading
     ``N`` axis). Each group keeps its latest spatial estimate ``(M, V)`` (000 step 3).

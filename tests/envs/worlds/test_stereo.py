@@ -172,7 +172,7 @@ def test_accelerating_paths_and_local_frames():
     p = np.array([1.0, 26.0, -2.0])
     local = LAYOUT.to_local(np.broadcast_to(p, (3, 3)))
     P, b = LAYOUT.relative
-    # M_1 = P_k M_k + b_k (SPEC §1.1)
+    # M_1 = P_k M_k + b_k (theory §2.1)
     for k in (1, 2):
         np.testing.assert_allclose(local[0], P[k - 1] @ local[k] + b[k - 1], atol=1e-12)
 

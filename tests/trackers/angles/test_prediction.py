@@ -1,4 +1,4 @@
-"""Paper 001 angle prediction through target loss (SPEC §3, AT-6, RT-6/RT-7) and its baselines."""
+"""Paper 001 angle prediction through target loss (theory §8, §12.6 AT-6, §12.2 RT-6/RT-7) and its baselines."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from sensorgym.envs.worlds.gimbal import StraightTrajectory, TurningTrajectory, 
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angles.prediction import ABCPredictor, trajectory_direction
 
-PAPER = StraightTrajectory()  # SPEC §3.7
+PAPER = StraightTrajectory()  # theory §8.7
 OBLIQUE = StraightTrajectory(heading=np.deg2rad(35.0))  # AT-6
 BEHIND = StraightTrajectory(x0=2000.0, y0=-3000.0, z0=-200.0, heading=np.deg2rad(125.0))
 SIGMA = np.deg2rad(0.001)
@@ -212,7 +212,7 @@ def test_kalman_tracks_constant_rate_angles() -> None:
 
 def test_rt7_noisy_paper_example_errors_and_ranking() -> None:
     # RT-7: σ = 0.001°, N = 50, memory 10, loss at frame 400, 40 seeded realisations.
-    # SPEC §3.8 reference run: RMS az ≈ 0.001° (k=1), 0.0013° (k=25), 0.007° (k=100);
+    # theory §8.8 reference run: RMS az ≈ 0.001° (k=1), 0.0013° (k=25), 0.007° (k=100);
     # RMS el ≈ 0.0005°, 0.0023°, 0.019°.
     rng = np.random.default_rng(2026)
     th, ph = PAPER.angles(np.arange(401))
@@ -231,7 +231,7 @@ def test_rt7_noisy_paper_example_errors_and_ranking() -> None:
     az, el = rms(ABCPredictor())
     assert 0.0005 < az[0] < 0.002 and 0.0007 < az[1] < 0.0025 and 0.004 < az[2] < 0.012
     assert 0.0003 < el[0] < 0.0015 and 0.0012 < el[1] < 0.004 and 0.010 < el[2] < 0.03
-    # the kinematic model beats angle-space extrapolation by far at long horizons (SPEC §3.1)
+    # the kinematic model beats angle-space extrapolation by far at long horizons (theory §8.1)
     kaz, kel = rms(AngleKalmanPredictor())
     assert kaz[2] > 10 * az[2] and kel[2] > 10 * el[2]
 
@@ -244,7 +244,7 @@ def test_reproduction_runs_and_meets_its_targets(tmp_path) -> None:
     assert {c["id"]: c["status"] for c in result["checks"]} == {
         "RT-6": "matched",
         "RT-7": "matched",
-        "§3.1": "matched",
+        "§8.1": "matched",
     }
     assert "RMS prediction error" in format_report(result)
     json.dumps(result)  # the JSON written by ``run`` must serialise

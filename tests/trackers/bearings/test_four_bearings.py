@@ -1,4 +1,4 @@
-"""Paper 002 (SPEC §4): eq. (1)-(3) construction, exact 4-bearing fix (AT-7), block smoothing."""
+"""Paper 002 (theory §7): eq. (1)-(3) construction, exact 4-bearing fix (AT-7), block smoothing."""
 
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def _scenario(vp_kmh, rng=None, target_course=None, delta=90.0):
 
 @pytest.mark.parametrize("vp", [0.0, 20.0, 40.0])
 def test_four_bearing_fix_is_exact(vp):
-    # AT-7: exact (< 1 m) for uniformly moving platforms at 0-40 km/h with the §4.4 turn
+    # AT-7: exact (< 1 m) for uniformly moving platforms at 0-40 km/h with the theory §7.3 turn
     t, M, z, T0, VT = _scenario(vp)
     for D in (50e3, 10e3):
         fix = fictitious_bearing_fix(t[:4], M[:4], z[:4], D)
@@ -70,7 +70,7 @@ def test_equation_1_construction_matches_direct_solve(vp):
 
 
 def test_common_origin_reduces_to_tan_a1_minus_2_tan_a2():
-    # SPEC §4.3 special case: c_k = D cot α_k gives tan β = tan α₁ − 2 tan α₂, independent of D
+    # theory §7.2 special case: c_k = D cot α_k gives tan β = tan α₁ − 2 tan α₂, independent of D
     rng = np.random.default_rng(0)
     a1, a2 = rng.uniform(0.3, 1.4, 2)
     for D in (1.0, 7.0, 1e4):
@@ -79,7 +79,7 @@ def test_common_origin_reduces_to_tan_a1_minus_2_tan_a2():
 
 
 def test_uncorrected_course_is_biased_only_for_moving_platform():
-    # SPEC §11.4 item 25: the fictitious track is parallel to the true one only for vp = 0
+    # theory §13.25: the fictitious track is parallel to the true one only for vp = 0
     errors = {}
     for vp in (0.0, 40.0):
         t, M, z, _, VT = _scenario(vp)

@@ -1,4 +1,4 @@
-"""Paper 004 closed forms: eqs. (9), (10), (12), (13) and recurrence (11) (SPEC §6.4, AT-8)."""
+"""Paper 004 closed forms: eqs. (9), (10), (12), (13) and recurrence (11) (theory §9.4, §12.6 AT-8)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def laplace_phi0(x: np.ndarray) -> np.ndarray:
 
 
 def test_eq9_matches_paper_values_rt14() -> None:
-    # AT-8 / RT-14: F = 0.01 -> P(q = 1, 2, 3, 5, 7) (SPEC §6.4)
+    # AT-8 / RT-14: F = 0.01 -> P(q = 1, 2, 3, 5, 7) (theory §9.4)
     P = detection_probability([1.0, 2.0, 3.0, 5.0, 7.0], 0.01)
     np.testing.assert_allclose(P[:4], [0.0924, 0.3721, 0.7497, 0.9962], atol=1e-4)
     assert P[4] > 0.999998
@@ -114,7 +114,7 @@ def test_stationary_variance_is_fixed_point_of_both_forms() -> None:
 
 
 def test_rt15_steps_to_stationarity() -> None:
-    # SPEC §6.4 [D,V]: R = 0.99, z² = q²/2, 5 % of δ_∞: (a) 20, 9, 5, 3; (b) 15, 8, 4, 3
+    # theory §9.4 [D,V]: R = 0.99, z² = q²/2, 5 % of δ_∞: (a) 20, 9, 5, 3; (b) 15, 8, 4, 3
     q = np.array([2.0, 3.0, 5.0, 7.0])
     P = detection_probability(q, 0.01)
     z2 = generalised_detection_parameter_sq(q)
@@ -123,7 +123,7 @@ def test_rt15_steps_to_stationarity() -> None:
 
 
 def test_rt16_tracking_error_at_one_km() -> None:
-    # SPEC §6.5: (11a), z² = q²/2, θ₀ = 5 mrad, L = 1 km -> 1.99, 1.31, 0.88, 0.71, 0.56 m
+    # theory §9.5: (11a), z² = q²/2, θ₀ = 5 mrad, L = 1 km -> 1.99, 1.31, 0.88, 0.71, 0.56 m
     q = np.array([2.0, 3.0, 5.0, 7.0, 10.0])
     d = stationary_relative_variance(
         detection_probability(q, 0.01), generalised_detection_parameter_sq(q), 0.99

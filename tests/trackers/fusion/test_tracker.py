@@ -1,4 +1,4 @@
-"""Paper 004 fused tracker (SPEC §6.1–6.3, §11.6) on simulated multi-channel images."""
+"""Paper 004 fused tracker (theory §9.1–9.3, §13.36–13.41) on simulated multi-channel images."""
 
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ def test_single_visible_channel_is_a_consistent_kalman_loop() -> None:
 
 
 def test_filter_variance_follows_the_mixture_form_of_eq11() -> None:
-    # SPEC §11.6 item 36: with the object visible in each frame with probability P (iid) and
+    # theory §13.36: with the object visible in each frame with probability P (iid) and
     # z² = I σ_λ², the synthesised filter's stationary mean variance is (11a), not (11b).
     # Measured (seed 6): tracker 0.00547, Monte Carlo error 0.00570, (11a) 0.00568, (11b) 0.00442.
     P, R = 0.5, 0.999
@@ -135,7 +135,7 @@ def test_loop_opens_when_no_channel_sees_the_object() -> None:
 
 
 def test_transition_probabilities_stabilise_the_view_decisions() -> None:
-    # SPEC §6.2: weighting by transition probabilities rejects appearance changes the object's
+    # theory §9.2: weighting by transition probabilities rejects appearance changes the object's
     # inertia forbids. Same worlds (common random numbers), MAP view accuracy after lock-on.
     model = matched_model(SCENE)
     uniform = replace(model, transition=np.full_like(model.transition, 1.0 / model.views))
@@ -170,7 +170,7 @@ def test_model_validation() -> None:
 
 
 def test_several_weak_channels_keep_lock_that_no_single_channel_holds() -> None:
-    # The paper's conclusion (SPEC §6.5 claim 4): four mediocre channels (q ≈ 3.3 each, each
+    # The paper's conclusion (theory §9.5 claim 4): four mediocre channels (q ≈ 3.3 each, each
     # invisible 23 % of the time) keep the axis on the object; each channel alone loses it.
     # Lock lost: the object more than half its size off the axis for 5 consecutive frames.
     runs, frames = 120, 300

@@ -1,6 +1,6 @@
 """Monte Carlo: empirical covariance of the estimates against the predicted covariance.
 
-Two noise models (SPEC §2.2 "realism caveat", §9 CHECK 1–3): the papers' i.i.d. conjugation
+Two noise models (theory §4.1, §4.5 CHECK 1–3): the papers' i.i.d. conjugation
 error, and independent angular noise on each receiver's direction vector.
 """
 

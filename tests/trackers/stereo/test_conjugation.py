@@ -1,4 +1,4 @@
-"""Conjugation least squares (SPEC §2.2, §5.2; acceptance tests AT-1..AT-5)."""
+"""Conjugation least squares (theory §3.2–3.3; acceptance tests AT-1..AT-5)."""
 
 from __future__ import annotations
 
@@ -134,7 +134,7 @@ def test_sqrt2_gain_of_a_third_orthogonal_receiver():
 
 
 def test_velocity_aware_orthogonal_closed_form():
-    """SPEC §2.2: σ[r_1] = σ_e √(Δt_2² + Δt_3²)/|Δt_3 − Δt_2| for orthogonal a_1, c_2, c_3."""
+    """theory §3.5: σ[r_1] = σ_e √(Δt_2² + Δt_3²)/|Δt_3 − Δt_2| for orthogonal a_1, c_2, c_3."""
     a1 = np.array([0.0, 0.0, 1.0])
     c = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
     b = np.array([[-100.0, 0.0, 100.0], [0.0, -100.0, 100.0]])
@@ -261,7 +261,7 @@ def test_coplanar_lines_of_sight_with_velocity_are_flagged():
     assert sol.condition > 1e3 and sol.used_pinv
     assert np.all(np.isfinite(sol.ranges)) and np.all(np.isfinite(sol.velocity))
     assert np.all(np.isfinite(sol.covariance))
-    # lifting the object 30° above the receivers' plane makes it well-conditioned (SPEC CHECK 4)
+    # lifting the object 30° above the receivers' plane makes it well-conditioned (theory §4.5 CHECK 4)
     lifted = d.copy()
     lifted[:, 1] = np.sin(np.deg2rad(30.0))
     lifted[:, [0, 2]] *= np.cos(np.deg2rad(30.0))

@@ -252,4 +252,4 @@ def test_reproduction_runs_end_to_end_and_reports_every_target():
     assert {c["id"] for c in res["checks"]} == {"RT-10", "RT-11", "RT-12", "RT-13", "ext"}
     assert all(c["status"] in ("matched", "missed") for c in res["checks"])
     assert all(c["reason"] for c in res["checks"] if c["status"] == "missed")
-    assert "Targets (SPEC §8)" in format_report(res)
+    assert "Targets (theory §12)" in format_report(res)
