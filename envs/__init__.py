@@ -43,6 +43,7 @@ for _spec in _ENVS:
 
 ENV_IDS = [spec["id"] for spec in _ENVS]
 
+from sensorgym.envs import bearings_maneuver, stereo_placement, stereo_pointing  # noqa: E402
 from sensorgym.envs.bearings_maneuver import (  # noqa: E402  (registered first)
     BearingsManeuverEnv,
     BearingsManeuverParallelEnv,
@@ -62,11 +63,12 @@ from sensorgym.envs.stereo_pointing import (  # noqa: E402
     StereoPointingVectorEnv,
 )
 
-#: env id -> its PettingZoo constructor (``parallel_env`` of the env's package)
+#: env id -> its PettingZoo factory (``parallel_env`` of the env's package; params fields and
+#: ``max_episode_steps`` as keywords)
 PARALLEL_ENVS = {
-    "sensorgym/BearingsManeuver-v0": BearingsManeuverParallelEnv,
-    "sensorgym/StereoPointing-v0": StereoPointingParallelEnv,
-    "sensorgym/StereoPlacement-v0": StereoPlacementParallelEnv,
+    "sensorgym/BearingsManeuver-v0": bearings_maneuver.parallel_env,
+    "sensorgym/StereoPointing-v0": stereo_pointing.parallel_env,
+    "sensorgym/StereoPlacement-v0": stereo_placement.parallel_env,
 }
 
 __all__ = [
@@ -84,4 +86,7 @@ __all__ = [
     "StereoPointingEnv",
     "StereoPointingParallelEnv",
     "StereoPointingVectorEnv",
+    "bearings_maneuver",
+    "stereo_placement",
+    "stereo_pointing",
 ]
