@@ -46,8 +46,21 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(
             "--episodes must be >= --n-envs >= 1 (every scenario slot ends an episode)"
         )
+    from sensorgym.train.models import RunFolderError, check_run_folder
+
+    env_ids = args.env or list(RULES)
+    unknown = [e for e in env_ids if e not in RULES]
+    if unknown:
+        raise SystemExit(f"--env: no rules registered for {unknown}; known: {sorted(RULES)}")
+    for path in args.model:
+        try:
+            trained_on = check_run_folder(path)["env"]
+        except RunFolderError as exc:
+            raise SystemExit(f"--model: {exc}") from None
+        if trained_on not in env_ids:
+            raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
     console = Console()
-    for env_id in args.env or list(RULES):
+    for env_id in env_ids:
         _benchmark(env_id, args, console)
     return 0
 
@@ -57,7 +70,7 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
 
     from sensorgym.agents.registry import rules_for
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-    from sensorgym.train.models import load_model, read_config
+    from sensorgym.train.models import load_model, read_config, run_dir_of
 
     env = make_sb3_env(env_id, args.n_envs, args.seed)
     # name -> (policy, the SB3 env it acts on): rules and single-agent models on the joint
@@ -67,7 +80,7 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
         for name, rule in rules_for(env_id, env_params(env), simulator_state(env)).items()
     }
     for path in args.model:
-        run_dir = path.parent if path.suffix == ".zip" else path
+        run_dir = run_dir_of(path)
         config = read_config(run_dir)
         if config["env"] == env_id:
             agents = bool(config.get("agents", False))

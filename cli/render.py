@@ -30,12 +30,21 @@ def run(args: argparse.Namespace) -> int:
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
     from sensorgym.agents.registry import rules_for
-    from sensorgym.train.models import load_model
+    from sensorgym.train.models import RunFolderError, check_run_folder, load_model
 
     if args.out.suffix.lower() not in (".gif", ".png"):
         raise SystemExit("--out must end in .gif or .png")
     if args.every < 1 or args.fps <= 0:
         raise SystemExit("--every must be >= 1 and --fps > 0")
+    if args.env not in gym.registry:
+        raise SystemExit(f"--env: {args.env!r} is not a registered id")
+    if args.model is not None:
+        try:
+            trained_on = check_run_folder(args.model)["env"]
+        except RunFolderError as exc:
+            raise SystemExit(f"--model: {exc}") from None
+        if trained_on != args.env:
+            raise SystemExit(f"--model {args.model}: trained on {trained_on}, not on {args.env}")
     env = gym.make(args.env, render_mode="rgb_array")
     core_env = env.unwrapped
     if args.model is not None:

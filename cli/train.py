@@ -36,8 +36,13 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
+    from sensorgym.train.config import load_hyperparams
     from sensorgym.train.trainer import train
 
+    try:
+        load_hyperparams(args.algo, args.env)
+    except KeyError as exc:
+        raise SystemExit(f"--env/--algo: {exc.args[0]}") from None
     result = train(
         args.env,
         args.algo,

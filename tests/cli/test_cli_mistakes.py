@@ -1,0 +1,73 @@
+"""Mistakes on the command line end in one clear line naming the argument or file, and a
+non-zero exit (issue 10, defect 6): never a traceback, never a silently dropped model."""
+
+from __future__ import annotations
+
+import pytest
+import yaml
+
+from sensorgym.cli.main import main
+from sensorgym.train.models import CONFIG_FILE, MODEL_FILE
+
+BEARINGS = "sensorgym/BearingsManeuver-v0"
+PLACEMENT = "sensorgym/StereoPlacement-v0"
+
+
+def _run_folder(tmp_path, config, model: bool = True):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / CONFIG_FILE).write_text(config if isinstance(config, str) else yaml.safe_dump(config))
+    if model:
+        (run / MODEL_FILE).write_bytes(b"not read: the checks come first")
+    return run
+
+
+def _fails(argv: list[str], *words: str) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    message = str(exc.value.code)
+    assert exc.value.code not in (0, None)
+    assert "\n" not in message
+    for word in words:
+        assert word in message, message
+
+
+def test_benchmark_refuses_a_model_of_another_env(tmp_path):
+    run = _run_folder(tmp_path, {"env": BEARINGS, "algo": "ppo"})
+    _fails(["benchmark", "--env", PLACEMENT, "--model", str(run)], "trained on", BEARINGS)
+
+
+def test_render_refuses_a_model_of_another_env(tmp_path):
+    run = _run_folder(tmp_path, {"env": BEARINGS, "algo": "ppo"})
+    out = str(tmp_path / "x.gif")
+    _fails(["render", "--env", PLACEMENT, "--model", str(run), "--out", out], "trained on")
+
+
+@pytest.mark.parametrize(
+    "config, model, words",
+    [
+        ("", True, [CONFIG_FILE, "mapping"]),
+        ({"env": BEARINGS, "algo": "dqn"}, True, [CONFIG_FILE, "dqn"]),
+        ({"env": "sensorgym/Nope-v0", "algo": "ppo"}, True, [CONFIG_FILE, "Nope"]),
+        ({"algo": "ppo"}, True, [CONFIG_FILE, "'env'"]),
+        ({"env": BEARINGS, "algo": "ppo"}, False, [MODEL_FILE, "no such model file"]),
+    ],
+)
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_broken_run_folders_are_named(tmp_path, command, config, model, words):
+    run = _run_folder(tmp_path, config, model)
+    extra = ["--out", str(tmp_path / "x.gif")] if command == "render" else []
+    _fails([command, "--env", BEARINGS, "--model", str(run), *extra], "--model", *words)
+
+
+def test_a_model_zip_path_is_not_doubled(tmp_path):
+    run = _run_folder(tmp_path, {"env": BEARINGS, "algo": "ppo"}, model=False)
+    with pytest.raises(SystemExit) as exc:
+        main(["benchmark", "--env", BEARINGS, "--model", str(run / MODEL_FILE)])
+    assert ".zip.zip" not in str(exc.value.code)
+
+
+@pytest.mark.parametrize("command", ["benchmark", "render", "train"])
+def test_unknown_env_ids_are_named(tmp_path, command):
+    extra = {"render": ["--out", str(tmp_path / "x.gif")], "train": ["--out", str(tmp_path)]}
+    _fails([command, "--env", "sensorgym/Nope-v0", *extra.get(command, [])], "sensorgym/Nope-v0")
