@@ -31,8 +31,10 @@ def finite_array(
     if not check:
         return arr
     # one fast reduction first: the sum is finite unless an element is NaN/inf (or it overflows,
-    # which the elementwise check below then clears)
-    if not np.isfinite(arr.sum()) and not np.isfinite(arr).all():
+    # which the elementwise check below then clears; the overflow itself is no error)
+    with np.errstate(over="ignore", invalid="ignore"):
+        total = arr.sum()
+    if not np.isfinite(total) and not np.isfinite(arr).all():
         raise ValueError(f"{name}: contains NaN or infinite values")
     return arr
 
@@ -84,8 +86,10 @@ def check_unit_norms(
     ``what`` completes the message for wrong lengths, ``zero_what`` for zero-length vectors.
     """
     x, y, z = comp
-    norm2 = x * x + y * y + z * z
-    if not np.isfinite(norm2.sum()):
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm2 = x * x + y * y + z * z
+        total = norm2.sum()
+    if not np.isfinite(total):
         finite_array(source, name)
     # |‖v‖² − 1| ≈ 2 |‖v‖ − 1|
     if np.any(np.abs(norm2 - 1.0) > 2.0 * atol):
@@ -93,3 +97,13 @@ def check_unit_norms(
             raise ValueError(f"{name}: {zero_what}")
         worst = float(np.max(np.abs(np.sqrt(norm2) - 1.0)))
         raise ValueError(f"{name}: {what} (max |‖v‖ − 1| = {worst:.3g})")
+
+
+def count(value: object, name: str, minimum: int = 1) -> int:
+    """``value`` as an ``int`` of at least ``minimum``; a bool, a float, a string or anything
+    else not an integer raises ``TypeError`` naming ``name``, a smaller one ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{name}: expected an integer, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}: must be >= {minimum}, got {value}")
+    return int(value)

@@ -63,7 +63,7 @@ from sensorgym.trackers.bearings.filters import (
     range_bank_update,
 )
 from sensorgym.trackers.bearings.models import BearingsGaussian
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import count, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -119,14 +119,12 @@ class ManeuverParams:
         b_lo, b_hi = self.bank_ranges
         if not (np.isfinite(b_hi) and 0.0 < b_lo < b_hi):
             raise ValueError(f"bank_ranges: need 0 < low < high, got {self.bank_ranges}")
-        if self.platforms < 1:
-            raise ValueError(f"platforms: must be >= 1, got {self.platforms}")
+        count(self.platforms, "platforms")
         if not (np.isfinite(self.formation_radius) and self.formation_radius >= 0.0):
             raise ValueError(
                 f"formation_radius: must be finite and >= 0, got {self.formation_radius}"
             )
-        if self.bank_members < 1:
-            raise ValueError(f"bank_members: must be >= 1, got {self.bank_members}")
+        count(self.bank_members, "bank_members")
         if not (self.prior_speed[0] >= 0.0 and self.prior_speed[1] > 0.0):
             raise ValueError(f"prior_speed: need mean >= 0 and sigma > 0, got {self.prior_speed}")
         if self.metric not in ("position", "relative_range"):

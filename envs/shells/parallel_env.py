@@ -24,6 +24,7 @@ from sensorgym.envs.shells.contract import (
     registered_episode_steps,
     resolve_params,
 )
+from sensorgym.trackers.validation import count
 
 
 class CoreParallelEnv(ParallelEnv):
@@ -47,8 +48,7 @@ class CoreParallelEnv(ParallelEnv):
     ):
         if max_episode_steps == REGISTERED:
             max_episode_steps = registered_episode_steps(self.env_id)
-        if max_episode_steps is None or max_episode_steps < 1:
-            raise ValueError(f"max_episode_steps: must be >= 1, got {max_episode_steps}")
+        max_episode_steps = count(max_episode_steps, "max_episode_steps")
         if render_mode is not None:
             raise ValueError("render_mode: the PettingZoo envs do not render (use the single env)")
         if params is None:

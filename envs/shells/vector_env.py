@@ -27,6 +27,7 @@ from sensorgym.envs.shells.contract import (
     registered_episode_steps,
     resolve_params,
 )
+from sensorgym.trackers.validation import count
 
 
 class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarray]):
@@ -55,8 +56,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         agent_view: bool = False,
         **fields: Any,
     ):
-        if num_envs < 1:
-            raise ValueError(f"num_envs: must be >= 1, got {num_envs}")
+        num_envs = count(num_envs, "num_envs")
         if render_mode is not None:
             raise ValueError("render_mode: the vector env does not render (use the single env)")
         if max_episode_steps == REGISTERED:

@@ -46,6 +46,7 @@ from numpy.typing import ArrayLike, NDArray
 from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
 from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan
 from sensorgym.trackers.stereo.information import (
+    MAX_REWARD_CLIP,
     log_ratio_reward,
     observable,
     position_information,
@@ -117,8 +118,10 @@ class PlacementParams:
             raise ValueError("max_boresight_elevation: must lie in (0, π/2) rad")
         if not (np.isfinite(self.sigma_ref) and self.sigma_ref > 0.0):
             raise ValueError(f"sigma_ref: must be positive, got {self.sigma_ref}")
-        if not (np.isfinite(self.reward_clip) and self.reward_clip > 0.0):
-            raise ValueError(f"reward_clip: must be positive, got {self.reward_clip}")
+        if not 0.0 < self.reward_clip <= MAX_REWARD_CLIP:
+            raise ValueError(
+                f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
+            )
 
     @property
     def n_receivers(self) -> int:

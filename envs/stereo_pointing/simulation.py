@@ -40,6 +40,7 @@ from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_age
 from sensorgym.envs.worlds.stereo_scene import perturb_directions
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
 from sensorgym.trackers.stereo.information import (
+    MAX_REWARD_CLIP,
     log_ratio_reward,
     observable,
     position_information,
@@ -52,7 +53,7 @@ from sensorgym.trackers.stereo.kalman import (
     cv_prior,
     cv_update,
 )
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import count, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -109,10 +110,8 @@ class PointingParams:
     drone is not fixed (fewer than two views)."""
 
     def __post_init__(self) -> None:
-        if self.n_receivers < 2:
-            raise ValueError(f"n_receivers: need at least 2, got {self.n_receivers}")
-        if self.n_drones < 1:
-            raise ValueError(f"n_drones: need at least 1, got {self.n_drones}")
+        count(self.n_receivers, "n_receivers", minimum=2)
+        count(self.n_drones, "n_drones")
         if not (np.isfinite(self.circle_radius) and self.circle_radius > 0.0):
             raise ValueError(f"circle_radius: must be positive, got {self.circle_radius}")
         angles = self.receiver_angles_deg
@@ -143,14 +142,16 @@ class PointingParams:
             )
         if not (np.isfinite(self.sigma_ang) and self.sigma_ang >= 0.0):
             raise ValueError(f"sigma_ang: must be finite and >= 0, got {self.sigma_ang}")
-        if not (self.cue_sigma[0] > 0.0 and self.cue_sigma[1] > 0.0):
+        if not (np.all(np.isfinite(self.cue_sigma)) and min(self.cue_sigma) > 0.0):
             raise ValueError(f"cue_sigma: both must be positive, got {self.cue_sigma}")
         if not (np.isfinite(self.process_noise) and self.process_noise >= 0.0):
             raise ValueError(f"process_noise: must be finite and >= 0, got {self.process_noise}")
         if not (np.isfinite(self.sigma_ref) and self.sigma_ref > 0.0):
             raise ValueError(f"sigma_ref: must be positive, got {self.sigma_ref}")
-        if not (np.isfinite(self.reward_clip) and self.reward_clip > 0.0):
-            raise ValueError(f"reward_clip: must be positive, got {self.reward_clip}")
+        if not 0.0 < self.reward_clip <= MAX_REWARD_CLIP:
+            raise ValueError(
+                f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
+            )
 
     @property
     def receiver_positions(self) -> FloatArray:

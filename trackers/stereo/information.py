@@ -31,6 +31,9 @@ BoolArray = NDArray[np.bool_]
 CONDITION = 1e-12
 #: ranges are floored at this (m) so that a receiver on the point gives finite information
 MIN_RANGE = 1e-9
+#: largest clip ``R`` of :func:`log_ratio_reward` an env accepts: sums of ``±R`` over drones and
+#: episodes stay finite
+MAX_REWARD_CLIP = 1e6
 
 
 def position_information(
