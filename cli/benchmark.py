@@ -16,6 +16,12 @@ from typing import Any
 
 HELP = "Score the heuristic rules (and trained models) on an environment, seeded."
 
+#: the help of ``--unsafe-pickle`` (benchmark and render)
+UNSAFE_PICKLE_HELP = (
+    "also load a run folder that has only SB3's model.zip (no policy.safetensors): this "
+    "unpickles the file, which EXECUTES ANY CODE IN IT; use it only on files you trust"
+)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -32,8 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=Path,
         action="append",
         default=[],
-        help="a model saved by `sensorgym train` (its folder or .zip); repeatable",
+        help="a `sensorgym train` run folder (policy.safetensors + config.yaml); repeatable",
     )
+    parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--out", type=Path, default=Path("results/benchmark"))
 
 
@@ -54,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--env: no rules registered for {unknown}; known: {sorted(RULES)}")
     for path in args.model:
         try:
-            trained_on = check_run_folder(path)["env"]
+            trained_on = check_run_folder(path, args.unsafe_pickle)["env"]
         except RunFolderError as exc:
             raise SystemExit(f"--model: {exc}") from None
         if trained_on not in env_ids:
@@ -70,7 +77,7 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
 
     from sensorgym.agents.registry import rules_for
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-    from sensorgym.train.models import load_model, read_config, run_dir_of
+    from sensorgym.train.models import RunFolderError, load_model, read_config, run_dir_of
 
     env = make_sb3_env(env_id, args.n_envs, args.seed)
     # name -> (policy, the SB3 env it acts on): rules and single-agent models on the joint
@@ -85,7 +92,11 @@ def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
         if config["env"] == env_id:
             agents = bool(config.get("agents", False))
             view = make_sb3_env(env_id, args.n_envs, args.seed, agents=True) if agents else env
-            policies[f"model:{run_dir.name}"] = (load_model(path, view), view)
+            try:
+                model = load_model(path, view, unsafe_pickle=args.unsafe_pickle)
+            except RunFolderError as exc:
+                raise SystemExit(f"--model: {exc}") from None
+            policies[f"model:{run_dir.name}"] = (model, view)
     results = {}
     with console.status(f"evaluating {len(policies)} policies on {env_id}"):
         for name, (policy, view) in policies.items():

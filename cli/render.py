@@ -9,6 +9,9 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
+
+from sensorgym.cli.benchmark import UNSAFE_PICKLE_HELP
 
 HELP = "Play one seeded episode with a rule or trained model and save it as GIF or PNG."
 
@@ -16,7 +19,13 @@ HELP = "Play one seeded episode with a rule or trained model and save it as GIF 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default="sensorgym/BearingsManeuver-v0", help="env id")
     parser.add_argument("--rule", default=None, help="rule name (default: the env's last rule)")
-    parser.add_argument("--model", type=Path, default=None, help="a `sensorgym train` run folder")
+    parser.add_argument(
+        "--model",
+        type=Path,
+        default=None,
+        help="a `sensorgym train` run folder (policy.safetensors + config.yaml)",
+    )
+    parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--every", type=int, default=1, help="keep every N-th frame in the GIF")
     parser.add_argument("--fps", type=float, default=5.0)
@@ -40,15 +49,22 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--env: {args.env!r} is not a registered id")
     if args.model is not None:
         try:
-            trained_on = check_run_folder(args.model)["env"]
+            config = check_run_folder(args.model, args.unsafe_pickle)
         except RunFolderError as exc:
             raise SystemExit(f"--model: {exc}") from None
+        trained_on = config["env"]
         if trained_on != args.env:
             raise SystemExit(f"--model {args.model}: trained on {trained_on}, not on {args.env}")
     env = gym.make(args.env, render_mode="rgb_array")
     core_env = env.unwrapped
     if args.model is not None:
-        policy, name = load_model(args.model), f"model {args.model}"
+        try:
+            policy = load_model(args.model, unsafe_pickle=args.unsafe_pickle)
+        except RunFolderError as exc:
+            raise SystemExit(f"--model: {exc}") from None
+        name = f"model {args.model}"
+        if config.get("agents", False):  # parameter sharing: the policy acts per agent
+            policy = SharedPolicy(policy, core_env)
     else:
         rules = rules_for(args.env, core_env.params, lambda: core_env.simulator_state)
         name = args.rule or list(rules)[-1]
@@ -76,3 +92,17 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.env}, {name}, seed {args.seed}: return {total:.3f} over {steps} steps")
     print(f"wrote {args.out} ({len(images)} frames)")
     return 0
+
+
+class SharedPolicy:
+    """A parameter-sharing model (``sensorgym train --agents``) driving a single env: each step
+    it acts on every agent's own observation of the env's current state and returns the joint
+    action (the agents' actions in agent order)."""
+
+    def __init__(self, model: Any, core_env: Any):
+        self.model, self.core_env = model, core_env
+
+    def predict(self, observation: Any, **kwargs: Any) -> tuple[Any, Any]:
+        per_agent = self.core_env.core.observe_agents(self.core_env.simulator_state)[0]
+        actions, state = self.model.predict(per_agent, **kwargs)
+        return actions.reshape(-1), state

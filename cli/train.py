@@ -1,9 +1,10 @@
 """``sensorgym train``: SB3 training on a registered env's native vector env.
 
 Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--timesteps`` and
-``--n-envs`` override them. The run folder gets ``model.zip``, the resolved ``config.yaml`` and
-``evaluation.json`` (the trained policy beside the heuristic rules, same seed and scenarios);
-``sensorgym benchmark --model RUN_FOLDER`` scores it again later.
+``--n-envs`` override them. The run folder gets the policy weights ``policy.safetensors`` (data
+only: loading them runs no code), the resolved ``config.yaml`` and ``evaluation.json`` (the
+trained policy beside the heuristic rules, same seed and scenarios); ``sensorgym benchmark
+--model RUN_FOLDER`` scores it again later.
 """
 
 from __future__ import annotations

@@ -1,8 +1,9 @@
 """Train an SB3 algorithm on a registered env's native vector env, save it, score it.
 
-The run folder (:mod:`.models`) gets the model, the resolved configuration and an evaluation of
-the trained policy beside every heuristic rule registered for the env, all on one seed and the
-same evaluation scenarios (a seed disjoint from training's).
+The run folder (:mod:`.models`) gets the policy weights (``policy.safetensors``: data, no
+pickle), the resolved configuration and an evaluation of the trained policy beside every
+heuristic rule registered for the env, all on one seed and the same evaluation scenarios (a seed
+disjoint from training's).
 """
 
 from __future__ import annotations
@@ -14,14 +15,14 @@ from importlib.metadata import version
 from pathlib import Path
 from typing import Any
 
-import yaml
 from rich.progress import Progress
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES, rules_for
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-from sensorgym.train.models import CONFIG_FILE, MODEL_FILE
+from sensorgym.train.models import save_run
 
 #: evaluation scenarios come from this offset of the training seed
 EVAL_SEED_OFFSET = 10_000
@@ -44,9 +45,11 @@ class TrainResult:
     """Where a run was saved and how its policy scored."""
 
     run_dir: Path
-    """The run folder (model, config, evaluation)."""
+    """The run folder (policy weights, config, evaluation)."""
     evaluation: dict[str, dict[str, float]]
     """Policy name → episode-return statistics (``"trained"`` and every rule)."""
+    model: BaseAlgorithm | None = None
+    """The trained model as it left training (what the run folder's weights reload)."""
 
 
 def run_dir_for(out: Path, env_id: str, algo: str, seed: int, agents: bool = False) -> Path:
@@ -91,8 +94,6 @@ def train(
     env.close()
 
     run_dir = run_dir_for(out, env_id, algo, seed, agents)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    model.save(run_dir / MODEL_FILE)
     config = {
         "env": env_id,
         "algo": algo,
@@ -103,10 +104,11 @@ def train(
             "sensorgym": version("sensorgym"),
             "stable_baselines3": version("stable-baselines3"),
             "torch": version("torch"),
+            "safetensors": version("safetensors"),
             "python": platform.python_version(),
         },
     }
-    (run_dir / CONFIG_FILE).write_text(yaml.safe_dump(config, sort_keys=False))
+    save_run(model, run_dir, config)  # weights + config.yaml: no pickle, see .models
 
     n_eval = min(16, eval_episodes)
     eval_seed = seed + EVAL_SEED_OFFSET
@@ -122,4 +124,4 @@ def train(
     eval_env.close()
     doc = {"episodes": eval_episodes, "seed": eval_seed, "results": evaluation}
     (run_dir / "evaluation.json").write_text(json.dumps(doc, indent=2) + "\n")
-    return TrainResult(run_dir, evaluation)
+    return TrainResult(run_dir, evaluation, model)

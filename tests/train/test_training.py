@@ -14,7 +14,7 @@ from sensorgym.cli.main import main
 from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
 from sensorgym.train.config import load_hyperparams, split_run_settings
 from sensorgym.train.evaluation import evaluate, make_sb3_env
-from sensorgym.train.models import load_model, read_config
+from sensorgym.train.models import WEIGHTS_FILE, load_model, read_config
 from sensorgym.train.sb3_vec_env import SB3VecEnv
 from sensorgym.train.trainer import train
 
@@ -60,14 +60,15 @@ def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
     result = train(
         ENV_ID, "ppo", seed=1, timesteps=2048, out=tmp_path, eval_episodes=8, progress=False
     )
-    assert (result.run_dir / "model.zip").is_file()
+    assert (result.run_dir / WEIGHTS_FILE).is_file()
+    assert not (result.run_dir / "model.zip").exists()  # no pickle: see test_model_files.py
     config = read_config(result.run_dir)
     assert config["env"] == ENV_ID and config["hyperparams"]["n_timesteps"] == 2048
     evaluation = json.loads((result.run_dir / "evaluation.json").read_text())["results"]
     assert {"trained", "straight-course", "paper002", "greedy-information"} <= set(evaluation)
     model = load_model(result.run_dir)
     obs = np.random.default_rng(0).uniform(-1, 1, (5, 10)).astype(np.float32)
-    again = load_model(result.run_dir / "model.zip")
+    again = load_model(result.run_dir / WEIGHTS_FILE)
     action = model.predict(obs, deterministic=True)[0]
     np.testing.assert_array_equal(action, again.predict(obs, deterministic=True)[0])
     assert np.all(np.abs(action) <= 1.0)

@@ -1,0 +1,241 @@
+"""Saved models load without running code (issue 10, defect 1).
+
+A run folder's policy is ``policy.safetensors`` (tensors and a JSON header) plus ``config.yaml``
+(``yaml.safe_load``); loading rebuilds the SB3 algorithm from the config and loads the weights
+into its policy. SB3's ``model.zip``, whose ``data`` entry is unpickled by SB3's ``load``, is
+read only behind ``--unsafe-pickle``. The hostile files below carry a payload that, executed,
+creates a marker; it must never appear unless the flag is given.
+"""
+
+from __future__ import annotations
+
+import base64
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+import yaml
+
+from sensorgym.cli.main import main
+from sensorgym.train.evaluation import make_sb3_env
+from sensorgym.train.models import (
+    CONFIG_FILE,
+    SB3_ZIP_FILE,
+    WEIGHTS_FILE,
+    RunFolderError,
+    build_model,
+    load_model,
+    save_run,
+)
+from sensorgym.train.trainer import train
+
+BEARINGS = "sensorgym/BearingsManeuver-v0"
+PLACEMENT = "sensorgym/StereoPlacement-v0"
+
+
+class Payload:
+    """Unpickling this creates the folder ``marker``: the proof that loading ran code."""
+
+    def __init__(self, marker: Path):
+        self.marker = str(marker)
+
+    def __reduce__(self):
+        return (os.makedirs, (self.marker,))
+
+
+def _hostile_zip(path: Path, marker: Path) -> None:
+    """An SB3-style model.zip whose ``data`` JSON has an extra cloudpickled entry."""
+    import cloudpickle
+
+    blob = base64.b64encode(cloudpickle.dumps(Payload(marker))).decode()
+    data = {"extra": {":type:": "<class 'object'>", ":serialized:": blob}}
+    with zipfile.ZipFile(path, "w") as archive:
+        archive.writestr("data", json.dumps(data))
+        archive.writestr("_stable_baselines3_version", "2.3.0")
+
+
+def _hostile_run(tmp_path: Path, weights: bool) -> tuple[Path, Path]:
+    """A run folder with a valid config.yaml, a hostile model.zip and (``weights``) a hostile
+    torch pickle named as the weights file; returns ``(run folder, marker)``."""
+    run, marker = tmp_path / "run", tmp_path / "marker"
+    run.mkdir()
+    config = {"env": BEARINGS, "algo": "ppo", "seed": 0, "agents": False}
+    (run / CONFIG_FILE).write_text(yaml.safe_dump(config))
+    _hostile_zip(run / SB3_ZIP_FILE, marker)
+    if weights:
+        torch.save({"policy": Payload(marker)}, run / WEIGHTS_FILE)
+    return run, marker
+
+
+def _exit_message(argv: list[str]) -> str:
+    """The one-line SystemExit message of ``sensorgym ARGV`` (which must fail)."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code not in (0, None)
+    message = str(exc.value.code)
+    assert "\n" not in message
+    return message
+
+
+def _commands(run: Path, tmp_path: Path) -> dict[str, list[str]]:
+    bench = ["--episodes", "2", "--n-envs", "2", "--out", str(tmp_path / "bench")]
+    render = ["--out", str(tmp_path / "e.gif")]
+    return {
+        "benchmark": ["benchmark", "--env", BEARINGS, *bench, "--model", str(run)],
+        "render": ["render", "--env", BEARINGS, "--model", str(run), *render],
+    }
+
+
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_a_pickled_model_zip_is_not_loaded_without_the_flag(tmp_path, command):
+    run, marker = _hostile_run(tmp_path, weights=False)
+    message = _exit_message(_commands(run, tmp_path)[command])
+    assert str(run / SB3_ZIP_FILE) in message and "--unsafe-pickle" in message
+    assert not marker.exists()
+
+
+@pytest.mark.parametrize("unsafe", [False, True])
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_a_hostile_weights_file_is_refused_not_run(tmp_path, command, unsafe):
+    run, marker = _hostile_run(tmp_path, weights=True)
+    # the weights file, when present, is what is loaded: even --unsafe-pickle does not reach
+    # the model.zip beside it
+    argv = _commands(run, tmp_path)[command] + (["--unsafe-pickle"] if unsafe else [])
+    message = _exit_message(argv)
+    assert str(run / WEIGHTS_FILE) in message and "not a safetensors weights file" in message
+    assert not marker.exists()
+
+
+def test_the_payloads_are_live(tmp_path):
+    """The control: the same files do run their payload through pickle-based loading."""
+    run, marker = _hostile_run(tmp_path, weights=True)
+    # (through a file object: torch.load reads a path ending in .safetensors as safetensors)
+    with open(run / WEIGHTS_FILE, "rb") as f:
+        torch.load(f, weights_only=False)
+    assert marker.exists()
+    os.rmdir(marker)
+    with open(run / WEIGHTS_FILE, "rb") as f, pytest.raises(Exception, match="Weights only"):
+        torch.load(f, weights_only=True)  # refused, as safetensors refuses it
+    assert not marker.exists()
+    (run / WEIGHTS_FILE).unlink()
+    message = _exit_message([*_commands(run, tmp_path)["benchmark"], "--unsafe-pickle"])
+    assert marker.exists()  # the opt-in unpickled the zip: SB3's load then fails on it
+    assert str(run / SB3_ZIP_FILE) in message
+
+
+def test_the_unsafe_flag_says_it_runs_code(capsys):
+    for command in ("benchmark", "render"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        text = " ".join(capsys.readouterr().out.split())
+        assert "--unsafe-pickle" in text and "EXECUTES ANY CODE" in text and "trust" in text
+
+
+@pytest.mark.parametrize("algo", ["ppo", "sac"])
+def test_trained_weights_reload_to_the_same_actions(tmp_path, algo):
+    result = train(
+        BEARINGS, algo, seed=3, timesteps=300, n_envs=2, out=tmp_path, eval_episodes=2,
+        progress=False,
+    )  # fmt: skip
+    files = sorted(p.name for p in result.run_dir.iterdir())
+    assert files == [CONFIG_FILE, "evaluation.json", WEIGHTS_FILE]  # no pickle written
+    loaded = load_model(result.run_dir)
+    assert type(loaded) is type(result.model) and loaded.get_env() is None
+    obs = np.random.default_rng(0).uniform(-3, 3, (64, 10)).astype(np.float32)
+    expected = result.model.predict(obs, deterministic=True)[0]
+    np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], expected)
+    trained = result.model.policy.state_dict()
+    for name, tensor in loaded.policy.state_dict().items():  # SAC: actor, critic, target
+        torch.testing.assert_close(tensor, trained[name], rtol=0, atol=0)
+    # the saved run scores in `benchmark` exactly as in training's own evaluation
+    bench = ["--env", BEARINGS, "--episodes", "2", "--n-envs", "2", "--seed", "10003"]
+    out = tmp_path / "bench"
+    assert main(["benchmark", *bench, "--model", str(result.run_dir), "--out", str(out)]) == 0
+    doc = json.loads((out / "sensorgym__BearingsManeuver-v0.json").read_text())
+    assert doc["results"][f"model:{result.run_dir.name}"] == result.evaluation["trained"]
+
+
+def test_parameter_sharing_weights_reload_and_render(tmp_path, capsys):
+    result = train(
+        PLACEMENT, "ppo", timesteps=128, n_envs=2, out=tmp_path, eval_episodes=2,
+        progress=False, agents=True,
+    )  # fmt: skip
+    loaded = load_model(result.run_dir / WEIGHTS_FILE)
+    view = make_sb3_env(PLACEMENT, 2, seed=0, agents=True)
+    obs = view.reset()  # every agent of 2 scenarios, each its own observation
+    np.testing.assert_array_equal(
+        loaded.predict(obs, deterministic=True)[0], result.model.predict(obs, deterministic=True)[0]
+    )
+    assert load_model(result.run_dir, view).get_env() is not None
+    view.close()
+    out = tmp_path / "episode.png"
+    render = ["render", "--env", PLACEMENT, "--model", str(result.run_dir), "--out", str(out)]
+    assert main(render) == 0
+    assert out.is_file() and "return" in capsys.readouterr().out
+
+
+def test_weights_that_do_not_fit_the_config_are_named(tmp_path):
+    env = make_sb3_env(BEARINGS, 1, seed=0)
+    from stable_baselines3 import PPO
+
+    model = PPO("MlpPolicy", env, policy_kwargs={"net_arch": [8]}, device="cpu")
+    env.close()
+    config = {"env": BEARINGS, "algo": "ppo", "hyperparams": {"policy": "MlpPolicy"}}
+    save_run(model, tmp_path, config)
+    with pytest.raises(RunFolderError, match="do not fit"):  # default net_arch: [64, 64]
+        load_model(tmp_path)
+    config["hyperparams"]["policy_kwargs"] = {"net_arch": [8]}
+    save_run(model, tmp_path, config)
+    assert load_model(tmp_path).policy.state_dict().keys() == model.policy.state_dict().keys()
+    config["algo"] = "sac"
+    (tmp_path / CONFIG_FILE).write_text(yaml.safe_dump(config))
+    with pytest.raises(RunFolderError, match="saved for algo 'ppo'"):
+        load_model(tmp_path)
+
+
+@pytest.mark.parametrize(
+    "hyperparams, words",
+    [
+        ({"policy": "os.system"}, ["policy 'os.system'"]),
+        ({"policy": "MlpPolicy", "no_such_argument": 1}, ["do not build a ppo model"]),
+        ("nonsense", ["expected a mapping"]),
+    ],
+)
+def test_hyperparams_that_do_not_build_a_model_are_named(hyperparams, words):
+    with pytest.raises(RunFolderError) as exc:
+        build_model({"env": BEARINGS, "algo": "ppo", "hyperparams": hyperparams})
+    for word in [CONFIG_FILE, *words]:
+        assert word in str(exc.value)
+
+
+def test_retraining_into_a_folder_removes_its_old_model_zip(tmp_path):
+    run = tmp_path / "sensorgym__BearingsManeuver-v0" / "sac_seed0"
+    run.mkdir(parents=True)
+    (run / SB3_ZIP_FILE).write_bytes(b"an earlier run's pickle")
+    train(BEARINGS, "sac", timesteps=100, n_envs=2, out=tmp_path, eval_episodes=2, progress=False)
+    assert not (run / SB3_ZIP_FILE).exists() and (run / WEIGHTS_FILE).is_file()
+
+
+def test_an_older_run_folder_with_only_model_zip_loads_with_the_flag(tmp_path):
+    from stable_baselines3 import PPO
+
+    env = make_sb3_env(BEARINGS, 1, seed=0)
+    model = PPO("MlpPolicy", env, policy_kwargs={"net_arch": [8]}, device="cpu")
+    env.close()
+    run = tmp_path / "run"
+    run.mkdir()
+    model.save(run / SB3_ZIP_FILE)  # what sensorgym train wrote before policy.safetensors
+    (run / CONFIG_FILE).write_text(yaml.safe_dump({"env": BEARINGS, "algo": "ppo"}))
+    with pytest.raises(RunFolderError, match="--unsafe-pickle"):
+        load_model(run)
+    obs = np.random.default_rng(1).uniform(-3, 3, (16, 10)).astype(np.float32)
+    loaded = load_model(run, unsafe_pickle=True)
+    np.testing.assert_array_equal(
+        loaded.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]
+    )
+    bench = ["--env", BEARINGS, "--episodes", "2", "--n-envs", "2", "--out", str(tmp_path / "b")]
+    assert main(["benchmark", *bench, "--model", str(run), "--unsafe-pickle"]) == 0
