@@ -53,7 +53,7 @@ def soak(env_id: str, steps: int, batch: int, seed: int, agent_view: bool = Fals
             obs, reward, terminated, truncated, _ = env.step(
                 _actions(rng, env.action_space.shape).astype(np.float32)
             )
-        except Exception:  # noqa: BLE001  (counted and reported, the soak goes on)
+        except Exception:  # counted and reported; the soak goes on
             counts["exceptions"] += 1
             first_error = first_error or traceback.format_exc(limit=2)
             obs, _ = env.reset(seed=int(rng.integers(2**31)))
@@ -83,7 +83,7 @@ def soak_parallel(env_id: str, steps: int, seed: int) -> dict:
         shape = env.action_space(env.agents[0]).shape
         try:
             obs, rewards, *_ = env.step({a: _actions(rng, shape) for a in env.agents})
-        except Exception:  # noqa: BLE001
+        except Exception:  # counted and reported
             counts["exceptions"] += 1
             first_error = first_error or traceback.format_exc(limit=2)
             env.reset(seed=int(rng.integers(2**31)))
