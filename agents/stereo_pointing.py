@@ -25,7 +25,7 @@ from sensorgym.envs.stereo_pointing.simulation import (
     pointing_offsets,
     split_observation,
 )
-from sensorgym.trackers.stereo.information import position_information
+from sensorgym.trackers.stereo.information import MIN_RANGE, position_information
 
 FloatArray = NDArray[np.float64]
 
@@ -50,10 +50,13 @@ class _View:
     los: FloatArray
     """(N, n, m, 3) unit lines of sight from the receivers to the predicted positions."""
     ranges: FloatArray
-    """(N, n, m) ranges to the predicted positions, m."""
+    """(N, n, m) ranges to the predicted positions, m (inf: predicted on the receiver)."""
 
 
 def _view(params: PointingParams, obs: FloatArray) -> _View:
+    """Decode ``obs``. A drone predicted on a receiver (the zero line of sight, which that
+    receiver never sees) is at infinite range from it: it adds no information there and is
+    never the nearest."""
     gimbals, pairs, drones = split_observation(params, obs)
     position = drones[..., :3] * params.length_scale
     los, r = lines_of_sight(params, position)
@@ -64,7 +67,7 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
         position=position,
         sigma=np.exp(drones[..., 3]) * params.sigma_ref,
         los=los,
-        ranges=np.maximum(r, 1e-9),
+        ranges=np.where(r > MIN_RANGE, np.maximum(r, MIN_RANGE), np.inf),
     )
 
 

@@ -64,6 +64,12 @@ class StereoPointingEnv(CoreEnv):
     ``initial_elevation``. The tracker starts from an external cue: the truth plus Gaussian
     errors ``cue_sigma`` (position m, velocity m/s).
 
+    Degenerate settings are refused or given finite fallbacks (the module docstring of
+    :mod:`~sensorgym.envs.stereo_pointing.simulation` lists them): two receivers at one place
+    raise ``ValueError`` (``receiver_angles_deg``); a fix behind or on a receiver is not
+    trusted; a drone on a receiver is not seen by it; exact fixes with no process noise are
+    taken as they are.
+
     ## Episode End
 
     * Termination: never (a drone leaving the volume is still tracked, if it can be).

@@ -26,6 +26,23 @@ One step (``params.dt`` seconds):
    (:mod:`sensorgym.trackers.stereo.information`); fewer than two views (or
    parallel lines of sight) give ``−R``. The bound has no noise draw in it: the reward depends
    only on where the receivers point, and it favours near-orthogonal pairs (theory §10.1 OC-1).
+
+Degenerate inputs never raise inside :func:`step` or :func:`observe`; each has a documented,
+finite fallback:
+
+* co-located receivers (two equal places on the circle) are refused by :class:`PointingParams`:
+  their lines of sight to any point are parallel, no fix could ever be made;
+* a fix is used only if it passes the observability test with its information at its own
+  ranges (:func:`~sensorgym.trackers.stereo.information.weighted_fix`) *and* lies at least
+  ``MIN_FIX_RANGE`` (1 cm) in front of every receiver that sees it
+  (:func:`~sensorgym.trackers.stereo.information.fix_in_front`): near-parallel noisy lines of
+  sight from nearby receivers cross at the receivers, where the information looks regular;
+* a point within ``MIN_RANGE`` (1e-9 m) of a receiver — a drone flying through it, or the
+  tracker's prediction — has the zero line of sight from it (:func:`lines_of_sight`): it is not
+  seen, measured as zero, and reads as a zero pointing offset;
+* exact fixes (``sigma_ang = 0``) with no process noise make the Kalman innovation covariance
+  singular: the update then takes the pseudo-inverse gain and the fix itself
+  (:mod:`sensorgym.trackers.stereo.kalman`).
 """
 
 from __future__ import annotations
@@ -41,6 +58,8 @@ from sensorgym.envs.worlds.stereo_scene import perturb_directions
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
 from sensorgym.trackers.stereo.information import (
     MAX_REWARD_CLIP,
+    MIN_RANGE,
+    fix_in_front,
     log_ratio_reward,
     observable,
     position_information,
@@ -121,6 +140,15 @@ class PointingParams:
             raise ValueError(
                 f"receiver_angles_deg: need {self.n_receivers} finite angles, got {angles}"
             )
+        if angles is not None:
+            # co-located receivers see every point along parallel lines of sight: no fix ever
+            o = self.receiver_positions
+            gap = np.linalg.norm(o[:, None] - o[None], axis=-1) + np.eye(self.n_receivers)
+            if np.any(gap <= 1e-9 * self.circle_radius):
+                raise ValueError(
+                    f"receiver_angles_deg: two receivers share a place (angles equal modulo"
+                    f" 360°), got {angles}"
+                )
         for name in ("start_distance", "start_altitude", "drone_speed", "climb_rate"):
             lo, hi = getattr(self, name)
             if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
@@ -218,10 +246,35 @@ def boresights(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
 
 def lines_of_sight(params: PointingParams, points: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Unit lines of sight ``(B, n, m, 3)`` and ranges ``(B, n, m)`` from each receiver to
-    each of ``points (B, m, 3)``."""
+    each of ``points (B, m, 3)``.
+
+    A point within ``MIN_RANGE`` (1e-9 m) of a receiver has no direction from it: its line of
+    sight is the zero vector (the documented fallback). Such a point is never seen (the cone
+    test needs ``u · boresight ≥ cos fov > 0``), is measured as the zero vector
+    (:func:`~sensorgym.envs.worlds.stereo_scene.perturb_directions`) and reads as a zero
+    pointing offset (:func:`pointing_offsets`).
+    """
     d = points[:, None, :, :] - params.receiver_positions[None, :, None, :]
     r = np.linalg.norm(d, axis=-1)
-    return d / np.maximum(r, 1e-9)[..., None], r
+    return _unit_or_zero(d, r), r
+
+
+def _unit_or_zero(d: FloatArray, r: FloatArray) -> FloatArray:
+    """``d / r`` where ``r > MIN_RANGE``, the zero vector elsewhere."""
+    u = d / np.maximum(r, MIN_RANGE)[..., None]
+    if np.all(r > MIN_RANGE):
+        return u
+    return np.where((r > MIN_RANGE)[..., None], u, 0.0)
+
+
+def _angles(u: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Azimuth and elevation of lines of sight ``u (..., 3)`` and where they exist: a zero
+    vector (no direction) gives ``(0, 0)`` and False."""
+    has = np.any(u != 0.0, axis=-1)
+    if np.all(has):
+        return (*angles_from_unit(u), has)
+    az, el = angles_from_unit(np.where(has[..., None], u, np.array([0.0, 0.0, 1.0])))
+    return np.where(has, az, 0.0), np.where(has, el, 0.0), has
 
 
 def start(
@@ -284,12 +337,23 @@ def reset(
     if not params.cued_start:
         return state
     # receiver k on drone k mod m's cued position
-    cue = state.track.position[:, np.arange(n) % m]  # (B, n, 3)
-    d = cue - params.receiver_positions[None]
-    az, el = angles_from_unit(d / np.linalg.norm(d, axis=-1, keepdims=True))
-    return dataclasses.replace(
-        state, azimuth=az, elevation=np.clip(el, -params.max_elevation, params.max_elevation)
+    az, el = aim_at(
+        params, state.track.position[:, np.arange(n) % m], state.azimuth, state.elevation
     )
+    return dataclasses.replace(state, azimuth=az, elevation=el)
+
+
+def aim_at(
+    params: PointingParams, points: FloatArray, azimuth: FloatArray, elevation: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """Azimuth and elevation ``(B, n)`` that put receiver ``k`` on ``points[:, k] (B, n, 3)``
+    (elevation held within ``±max_elevation``); a receiver whose point lies on it (no
+    direction) keeps its ``azimuth``/``elevation``."""
+    d = points - params.receiver_positions[None]
+    az, el, has = _angles(_unit_or_zero(d, np.linalg.norm(d, axis=-1)))
+    if not np.all(has):
+        az, el = np.where(has, az, azimuth), np.where(has, el, elevation)
+    return az, np.clip(el, -params.max_elevation, params.max_elevation)
 
 
 def reward_of(params: PointingParams, sigma_pos: FloatArray) -> FloatArray:
@@ -317,18 +381,22 @@ def step(
     p = state.drone_position + state.drone_velocity * params.dt
     u, r = lines_of_sight(params, p)  # (B, n, m, 3), (B, n, m)
     bore = boresights(az, el)  # (B, n, 3)
+    # a zero line of sight (drone on the receiver) gives 0 here and is never seen
     seen = np.einsum("bki,bkji->bkj", bore, u) >= np.cos(params.fov)
     # measure every pair (a fixed number of draws), use only what is seen
     z = perturb_directions(u, params.sigma_ang, rng) if params.sigma_ang > 0.0 else u
     # per drone: (B, m, n, ...) views
     origins = np.broadcast_to(params.receiver_positions[None, None], (B, params.n_drones, n, 3))
-    fix, G_fix, ok_fix = weighted_fix(origins, np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2))
+    z_t, seen_t = np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2)
+    fix, G_fix, ok_fix = weighted_fix(origins, z_t, seen_t)
+    # not trusted: a fix behind, on or next to a receiver that sees it (near-singular geometry
+    # the noisy observability test let through, theory §4.3)
+    ok_fix = ok_fix & fix_in_front(fix, origins, z_t, seen_t)
     track = cv_predict(state.track, params.dt, params.process_noise)
     # R = σ² G⁻¹ at the fix's own ranges
     R = params.sigma_ang**2 * np.linalg.inv(np.where(ok_fix[..., None, None], G_fix, np.eye(3)))
     track = cv_update(track, fix, R, ok_fix)
     # the reward's bound: true lines of sight and ranges of the receivers that see the drone
-    seen_t = np.swapaxes(seen, 1, 2)
     G_true = position_information(np.swapaxes(u, 1, 2), np.swapaxes(r, 1, 2), mask=seen_t)
     bound = position_sigma(G_true, observable(G_true, seen_t), params.sigma_ang)
     new = PointingState(
@@ -347,10 +415,12 @@ def pointing_offsets(
 ) -> FloatArray:
     """World-angle offsets ``(B, n, m, 2)`` of ``points (B, m, 3)`` from each boresight, rad:
     ``(wrap(α_kj − α_k), ε_kj − ε_k)`` with ``(α_kj, ε_kj)`` the direction of point ``j``
-    from receiver ``k``; slewing by exactly these offsets puts the point on the boresight."""
+    from receiver ``k``; slewing by exactly these offsets puts the point on the boresight.
+    A point on a receiver (no direction, :func:`lines_of_sight`) reads as a zero offset."""
     u, _ = lines_of_sight(params, points)
-    az, el = angles_from_unit(u)
-    return np.stack([wrap_angle(az - azimuth[..., None]), el - elevation[..., None]], -1)
+    az, el, has = _angles(u)
+    offsets = np.stack([wrap_angle(az - azimuth[..., None]), el - elevation[..., None]], -1)
+    return offsets if np.all(has) else np.where(has[..., None], offsets, 0.0)
 
 
 def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]:

@@ -22,6 +22,8 @@ from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
 
+_Z = np.array([0.0, 0.0, 1.0])
+
 
 @dataclass(frozen=True)
 class StereoScene:
@@ -124,8 +126,17 @@ def perturb_directions(a: ArrayLike, sigma_ang: ArrayLike, rng: np.random.Genera
     The perturbation ``δ ~ N(0, σ²(I − a aᵀ))`` is drawn perpendicular to ``a`` and the sum
     renormalised, so the error has standard deviation ``σ`` in each of the two directions
     across the line of sight and none along it.
+
+    A zero vector (a point at the receiver: no direction to measure) is returned as the zero
+    vector; its draws are still taken, so the other vectors and the generator's stream do not
+    depend on it. Any other vector must have unit length.
     """
-    a = unit_vectors(a, "a")
+    arr = finite_array(a, "a", tail=(3,), check=False)  # unit_vectors reports NaN
+    zero = np.all(arr == 0.0, axis=-1)
+    if np.any(zero):  # check the others, keep the zeros
+        a = np.where(zero[..., None], 0.0, unit_vectors(np.where(zero[..., None], _Z, arr), "a"))
+    else:
+        a = unit_vectors(arr, "a")
     s = finite_array(sigma_ang, "sigma_ang")
     if np.any(s < 0.0):
         raise ValueError("sigma_ang: must be non-negative")
@@ -133,7 +144,10 @@ def perturb_directions(a: ArrayLike, sigma_ang: ArrayLike, rng: np.random.Genera
     # δ = (I − a aᵀ) z σ
     delta = (z - np.sum(z * a, axis=-1, keepdims=True) * a) * np.asarray(s)[..., None]
     v = a + delta
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+    if not np.any(zero):
+        return v / np.linalg.norm(v, axis=-1, keepdims=True)
+    norm = np.linalg.norm(v, axis=-1, keepdims=True)
+    return np.where(zero[..., None], 0.0, v / np.where(zero[..., None], 1.0, norm))
 
 
 def perturb_positions(M: ArrayLike, sigma: ArrayLike, rng: np.random.Generator) -> FloatArray:

@@ -14,7 +14,15 @@ eigenvalue ratios).
 These functions are batched over leading axes, mask-aware and *unchecked*: they never raise on
 degenerate geometry, which an environment must score, not refuse. Their documented fallbacks:
 :func:`position_sigma` is ``+inf`` where the position is unobservable, and
-:func:`log_ratio_reward` maps that to the finite ``−R``. The checked public API of
+:func:`log_ratio_reward` maps that to the finite ``−R``; a zero line of sight (a point at the
+receiver, no direction) gives that receiver the information ``I/(σ² r²)`` at the floored range,
+so it must be masked out (the environments never count such a view).
+
+A noisy fix can pass the observability test although the true geometry is singular: receivers
+(nearly) at one place see a point along (nearly) one line, their noisy lines of sight cross
+where the receivers stand, and the information at that fix's own (tiny) ranges is regular.
+:func:`fix_in_front` is the second test a tracker applies: the fix must lie at least
+``MIN_FIX_RANGE`` in front of every receiver that sees it. The checked public API of
 :mod:`.accuracy` (``position_information``, ``position_crlb``) validates its inputs and calls
 these.
 """
@@ -34,6 +42,9 @@ MIN_RANGE = 1e-9
 #: largest clip ``R`` of :func:`log_ratio_reward` an env accepts: sums of ``±R`` over drones and
 #: episodes stay finite
 MAX_REWARD_CLIP = 1e6
+#: a fix is trusted only if it lies at least this far (m) in front of every receiver that sees
+#: it, along that receiver's line of sight (:func:`fix_in_front`)
+MIN_FIX_RANGE = 1e-2
 
 
 def position_information(
@@ -130,3 +141,27 @@ def weighted_fix(
         r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), MIN_RANGE)
     info = position_information(u, r, sigma, s)
     return M, info, ok & observable(info, s)
+
+
+def fix_in_front(
+    fix: ArrayLike,
+    origins: ArrayLike,
+    los: ArrayLike,
+    mask: ArrayLike | None = None,
+    min_range: float = MIN_FIX_RANGE,
+) -> BoolArray:
+    """Where a fix is in front of its receivers ``(...)``: ``u_k · (M − o_k) > min_range`` for
+    every receiver ``k`` that sees it (``mask``, None: every receiver).
+
+    ``fix (..., 3)``, ``origins (..., n, 3)`` and unit ``los (..., n, 3)`` in one frame, m. A
+    fix behind a receiver, on it or within ``min_range`` of it (non-positive or tiny ranges
+    along the measured line of sight) is what near-parallel lines of sight from (nearly)
+    co-located receivers give; it must not be trusted even where :func:`observable` holds.
+    """
+    M = np.asarray(fix, dtype=np.float64)
+    o = np.asarray(origins, dtype=np.float64)
+    u = np.asarray(los, dtype=np.float64)
+    ahead = np.einsum("...ki,...ki->...k", u, M[..., None, :] - o) > min_range
+    if mask is not None:
+        ahead = ahead | ~np.asarray(mask, dtype=bool)
+    return np.all(ahead, axis=-1)

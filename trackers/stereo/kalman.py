@@ -20,6 +20,16 @@ Constant-velocity model (white-noise acceleration of spectral density ``q``, m²
     F = [[I, dt I], [0, I]],   Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]
     z = H x + w,  H = [I 0],   w ~ N(0, R),   R = σ² G⁻¹
 
+Singular innovation covariance. The update solves ``S = H P Hᵀ + R`` for the gain. Exact fixes
+(``σ = 0``, so ``R = 0``) together with no process noise (``q = 0``) make ``S`` singular — after
+a few fixes the track is certain and ``S = 0``. Where ``S`` is singular to working precision
+(:func:`singular_innovation`: an eigenvalue ``λ ≤ RCOND · max|λ|``, or none positive) the update
+uses the pseudo-inverse gain instead of ``S⁻¹``: ``K = P Hᵀ S⁺`` on the range of ``S`` and, on its
+null space ``N = I − S S⁺`` (directions in which both the prediction and the fix claim to be
+exact), the fix itself, ``K_p += N``. ``S = 0`` therefore gives the fix as the position and
+leaves the velocity and its covariance unchanged; ``σ = 0`` with a regular ``S = P_pp`` gives
+``K_p = I``, the fix again (to round-off). Regular ``S`` keeps ``np.linalg.solve``, bit for bit.
+
 Every function takes leading batch axes.
 """
 
@@ -34,6 +44,12 @@ from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+#: the innovation covariance ``S`` is singular where an eigenvalue ``λ ≤ RCOND · max|λ|``
+RCOND = 1e-13
+#: cheap pre-screen of :func:`singular_innovation`: only matrices with a leading principal
+#: minor ``≤ SCREEN · ‖S‖^k`` (``k`` = its order) are decomposed
+SCREEN = 1e-9
 
 
 @dataclass(frozen=True)
@@ -90,10 +106,48 @@ def cv_predict(track: CVTrack, dt: float, q: float) -> CVTrack:
     return CVTrack(x, P)
 
 
+def singular_innovation(S: ArrayLike) -> BoolArray:
+    """Where the symmetric ``S (..., 3, 3)`` is singular to working precision ``(...)``: its
+    smallest eigenvalue ``λ_min ≤ RCOND · max|λ|`` (so also ``S = 0`` and indefinite ``S``).
+
+    Only candidates are decomposed: a matrix that is not positive definite has a leading
+    principal minor ``≤ 0`` (Sylvester's criterion), and a positive-definite one with
+    ``λ_min ≤ RCOND · λ_max`` has ``det S ≤ RCOND · ‖S‖³``; so every singular ``S`` has a leading
+    minor of order ``k`` at most ``SCREEN · ‖S‖^k`` (``SCREEN > RCOND``, ``‖·‖`` Frobenius).
+    """
+    S = np.asarray(S, dtype=np.float64)
+    norm = np.sqrt(np.sum(S * S, axis=(-2, -1)))  # Frobenius ‖S‖ ≥ max|λ|
+    m1 = S[..., 0, 0]
+    m2 = S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0]
+    m3 = np.linalg.det(S)
+    suspect = (m1 <= SCREEN * norm) | (m2 <= SCREEN * norm**2) | (m3 <= SCREEN * norm**3)
+    singular = np.zeros(S.shape[:-2], dtype=bool)
+    if np.any(suspect):
+        lam = np.linalg.eigvalsh(S[suspect])
+        singular[suspect] = lam[..., 0] <= RCOND * np.abs(lam).max(axis=-1)
+    return singular
+
+
+def _pseudo_gain(P: FloatArray, S: FloatArray) -> FloatArray:
+    """Gain ``(..., 6, 3)`` for singular ``S``: ``P Hᵀ S⁺`` plus the null-space projector of
+    ``S`` on the position rows (there the fix is taken as it is)."""
+    lam, V = np.linalg.eigh(S)
+    keep = lam > RCOND * np.abs(lam).max(axis=-1, keepdims=True)
+    inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
+    # S⁺ = V diag(1/λ on the kept eigenvalues) Vᵀ,  N = I − S S⁺ = V diag(not kept) Vᵀ
+    pinv = np.einsum("...ik,...k,...jk->...ij", V, inv, V)
+    null = np.einsum("...ik,...k,...jk->...ij", V, (~keep).astype(np.float64), V)
+    K = np.swapaxes(P[..., :3, :], -1, -2) @ pinv
+    K[..., :3, :] += null
+    return K
+
+
 def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CVTrack:
     """Updater with a position fix ``z (..., 3)`` of covariance ``R (..., 3, 3)`` where ``mask``.
 
-    Tracks where ``mask`` is False are returned unchanged (no fix: predict only).
+    Tracks where ``mask`` is False are returned unchanged (no fix: predict only). Where the
+    innovation covariance ``S`` is singular (exact fixes and an exact track, see the module
+    docstring) the pseudo-inverse gain is used and the fix is taken in the null space of ``S``.
     """
     z = np.asarray(z, dtype=np.float64)
     R = np.asarray(R, dtype=np.float64)
@@ -102,7 +156,11 @@ def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CV
     # S = H P Hᵀ + R ;  K = P Hᵀ S⁻¹
     S = Ppp + R
     S = np.where(m[..., None, None], S, np.eye(3))  # untouched tracks: any invertible S
-    K = np.swapaxes(np.linalg.solve(S, track.P[..., :3, :]), -1, -2)
+    singular = singular_innovation(S)
+    regular = np.where(singular[..., None, None], np.eye(3), S)
+    K = np.swapaxes(np.linalg.solve(regular, track.P[..., :3, :]), -1, -2)
+    if np.any(singular):
+        K[singular] = _pseudo_gain(track.P[singular], S[singular])
     innovation = z - track.position
     x = track.x + np.einsum("...ij,...j->...i", K, innovation)
     # P = P − K S Kᵀ, symmetrised against round-off
