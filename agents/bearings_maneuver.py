@@ -4,7 +4,7 @@ Each rule reads only the observation (the tracker's view, see
 :func:`sensorgym.envs.bearings_maneuver.simulation.observe_agents`) and implements SB3's
 ``predict``, so ``stable_baselines3.common.evaluation.evaluate_policy`` scores it like a
 trained model. :class:`OracleLookahead` is not a rule one could field: it peeks at the
-simulator (true target, true Fisher information) and plans on the very bound the reward
+simulator (true target, true Cramér–Rao bound) and plans on the very bound the reward
 measures, which shows how much of the gap to the best manoeuvres comes from not knowing the
 target (the rules) and how much from planning.
 """
@@ -24,9 +24,9 @@ from sensorgym.envs.bearings_maneuver.simulation import (
     ManeuverParams,
     ManeuverState,
     accuracy_of,
+    advance_bound,
 )
 from sensorgym.envs.worlds.platform import fly
-from sensorgym.trackers.bearings.crlb import bearing_information, predict_information
 from sensorgym.trackers.bearings.models import cv_transition
 
 FloatArray = NDArray[np.float64]
@@ -190,19 +190,19 @@ class OracleLookahead(MemorylessRule):
         heading = np.repeat(s.heading[:, :1], C, axis=1)
         speed = np.repeat(s.speed[:, :1], C, axis=1)
         target = s.target[:, None, :]
-        J = np.repeat(s.information[:, None], C, axis=1)
+        L = np.repeat(s.bound_factor[:, None], C, axis=1)
         F = cv_transition(w.dt)
         too_close = np.zeros((s.batch_size, C), dtype=bool)
         for _ in range(self.horizon):
             pos, heading, speed = fly(pos, heading, speed, command, w)
             target = target @ F.T
-            # J_{k+1} = (I + J̄ Q)⁻¹ J̄ + Hᵀ H / σ², as the env's reward does
-            J = predict_information(J, w.dt, w.q_tilde) + bearing_information(
-                target, pos, w.sigma_bearing
+            # the env's own recursion: P̄ = F P Fᵀ + Q, then the bearing at the true state
+            L = advance_bound(
+                p, L, np.broadcast_to(target, (*pos.shape[:-1], 4)), pos[..., None, :]
             )
             d = target[..., :2] - pos
             too_close |= np.hypot(d[..., 0], d[..., 1]) < self.safety * p.min_range
-        return np.where(too_close, np.inf, accuracy_of(p, J, target, pos))
+        return np.where(too_close, np.inf, accuracy_of(p, L, target, pos))
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""

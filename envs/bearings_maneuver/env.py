@@ -59,7 +59,10 @@ class BearingsManeuverEnv(CoreEnv):
 
     Platform at the origin with a uniform random heading at ``initial_platform_speed``; target
     at a uniform range in ``initial_range`` and a uniform bearing, with a uniform course and
-    speed in ``target_speed``. The tracker starts from the first bearing.
+    speed in ``target_speed``. The tracker starts from the first bearing with a prior that
+    matches these draws: range uniform over ``bank_ranges`` (default ``initial_range``),
+    course uniform over the full circle, speed moments of ``target_speed`` (or
+    ``prior_speed``).
 
     ## Episode End
 
@@ -79,7 +82,9 @@ class BearingsManeuverEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version. Issue 10 changed its episodes in place: the tracker's prior now
+      matches the scenario generator (it assumed a course towards the platform), and the bound
+      is carried in square-root covariance form (finite rewards at every scale).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

@@ -15,15 +15,22 @@ One step (``params.world.dt`` seconds):
    (:mod:`sensorgym.trackers.bearings.filters`): this estimate is all the agent sees;
 3. the reward is the gain in accuracy of the best possible estimate: the posterior Cramér–Rao
    bound (Tichavský et al. 1998) computed along the *true* trajectory
-   (:mod:`sensorgym.trackers.bearings.crlb`)::
+   (:mod:`sensorgym.trackers.bearings.crlb`), carried in square-root covariance form
+   ``P_k = L_k L_kᵀ = J_k⁻¹`` (theory §7.8, §11.2)::
 
-       J_{k+1} = (I + J̄ Q)⁻¹ J̄ + Hᵀ H / σ²,    J̄ = F⁻ᵀ J_k F⁻¹,     J_0 = P_prior⁻¹
-       reward_k = ln m(J_k⁻¹) − ln m(J_{k+1}⁻¹)
+       P̄ = F P_k Fᵀ + Q,   P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹,   P_0 = P_prior
+       reward_k = ln m(P_k) − ln m(P_{k+1})
 
-   with ``m`` the position RMS bound ``√(P_xx + P_yy)`` or the relative range bound ``σ_r/r``.
+   with ``m`` the position RMS bound ``√(P_xx + P_yy)`` or the relative range bound ``σ_r/r``
+   (:func:`accuracy_of`; :func:`advance_bound` is the one recursion, shared with the oracle).
    Rewards telescope: the return of an episode is ``ln(m_0/m_T)``, the log-factor by which
    the platform's manoeuvres shrank the bound. The bound does not depend on the noise draw,
    so the reward has no measurement noise in it, only the consequences of the actions.
+
+The tracker's prior (theory §7.9, §11.2) is the generator's distribution given the first
+bearing: range uniform over ``bank_ranges`` (default the generator's ``initial_range``),
+course uniform over the full circle, speed with the mean and standard deviation of the
+uniform ``target_speed`` draw (unless ``prior_speed`` says otherwise), moment-matched.
 
 Without a manoeuvre range is unobservable (theory §7.6, §10.5 OC-5): a platform that keeps a
 straight course collects almost no reward after the first bearings.
@@ -50,11 +57,11 @@ from sensorgym.envs.worlds.platform import (
     propagate_target,
 )
 from sensorgym.trackers.bearings.crlb import (
-    bearing_information,
-    crlb,
-    position_rms_bound,
-    predict_information,
-    relative_range_bound,
+    covariance_square_root,
+    factor_position_rms_bound,
+    factor_range_bound,
+    predict_bound_factor,
+    update_bound_factor,
 )
 from sensorgym.trackers.bearings.filters import (
     RangeBankState,
@@ -64,6 +71,10 @@ from sensorgym.trackers.bearings.filters import (
 )
 from sensorgym.trackers.bearings.models import BearingsGaussian
 from sensorgym.trackers.validation import count, finite_array
+
+#: accuracies are kept inside ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that every reward
+#: ``ln m_k − ln m_{k+1}`` is finite (a documented fallback: physical scales never reach it)
+ACCURACY_FLOOR = 1e-300
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -89,12 +100,14 @@ class ManeuverParams:
     """Number of platforms ``K`` taking bearings on the one target (agents in PettingZoo)."""
     formation_radius: float = 2_000.0
     """Platforms 2..K start uniformly within this distance of platform 1 (at the origin), m."""
-    bank_ranges: tuple[float, float] = (2_000.0, 40_000.0)
-    """Range span (m) covered by the filter bank's members (the prior's range support)."""
+    bank_ranges: tuple[float, float] | None = None
+    """Range span (m) covered by the filter bank's members: the prior's range support, over
+    which its range density is uniform. ``None``: ``initial_range``, the generator's."""
     bank_members: int = 8
     """Number of range-parameterised EKF members."""
-    prior_speed: tuple[float, float] = (5.0, 3.0)
-    """Target-speed prior of the filter: mean and standard deviation (m/s)."""
+    prior_speed: tuple[float, float] | None = None
+    """Target-speed prior of the filter: mean and standard deviation (m/s). ``None``: those of
+    the generator's uniform ``target_speed`` draw, ``((lo + hi)/2, (hi − lo)/√12)``."""
     metric: Metric = "position"
     """Accuracy the reward measures: ``"position"`` RMS bound (m) or ``"relative_range"``
     bound ``σ_r/r``."""
@@ -104,37 +117,62 @@ class ManeuverParams:
     """Reward subtracted on that termination (the return is a log-factor, so 5 ≈ e⁵)."""
 
     def __post_init__(self) -> None:
-        lo, hi = self.initial_range
-        if not (np.isfinite(hi) and 0.0 < lo <= hi):
+        if not isinstance(self.world, PlatformWorldParams):
+            raise TypeError(f"world: expected PlatformWorldParams, got {type(self.world).__name__}")
+        lo, hi = _pair(self, "initial_range")
+        if not 0.0 < lo <= hi:
             raise ValueError(f"initial_range: need 0 < low <= high, got {self.initial_range}")
-        lo_v, hi_v = self.target_speed
-        if not (np.isfinite(hi_v) and 0.0 <= lo_v <= hi_v):
+        lo_v, hi_v = _pair(self, "target_speed")
+        if not 0.0 <= lo_v <= hi_v:
             raise ValueError(f"target_speed: need 0 <= low <= high, got {self.target_speed}")
         w = self.world
-        if not (w.min_speed <= self.initial_platform_speed <= w.max_speed):
+        v0 = _number(self, "initial_platform_speed")
+        if not (w.min_speed <= v0 <= w.max_speed):
             raise ValueError(
                 f"initial_platform_speed: {self.initial_platform_speed} outside the world's "
                 f"[{w.min_speed}, {w.max_speed}] m/s"
             )
-        b_lo, b_hi = self.bank_ranges
-        if not (np.isfinite(b_hi) and 0.0 < b_lo < b_hi):
-            raise ValueError(f"bank_ranges: need 0 < low < high, got {self.bank_ranges}")
+        if self.bank_ranges is not None:
+            b_lo, b_hi = _pair(self, "bank_ranges")
+            if not 0.0 < b_lo < b_hi:
+                raise ValueError(f"bank_ranges: need 0 < low < high, got {self.bank_ranges}")
         count(self.platforms, "platforms")
-        if not (np.isfinite(self.formation_radius) and self.formation_radius >= 0.0):
+        if not _number(self, "formation_radius") >= 0.0:
             raise ValueError(
                 f"formation_radius: must be finite and >= 0, got {self.formation_radius}"
             )
         count(self.bank_members, "bank_members")
-        if not (self.prior_speed[0] >= 0.0 and self.prior_speed[1] > 0.0):
-            raise ValueError(f"prior_speed: need mean >= 0 and sigma > 0, got {self.prior_speed}")
+        if self.prior_speed is not None:
+            s_mean, s_sigma = _pair(self, "prior_speed")
+            if not (s_mean >= 0.0 and s_sigma >= 0.0):
+                raise ValueError(
+                    f"prior_speed: need mean >= 0 and sigma >= 0, got {self.prior_speed}"
+                )
         if self.metric not in ("position", "relative_range"):
             raise ValueError(f"metric: 'position' or 'relative_range', got {self.metric!r}")
-        if not (np.isfinite(self.min_range) and self.min_range >= 0.0):
+        if not _number(self, "min_range") >= 0.0:
             raise ValueError(f"min_range: must be finite and >= 0, got {self.min_range}")
         if self.speed_scale <= 0.0:
             raise ValueError("world.max_speed + target_speed[1]: must be positive (speed scale)")
-        if not np.isfinite(self.close_penalty):
-            raise ValueError(f"close_penalty: must be finite, got {self.close_penalty}")
+        _number(self, "close_penalty")
+
+    @property
+    def prior_ranges(self) -> tuple[float, float]:
+        """Range support (m) of the tracker's prior: ``bank_ranges``, else ``initial_range``
+        (a single initial range ``(r, r)`` becomes ``r ± 0.1 %``: a bank needs a span)."""
+        if self.bank_ranges is not None:
+            return self.bank_ranges
+        lo, hi = self.initial_range
+        return (lo, hi) if lo < hi else (0.999 * lo, 1.001 * hi)
+
+    @property
+    def prior_speed_moments(self) -> tuple[float, float]:
+        """Mean and standard deviation (m/s) of the tracker's speed prior: ``prior_speed``,
+        else those of the uniform ``target_speed`` draw."""
+        if self.prior_speed is not None:
+            return self.prior_speed
+        lo, hi = self.target_speed
+        return 0.5 * (lo + hi), (hi - lo) / np.sqrt(12.0)
 
     @property
     def range_scale(self) -> float:
@@ -150,6 +188,30 @@ class ManeuverParams:
     def speed_scale(self) -> float:
         """Speed (m/s) that normalises observed velocities: platform plus target top speed."""
         return self.world.max_speed + self.target_speed[1]
+
+
+def _number(params: ManeuverParams, name: str) -> float:
+    """A finite real field, or ``TypeError`` / ``ValueError`` naming it."""
+    value = getattr(params, name)
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name}: must be a real number, got {value!r}")
+    if not np.isfinite(value):
+        raise ValueError(f"{name}: must be finite, got {value}")
+    return float(value)
+
+
+def _pair(params: ManeuverParams, name: str) -> tuple[float, float]:
+    """A field of two finite reals ``(low, high)``, or ``TypeError`` / ``ValueError`` naming it."""
+    value = getattr(params, name)
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.empty(0)
+    if arr.shape != (2,) or isinstance(value, str):
+        raise TypeError(f"{name}: must be a pair of numbers (low, high), got {value!r}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name}: must be finite, got {value}")
+    return float(arr[0]), float(arr[1])
 
 
 @dataclass(frozen=True)
@@ -169,10 +231,11 @@ class ManeuverState:
     bank: RangeBankState
     """The tracker the agents see through: range-parameterised EKF bank, batch ``(B, N)``.
     All scenarios share its clock ``bank.t`` (the dynamics are time-invariant)."""
-    information: FloatArray
-    """Posterior Fisher information ``J`` ``(B, 4, 4)`` about the true state, now."""
+    bound_factor: FloatArray
+    """Square root ``L`` ``(B, 4, 4)`` of the posterior Cramér–Rao bound ``P = L Lᵀ = J⁻¹``
+    on the true state, now (:attr:`bound` is ``P``)."""
     accuracy: FloatArray
-    """``m(J⁻¹)`` ``(B,)``: the bound the reward measures (m, or dimensionless)."""
+    """``m(P)`` ``(B,)``: the bound the reward measures (m, or dimensionless)."""
     bearing: FloatArray
     """Last measured absolute bearings ``(B, K)`` (rad, from North clockwise)."""
 
@@ -193,21 +256,53 @@ class ManeuverState:
         return np.hypot(d[..., 0], d[..., 1])
 
     @property
+    def bound(self) -> FloatArray:
+        """The posterior Cramér–Rao bound ``P = L Lᵀ`` ``(B, 4, 4)`` on the true state."""
+        L = self.bound_factor
+        return L @ np.swapaxes(L, -1, -2)
+
+    @property
     def estimate(self) -> BearingsGaussian:
         """The bank's moment-matched target estimate, batch ``(B,)``."""
         return self.bank.estimate()
 
 
 def accuracy_of(
-    params: ManeuverParams, J: FloatArray, target: FloatArray, origin: FloatArray
+    params: ManeuverParams, L: FloatArray, target: FloatArray, origin: FloatArray
 ) -> FloatArray:
-    """The accuracy ``m(J⁻¹)`` the reward measures (``params.metric``) of information ``J``
-    ``(..., 4, 4)`` about ``target`` ``(..., 4)``: the position RMS bound, or the relative range
-    bound taken from ``origin`` ``(..., 2)`` (platform 1). The env and the oracle call this."""
-    P = crlb(J)
+    """The accuracy ``m(P)`` the reward measures (``params.metric``) of the bound ``P = L Lᵀ``
+    (square root ``L`` ``(..., 4, 4)``) on ``target`` ``(..., 4)``: the position RMS bound, or the
+    relative range bound taken from ``origin`` ``(..., 2)`` (platform 1). The env and the oracle
+    call this. Read off ``L`` as sums of squares, it is never negative; it is kept inside
+    ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that log-ratio rewards are always finite."""
     if params.metric == "position":
-        return position_rms_bound(P)
-    return relative_range_bound(P, target[..., :2], origin)
+        m = factor_position_rms_bound(L)
+    else:
+        d = target[..., :2] - origin
+        m = factor_range_bound(L, target[..., :2], origin) / np.hypot(d[..., 0], d[..., 1])
+    return np.clip(m, ACCURACY_FLOOR, 1.0 / ACCURACY_FLOOR)
+
+
+def fuse_bound(
+    L: FloatArray, target: FloatArray, positions: FloatArray, sigma: float
+) -> FloatArray:
+    """The bound's square root after one bearing at the true ``target`` ``(..., 4)`` from each
+    platform position ``(..., K, 2)`` in turn (their information adds)."""
+    for k in range(positions.shape[-2]):
+        L = update_bound_factor(L, target, positions[..., k, :], sigma)
+    return L
+
+
+def advance_bound(
+    params: ManeuverParams, L: FloatArray, target: FloatArray, positions: FloatArray
+) -> FloatArray:
+    """One step of the posterior-CRLB recursion on the square root ``L`` ``(..., 4, 4)``:
+    predict over ``world.dt`` (``P̄ = F P Fᵀ + Q``), then fuse the bearings of the platforms at
+    ``positions`` ``(..., K, 2)`` on the true ``target`` ``(..., 4)`` at the new time. The env's
+    reward and the oracle's plans both run this."""
+    w = params.world
+    L = predict_bound_factor(L, w.dt, w.q_tilde)
+    return fuse_bound(L, target, positions, w.sigma_bearing)
 
 
 def _fuse(
@@ -263,28 +358,33 @@ def reset(
         phi = rng.uniform(-np.pi, np.pi, (batch, K - 1))
         positions[:, 1:] = np.stack([rho * np.sin(phi), rho * np.cos(phi)], -1)
     z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
-    # prior from platform 1's first bearing (Ristic §6.3.1): course uniform over the half plane
-    # heading towards it; the other platforms' first bearings update it
+    # prior from platform 1's first bearing (Ristic §6.3.1), matched to the draws above: range
+    # uniform over the prior's span, course uniform over the full circle (half-width π, so the
+    # mean velocity is zero), speed moments of the target-speed draw; the other platforms'
+    # first bearings update it
+    speed_mean, speed_sigma = params.prior_speed_moments
+    range_min, range_max = params.prior_ranges
     bank = range_bank_prior(
         z[:, 0],
         w.sigma_bearing,
         positions[:, 0],
         t,
-        range_min=params.bank_ranges[0],
-        range_max=params.bank_ranges[1],
+        range_min=range_min,
+        range_max=range_max,
         n_members=params.bank_members,
-        speed_mean=params.prior_speed[0],
-        speed_sigma=params.prior_speed[1],
-        course_mean=z[:, 0] + np.pi,
-        course_sigma=np.pi / np.sqrt(12.0),
+        speed_mean=speed_mean,
+        speed_sigma=speed_sigma,
+        course_mean=z[:, 0],
+        course_sigma=np.pi / np.sqrt(3.0),
         course_distribution="uniform",
+        range_density="uniform",
     )
-    # J_0 = P_prior⁻¹ + Σ_{k≥2} I_k(x_0): the prior already conditions on platform 1's first
-    # bearing (its position covariance carries the bearing spread σ)
-    J = np.linalg.inv(bank.estimate().P)
+    # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already conditions on platform 1's
+    # first bearing (its position covariance carries the bearing spread σ)
+    L = covariance_square_root(bank.estimate().P)
     if K > 1:
         bank = _fuse(bank, z, positions, w.sigma_bearing, first=1)
-        J = J + bearing_information(target[:, None], positions[:, 1:], w.sigma_bearing).sum(1)
+        L = fuse_bound(L, target, positions[:, 1:], w.sigma_bearing)
     return ManeuverState(
         t=np.zeros(batch),
         platform_position=positions,
@@ -292,8 +392,8 @@ def reset(
         speed=np.full((batch, K), params.initial_platform_speed),
         target=target,
         bank=bank,
-        information=J,
-        accuracy=accuracy_of(params, J, target, positions[:, 0]),
+        bound_factor=L,
+        accuracy=accuracy_of(params, L, target, positions[:, 0]),
         bearing=z,
     )
 
@@ -320,12 +420,10 @@ def step(
     z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
     bank = range_bank_predict(state.bank, state.bank.t + w.dt, w.q_tilde)
     bank = _fuse(bank, z, positions, w.sigma_bearing)
-    # J_{k+1} = (I + J̄ Q)⁻¹ J̄ + Σ_platforms Hᵀ H / σ²
-    J = predict_information(state.information, w.dt, w.q_tilde) + bearing_information(
-        target[:, None], positions, w.sigma_bearing
-    ).sum(1)
-    accuracy = accuracy_of(params, J, target, positions[:, 0])
-    new = ManeuverState(state.t + w.dt, positions, heading, speed, target, bank, J, accuracy, z)
+    # P̄ = F P Fᵀ + Q, P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹, in square-root form
+    L = advance_bound(params, state.bound_factor, target, positions)
+    accuracy = accuracy_of(params, L, target, positions[:, 0])
+    new = ManeuverState(state.t + w.dt, positions, heading, speed, target, bank, L, accuracy, z)
     # reward_k = ln m_k − ln m_{k+1}
     reward = np.log(state.accuracy) - np.log(accuracy)
     terminated = np.any(new.range < params.min_range, axis=1)

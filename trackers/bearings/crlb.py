@@ -29,7 +29,24 @@ or that of one deterministic trajectory.
 
 Without a platform manoeuvre the bearings are invariant to scaling the relative
 trajectory, so ``J`` (without prior) is singular with null vector
-``(x₀ − p₀, v − v_p)`` (Nardone & Aidala 1981); :func:`observability` measures it.
+``(x₀ − p₀, v − v_p)`` (Nardone & Aidala 1981); :func:`observability` measures it, and
+:func:`crlb` returns ``inf`` for the bound elements it touches.
+
+Square-root (covariance) form of the same recursion (theory §7.8). When the information
+holds a full-rank prior the bound is finite in exact arithmetic, and it is better carried as
+a square root ``L`` of the bound ``P = J⁻¹ = L Lᵀ``: inverting ``J`` (or thresholding its
+eigenvalues) loses everything once the spread of ``P`` spans more than the float range
+(bearing noise of 1e-6 rad against a 10-km range prior; steps of 1e5 s). By the matrix
+inversion lemma the recursion above is the Kalman covariance (Riccati) recursion with the
+bearing gradient ``H`` at the true state::
+
+    P̄ = F P Fᵀ + Q,      P⁺ = (P̄⁻¹ + Hᵀ H / σ²)⁻¹ = P̄ − P̄ Hᵀ (H P̄ Hᵀ + σ²)⁻¹ H P̄
+
+:func:`predict_bound_factor` and :func:`update_bound_factor` carry ``L`` through it by
+orthogonal triangularisation (QR of the stacked square roots), so ``P`` stays symmetric
+positive semi-definite by construction and the bound's spread is resolved to the square root
+of the float precision it would need as a matrix; :func:`factor_position_rms_bound` and
+:func:`factor_range_bound` read the bounds off ``L`` as sums of squares (never negative).
 """
 
 from __future__ import annotations
@@ -42,6 +59,7 @@ from sensorgym.trackers.bearings.models import (
     bearing_jacobian,
     cv_transition,
     cwna_covariance,
+    cwna_covariance_factor,
 )
 from sensorgym.trackers.validation import finite_array
 
@@ -180,6 +198,12 @@ def crlb(J: ArrayLike, *, rcond: float = 1e-12) -> FloatArray:
 
     Information is first scaled to unit diagonal; eigenvalues below ``rcond`` times the largest
     count as zero, and every bound element touching such a direction is set to ``inf``.
+
+    Meant for information without a full-rank prior (batch estimates), where such directions
+    are truly unobservable. Information that holds a full-rank prior has a finite bound, but
+    a badly scaled one (spread beyond ~1e12) would be declared unobservable here: carry its
+    bound in square-root form instead (:func:`predict_bound_factor`,
+    :func:`update_bound_factor`), as the platform-manoeuvre environment does.
     """
     J = finite_array(J, "J", tail=(STATE_DIM, STATE_DIM))
     d = np.sqrt(np.clip(np.diagonal(J, axis1=-2, axis2=-1), 1e-300, None))
@@ -241,3 +265,90 @@ def relative_range_bound(
         platform_position, dtype=np.float64
     )
     return range_bound(P, target_position, platform_position) / np.hypot(d[..., 0], d[..., 1])
+
+
+# --- square-root (covariance) form ------------------------------------------------------------
+
+
+def covariance_square_root(P: ArrayLike) -> FloatArray:
+    """A square root ``L`` ``(..., 4, 4)`` of a covariance ``P = L Lᵀ`` (symmetric, from its
+    eigen-decomposition ``L = V √max(w, 0)``).
+
+    Eigenvalues below zero can only be rounding of a positive semi-definite ``P`` built in
+    floating point (a moment-matched mixture whose spread spans many decades); they count
+    as zero, so ``L Lᵀ`` equals ``P`` to rounding and is positive semi-definite.
+    """
+    P = finite_array(P, "P", tail=(STATE_DIM, STATE_DIM))
+    w, V = np.linalg.eigh(_sym(P))
+    return V * np.sqrt(np.clip(w, 0.0, None))[..., None, :]
+
+
+def predict_bound_factor(L: ArrayLike, dt: float, q_tilde: float) -> FloatArray:
+    """Square root of the predicted bound ``P̄ = F P Fᵀ + Q`` (``dt ≥ 0`` s, CWNA ``q̃``).
+
+    ``L`` ``(..., 4, 4)`` is a square root of ``P``; the result is ``F L`` when ``q̃ = 0``,
+    else the triangular factor of ``[F L, G]`` (``G Gᵀ = Q``, closed form) by QR. Equivalent
+    to :func:`predict_information` on ``J = P⁻¹``, without an inverse.
+    """
+    if not np.isfinite(dt) or dt < 0.0:
+        raise ValueError(f"dt: must be finite and >= 0, got {dt}")
+    L = finite_array(L, "L", tail=(STATE_DIM, STATE_DIM))
+    FL = cv_transition(dt) @ L
+    if q_tilde == 0.0:
+        return FL
+    G = np.broadcast_to(cwna_covariance_factor(dt, q_tilde), FL.shape)
+    # P̄ = [F L, G][F L, G]ᵀ = Rᵀ R with [F L, G]ᵀ = Q R
+    R = np.linalg.qr(np.swapaxes(np.concatenate([FL, G], axis=-1), -1, -2), mode="r")
+    return np.swapaxes(R, -1, -2)
+
+
+def update_bound_factor(
+    L: ArrayLike, target_state: ArrayLike, platform_position: ArrayLike, sigma: ArrayLike
+) -> FloatArray:
+    """Square root of the bound after one bearing at the true state,
+    ``P⁺ = (P̄⁻¹ + Hᵀ H / σ²)⁻¹``, from a square root ``L`` of ``P̄``.
+
+    With ``n̂ = (Δy, −Δx)/r`` the unit normal to the line of sight (so ``H = n̂ᵀ/r``), the
+    pre-array ``M = [[r σ, n̂ᵀ L_pos], [0, L]]`` has ``M Mᵀ = [[r²S, r H P̄], [r P̄ Hᵀ, P̄]]``;
+    triangularising it (``Mᵀ = Q R``, ``M Q = Rᵀ``) leaves the Schur complement
+    ``P̄ − P̄ Hᵀ S⁻¹ H P̄ = P⁺`` as ``Rᵀ[1:, 1:] (Rᵀ[1:, 1:])ᵀ``. Rows in metres keep the
+    pre-array well scaled. ``target_state`` ``(..., 4)``, ``platform_position`` ``(..., 2)``
+    and ``sigma`` broadcast against ``L``'s batch.
+    """
+    L = finite_array(L, "L", tail=(STATE_DIM, STATE_DIM))
+    x = finite_array(target_state, "target_state", tail=(STATE_DIM,))
+    p = finite_array(platform_position, "platform_position", tail=(2,))
+    s = _check_sigma(sigma)
+    d = x[..., :2] - p
+    r = np.hypot(d[..., 0], d[..., 1])
+    if np.any(r == 0.0):
+        raise ValueError("target_state: position coincides with the platform")
+    normal = np.stack([d[..., 1], -d[..., 0]], axis=-1) / r[..., None]
+    batch = np.broadcast_shapes(L.shape[:-2], normal.shape[:-1], s.shape)
+    M = np.zeros((*batch, STATE_DIM + 1, STATE_DIM + 1))
+    M[..., 0, 0] = r * s
+    M[..., 0, 1:] = np.einsum("...i,...ij->...j", normal, L[..., :2, :])
+    M[..., 1:, 1:] = L
+    R = np.linalg.qr(np.swapaxes(M, -1, -2), mode="r")
+    return np.swapaxes(R[..., 1:, 1:], -1, -2)
+
+
+def factor_position_rms_bound(L: ArrayLike) -> FloatArray:
+    """Position RMS bound ``√(P_xx + P_yy)`` (m) of ``P = L Lᵀ``: the norm of ``L``'s position
+    rows, ``(...,)``."""
+    L = np.asarray(L, dtype=np.float64)
+    return np.sqrt(np.sum(L[..., :2, :] ** 2, axis=(-2, -1)))
+
+
+def factor_range_bound(
+    L: ArrayLike, target_position: ArrayLike, platform_position: ArrayLike
+) -> FloatArray:
+    """Range standard-deviation bound ``σ_r = ‖gᵀ L_pos‖``, ``g = (Δx, Δy)/r`` (m), of
+    ``P = L Lᵀ`` (:func:`range_bound` on the square root)."""
+    L = np.asarray(L, dtype=np.float64)
+    d = finite_array(target_position, "target_position", tail=(2,)) - finite_array(
+        platform_position, "platform_position", tail=(2,)
+    )
+    g = d / np.hypot(d[..., 0], d[..., 1])[..., None]
+    v = np.einsum("...i,...ij->...j", g, L[..., :2, :])
+    return np.sqrt(np.sum(v**2, axis=-1))

@@ -51,6 +51,18 @@ def _sym(A: FloatArray) -> FloatArray:
     return 0.5 * (A + np.swapaxes(A, -1, -2))
 
 
+def _check_sigma(sigma: float) -> float:
+    try:
+        value = float(sigma)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"sigma: the bearing noise must be a positive number, got {sigma!r}"
+        ) from None
+    if not np.isfinite(value) or value <= 0.0:
+        raise ValueError(f"sigma: the bearing noise must be finite and positive, got {sigma!r}")
+    return value
+
+
 def polar_moments(
     magnitude_mean: ArrayLike,
     magnitude_sigma: ArrayLike,
@@ -69,26 +81,44 @@ def polar_moments(
     Gaussian: ``E[cos δ] = e^{−σ²/2}``, ``E[cos²δ] = (1 + e^{−2σ²})/2``; uniform half-width ``h``:
     ``E[cos δ] = sin h / h``, ``E[cos²δ] = 1/2 + sin 2h / (4h)``. Exact moments keep wide course
     priors consistent where first-order linearisation is badly overconfident.
+
+    The covariance is assembled in the frame ``(u, t)`` from its two variances, each computed
+    without cancellation (``expm1``; series for uniform half-widths below 0.1 rad), so that
+    angular spreads of 1e-8 rad against kilometres of magnitude spread stay resolved::
+
+        var_u = m̄² Var[cos δ] + σ_m² E[cos²δ],      var_t = (m̄² + σ_m²) E[sin²δ]
     """
     m, sm = np.asarray(magnitude_mean, float), np.asarray(magnitude_sigma, float)
     a, sa = np.asarray(angle_mean, float), np.asarray(angle_sigma, float)
     if angle_distribution == "gaussian":
         c1 = np.exp(-0.5 * sa**2)
-        c2 = 0.5 * (1.0 + np.exp(-2.0 * sa**2))
+        s2 = -0.5 * np.expm1(-2.0 * sa**2)  # E[sin²δ] = (1 − e^{−2σ²})/2
+        var_cos = 0.5 * np.expm1(-(sa**2)) ** 2  # E[cos²δ] − E[cos δ]² = (1 − e^{−σ²})²/2
     elif angle_distribution == "uniform":
         h = np.sqrt(3.0) * sa
         c1 = np.sinc(h / np.pi)
-        c2 = 0.5 + 0.5 * np.sinc(2.0 * h / np.pi)
+        small = h < 0.1
+        hs = np.where(small, h, 0.0)
+        hb = np.where(small, 1.0, h)
+        h2 = hs**2
+        # series of 1/2 − sin 2h/(4h) and 1/2 + sin 2h/(4h) − (sin h/h)² for small h
+        s2_series = h2 * (1 / 3 - h2 * (1 / 15 - h2 * (2 / 315 - h2 / 2835)))
+        var_series = h2**2 * (1 / 45 - h2 * (1 / 315 - h2 * (1 / 4725)))
+        s2 = np.where(small, s2_series, 0.5 - np.sin(2.0 * hb) / (4.0 * hb))
+        var_cos = np.where(small, var_series, 1.0 - s2 - np.sinc(hb / np.pi) ** 2)
     else:
         raise ValueError(f"angle_distribution: 'gaussian' or 'uniform', got {angle_distribution!r}")
+    c2 = 1.0 - s2
     u = np.stack([np.sin(a), np.cos(a)], -1)
     t = np.stack([np.cos(a), -np.sin(a)], -1)
     mean = (m * c1)[..., None] * u
-    second = (m**2 + sm**2)[..., None, None] * (
-        c2[..., None, None] * u[..., :, None] * u[..., None, :]
-        + (1.0 - c2)[..., None, None] * t[..., :, None] * t[..., None, :]
+    var_u = m**2 * var_cos + sm**2 * c2
+    var_t = (m**2 + sm**2) * s2
+    cov = (
+        var_u[..., None, None] * u[..., :, None] * u[..., None, :]
+        + var_t[..., None, None] * t[..., :, None] * t[..., None, :]
     )
-    return mean, second - mean[..., :, None] * mean[..., None, :]
+    return mean, cov
 
 
 def bearing_prior(
@@ -110,18 +140,20 @@ def bearing_prior(
     Position ``p + r (sin β, cos β)`` with ``r ~ N(r̄, σ_r²)``, ``β ~ N(z, σ²)``; velocity
     ``s (sin c, cos c)`` with ``s ~ N(s̄, σ_s²)`` and the course Gaussian or uniform (Ristic §6.3.1
     uses ``c̄ = z + π`` with σ_c = π/√12, i.e. uniform over the half plane heading towards the
-    platform). Mean and covariance are the exact moments (:func:`polar_moments`). All
-    arguments broadcast over leading batch axes.
+    platform; ``σ_c = π/√3`` is uniform over the full circle: zero mean velocity, covariance
+    ``(s̄² + σ_s²)/2 · I``). Mean and covariance are the exact moments (:func:`polar_moments`).
+    All arguments broadcast over leading batch axes; ``speed_sigma = 0`` is a known speed.
     """
+    sigma = _check_sigma(sigma)
     z = finite_array(z, "z")
     p = finite_array(platform_position, "platform_position", tail=(2,))
     r, sr = finite_array(range_mean, "range_mean"), finite_array(range_sigma, "range_sigma")
     s, ss = finite_array(speed_mean, "speed_mean"), finite_array(speed_sigma, "speed_sigma")
     c, sc = finite_array(course_mean, "course_mean"), finite_array(course_sigma, "course_sigma")
-    if np.any(r <= 0.0) or np.any(sr <= 0.0) or sigma <= 0.0:
-        raise ValueError("range_mean, range_sigma and sigma must be positive")
-    if np.any(s < 0.0) or np.any(ss <= 0.0) or np.any(sc <= 0.0):
-        raise ValueError("speed_mean must be >= 0; speed_sigma, course_sigma positive")
+    if np.any(r <= 0.0) or np.any(sr <= 0.0):
+        raise ValueError("range_mean, range_sigma: must be positive")
+    if np.any(s < 0.0) or np.any(ss < 0.0) or np.any(sc <= 0.0):
+        raise ValueError("speed_mean, speed_sigma: must be >= 0; course_sigma: positive")
     shape = np.broadcast_shapes(z.shape, p.shape[:-1], r.shape, s.shape, c.shape)
     z, r, sr, s, ss, c, sc = (np.broadcast_to(a, shape) for a in (z, r, sr, s, ss, c, sc))
     pos, Ppos = polar_moments(r, sr, z, np.full(shape, sigma))
@@ -140,8 +172,9 @@ def _ekf_terms(
     # ν = wrap(z − β(x⁻))
     nu = wrap_angle(z - bearing(state.x[..., :2], p))
     PHt = np.einsum("...ij,...j->...i", state.P, H)
-    # S = H P Hᵀ + σ²
-    S = np.einsum("...i,...i->...", H, PHt) + sigma**2
+    # S = H P Hᵀ + σ²; H P Hᵀ >= 0 in exact arithmetic, so rounding below zero (a covariance
+    # whose spread spans the float range) counts as zero and S never falls below σ²
+    S = np.maximum(np.einsum("...i,...i->...", H, PHt), 0.0) + sigma**2
     # K = P Hᵀ S⁻¹
     K = PHt / S[..., None]
     x = state.x + K * nu[..., None]
@@ -155,7 +188,15 @@ def _ckf_terms(
     state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
 ) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
     n = STATE_DIM
-    L = np.linalg.cholesky(state.P + 1e-9 * np.eye(n) * np.max(np.abs(state.P)))
+    # jitter relative to the batch's largest entry; the float floor keeps a zero covariance
+    # (a known state) factorisable: its points coincide and the update leaves it unchanged
+    jitter = 1e-9 * max(float(np.max(np.abs(state.P))), np.finfo(float).tiny)
+    try:
+        L = np.linalg.cholesky(state.P + jitter * np.eye(n))
+    except np.linalg.LinAlgError:
+        raise ValueError(
+            "P: the covariance is not positive semi-definite, so it has no cubature points"
+        ) from None
     # cubature points X_i = x ± √n L e_i, weights 1/(2n)
     offsets = np.sqrt(n) * np.concatenate([np.swapaxes(L, -1, -2), -np.swapaxes(L, -1, -2)], -2)
     X = state.x[..., None, :] + offsets  # (..., 2n, 4)
@@ -181,8 +222,7 @@ def _checked(
     p = np.broadcast_to(
         finite_array(platform_position, "platform_position", tail=(2,)), (*state.x.shape[:-1], 2)
     )
-    if not np.isfinite(sigma) or sigma <= 0.0:
-        raise ValueError(f"sigma: must be positive, got {sigma}")
+    _check_sigma(sigma)
     return z, p
 
 
@@ -197,7 +237,13 @@ def ekf_update(
 def ckf_update(
     state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
 ) -> BearingsGaussian:
-    """Cubature Kalman filter update with bearing ``z`` (rad) (see module doc)."""
+    """Cubature Kalman filter update with bearing ``z`` (rad) (see module doc).
+
+    The cubature points need a square root of ``P``: a positive semi-definite ``P`` is
+    factorised with a jitter of 1e-9 of the batch's largest entry (a zero covariance, a known
+    state, is left unchanged by the update); one that is not positive semi-definite raises
+    ``ValueError`` naming ``P``.
+    """
     z, p = _checked(state, z, platform_position, sigma)
     return _ckf_terms(state, z, p, sigma)[0]
 
@@ -259,18 +305,36 @@ def range_bank_prior(
     range_mean: ArrayLike | None = None,
     range_sigma: ArrayLike | None = None,
     course_distribution: Literal["gaussian", "uniform"] = "gaussian",
+    range_density: Literal["log-uniform", "uniform"] = "log-uniform",
 ) -> RangeBankState:
     """Bank of ``n_members`` priors at geometric ranges in ``[range_min, range_max]`` (m).
 
-    Initial weights are uniform, or ``∝ N(r_i; range_mean, range_sigma²)·Δr_i`` when a Gaussian
-    range prior is given.
+    Member ``i`` stands for the range cell ``[r_i ρ^{−½}, r_i ρ^{½}]`` of width ``Δr_i``. The
+    initial weights are the range prior's mass of each cell: uniform for a log-uniform range
+    prior over ``[range_min, range_max]`` (``range_density="log-uniform"``, the default),
+    ``∝ Δr_i`` for a uniform one (``"uniform"``), or ``∝ N(r_i; range_mean, range_sigma²)·Δr_i``
+    when a Gaussian range prior is given (both ``range_mean`` and ``range_sigma``; it takes
+    precedence over ``range_density``). Bad inputs raise ``ValueError`` naming the argument.
     """
+    sigma = _check_sigma(sigma)
+    if isinstance(n_members, bool) or not isinstance(n_members, (int, np.integer)):
+        raise ValueError(f"n_members: must be an integer >= 1, got {n_members!r}")
     if n_members < 1:
         raise ValueError(f"n_members: must be >= 1, got {n_members}")
     rmin = finite_array(range_min, "range_min")
     rmax = finite_array(range_max, "range_max")
     if np.any(rmin <= 0.0) or np.any(rmax <= rmin):
-        raise ValueError("range_min must be positive and below range_max")
+        raise ValueError("range_min, range_max: need 0 < range_min < range_max")
+    if (range_mean is None) != (range_sigma is None):
+        raise ValueError("range_mean, range_sigma: give both (a Gaussian range prior) or neither")
+    if range_density not in ("log-uniform", "uniform"):
+        raise ValueError(f"range_density: 'log-uniform' or 'uniform', got {range_density!r}")
+    rm = rs = None
+    if range_mean is not None and range_sigma is not None:
+        rm = finite_array(range_mean, "range_mean")[..., None]
+        rs = finite_array(range_sigma, "range_sigma")[..., None]
+        if np.any(rs <= 0.0):
+            raise ValueError(f"range_sigma: must be positive, got {range_sigma}")
     rho = (rmax / rmin) ** (1.0 / n_members)
     i = np.arange(n_members) + 0.5
     r = rmin[..., None] * rho[..., None] ** i  # (..., N)
@@ -290,13 +354,13 @@ def range_bank_prior(
         course_sigma=np.asarray(course_sigma, dtype=np.float64)[ex],
         course_distribution=course_distribution,
     )
-    if range_mean is None or range_sigma is None:
-        lw = np.zeros(members.x.shape[:-1])
-    else:
-        rm = np.asarray(range_mean, dtype=np.float64)[ex]
-        rs = np.asarray(range_sigma, dtype=np.float64)[ex]
-        width = r * (rho[..., None] ** 0.5 - rho[..., None] ** -0.5)
+    width = r * (rho[..., None] ** 0.5 - rho[..., None] ** -0.5)
+    if rm is not None and rs is not None:
         lw = np.broadcast_to(-0.5 * ((r - rm) / rs) ** 2 + np.log(width), members.x.shape[:-1])
+    elif range_density == "uniform":
+        lw = np.broadcast_to(np.log(width), members.x.shape[:-1])
+    else:
+        lw = np.zeros(members.x.shape[:-1])
     lw = lw - _logsumexp(lw)[..., None]
     return RangeBankState(lw, members)
 

@@ -80,17 +80,45 @@ def cv_transition(T: ArrayLike) -> FloatArray:
     return F
 
 
-def cwna_covariance(T: ArrayLike, q_tilde: float) -> FloatArray:
-    """Process noise ``Q(T) = q̃ [[T³/3 I, T²/2 I], [T²/2 I, T I]]`` (m², m²/s, m²/s²)."""
+def _interval(T: ArrayLike) -> FloatArray:
+    T = np.asarray(T, dtype=np.float64)
+    if not np.all(np.isfinite(T)) or np.any(T < 0.0):
+        raise ValueError(f"T: the time step must be finite and >= 0 (process noise), got {T}")
+    return T
+
+
+def _check_q_tilde(q_tilde: float) -> None:
     if not np.isfinite(q_tilde) or q_tilde < 0.0:
         raise ValueError(f"q_tilde: must be finite and >= 0, got {q_tilde}")
-    T = np.asarray(T, dtype=np.float64)
+
+
+def cwna_covariance(T: ArrayLike, q_tilde: float) -> FloatArray:
+    """Process noise ``Q(T) = q̃ [[T³/3 I, T²/2 I], [T²/2 I, T I]]`` (m², m²/s, m²/s²).
+
+    ``T`` must be finite and ``>= 0`` (a negative step would give a negative variance):
+    ``ValueError`` naming ``T`` otherwise.
+    """
+    _check_q_tilde(q_tilde)
+    T = _interval(T)
     Q = np.zeros((*T.shape, STATE_DIM, STATE_DIM))
     for i in range(2):
         Q[..., i, i] = T**3 / 3.0
         Q[..., i, i + 2] = Q[..., i + 2, i] = T**2 / 2.0
         Q[..., i + 2, i + 2] = T
     return q_tilde * Q
+
+
+def cwna_covariance_factor(T: ArrayLike, q_tilde: float) -> FloatArray:
+    """Lower-triangular square root ``G`` of :func:`cwna_covariance`, ``G Gᵀ = Q(T)``, in closed
+    form: per axis ``√q̃ [[√(T³/3), 0], [(√3/2) √T, √T / 2]]`` (rows position, velocity)."""
+    _check_q_tilde(q_tilde)
+    T = _interval(T)
+    G = np.zeros((*T.shape, STATE_DIM, STATE_DIM))
+    for i in range(2):
+        G[..., i, i] = np.sqrt(T**3 / 3.0)
+        G[..., i + 2, i] = 0.5 * np.sqrt(3.0 * T)
+        G[..., i + 2, i + 2] = 0.5 * np.sqrt(T)
+    return np.sqrt(q_tilde) * G
 
 
 def bearing(target_position: ArrayLike, platform_position: ArrayLike) -> FloatArray:
@@ -133,8 +161,16 @@ def predict(state: BearingsGaussian, t: float, q_tilde: float) -> BearingsGaussi
     """Kalman prediction to time ``t`` (exact for the linear CV/CWNA model)::
 
     x⁻ = F x,   P⁻ = F P Fᵀ + Q        with F = F(t − t₀), Q = Q(t − t₀)
+
+    A filter runs forward: ``t`` before the estimate's own time ``t₀`` (which would give a
+    negative process-noise variance) or not finite raises ``ValueError`` naming ``t``.
     """
-    T = float(t) - state.t
+    t = float(t)
+    if not np.isfinite(t) or t < state.t:
+        raise ValueError(
+            f"t: prediction time {t} must be finite and not before the estimate's time {state.t}"
+        )
+    T = t - state.t
     F = cv_transition(T)
     Q = cwna_covariance(T, q_tilde)
     # x⁻ = F x

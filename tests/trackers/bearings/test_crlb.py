@@ -10,16 +10,26 @@ from sensorgym.trackers.bearings.crlb import (
     add_bearing_information,
     batch_information,
     bearing_information,
+    covariance_square_root,
     crlb,
+    factor_position_rms_bound,
+    factor_range_bound,
     observability,
     position_rms_bound,
     posterior_information,
+    predict_bound_factor,
     predict_information,
     range_bound,
     relative_range_bound,
     transport_information,
+    update_bound_factor,
 )
-from sensorgym.trackers.bearings.models import bearing, cv_transition, cwna_covariance
+from sensorgym.trackers.bearings.models import (
+    bearing,
+    cv_transition,
+    cwna_covariance,
+    cwna_covariance_factor,
+)
 
 SIGMA = np.deg2rad(1.0)
 
@@ -167,3 +177,99 @@ def test_bad_inputs_raise():
         batch_information(np.ones(4), 0.0, np.arange(3.0), np.zeros((4, 2)), SIGMA)
     with pytest.raises(ValueError, match="J"):
         crlb(np.full((4, 4), np.nan))
+
+
+# --- square-root (covariance) form of the recursion (issue 10, defect 2) -------------------------
+
+
+def _outer(L):
+    return L @ np.swapaxes(L, -1, -2)
+
+
+def test_cwna_factor_is_a_square_root_and_negative_steps_raise():
+    for T in (0.0, 1e-3, 60.0, 1e5):
+        G = cwna_covariance_factor(T, 2e-3)
+        np.testing.assert_allclose(_outer(G), cwna_covariance(T, 2e-3), rtol=1e-12, atol=1e-300)
+        assert np.allclose(G, np.tril(G))
+    with pytest.raises(ValueError, match="T"):
+        cwna_covariance(-1.0, 1e-3)
+    with pytest.raises(ValueError, match="T"):
+        cwna_covariance_factor(np.nan, 1e-3)
+
+
+@pytest.mark.parametrize("q_tilde", [0.0, 1e-4])
+def test_square_root_recursion_equals_the_information_recursion(q_tilde):
+    """P̄ = F P Fᵀ + Q and P⁺ = (P̄⁻¹ + Hᵀ H/σ²)⁻¹ on a square root are the information
+    recursion ``(I + J̄ Q)⁻¹ J̄ + Hᵀ H/σ²`` inverted, step after step (well-conditioned case)."""
+    t, p, x0 = _geometry(manoeuvre=True)
+    traj = np.einsum("kij,j->ki", cv_transition(t), x0)
+    P0 = np.diag([4e6, 9e4, 4.0, 9.0])
+    J = np.linalg.inv(P0)
+    L = covariance_square_root(P0)
+    for k in range(1, t.size):
+        dt = t[k] - t[k - 1]
+        J = predict_information(J, dt, q_tilde) + bearing_information(traj[k], p[k], SIGMA)
+        L = update_bound_factor(predict_bound_factor(L, dt, q_tilde), traj[k], p[k], SIGMA)
+        np.testing.assert_allclose(
+            _outer(L), crlb(J), rtol=1e-8, atol=1e-10 * np.abs(crlb(J)).max()
+        )
+    P = _outer(L)
+    assert factor_position_rms_bound(L) == pytest.approx(position_rms_bound(P), rel=1e-12)
+    assert factor_range_bound(L, traj[-1, :2], p[-1]) == pytest.approx(
+        range_bound(P, traj[-1, :2], p[-1]), rel=1e-10
+    )
+
+
+def test_square_root_bound_is_finite_where_the_information_form_loses_it():
+    """A full-rank prior makes the bound finite; with 1e-8 rad bearings against a 10-km range
+    spread the information's eigenvalues span more than the float range, and ``crlb`` of the
+    information declares directions unobservable (inf, then NaN rewards). The square root keeps
+    every bound finite, positive and monotone under bearings (information only grows)."""
+    sigma = 1e-8
+    x = np.array([6000.0, 8000.0, -3.0, 1.0])
+    u = x[:2] / np.hypot(*x[:2])
+    t_ = np.array([u[1], -u[0]])
+    Ppos = 1e8 * np.outer(u, u) + (1e4 * sigma) ** 2 * np.outer(t_, t_)
+    P0 = np.zeros((4, 4))
+    P0[:2, :2], P0[2:, 2:] = Ppos, 14.0 * np.eye(2)
+    L = covariance_square_root(P0)
+    m = [factor_position_rms_bound(L)]
+    platform = np.zeros(2)
+    for k in range(30):
+        platform = platform + 300.0 * np.array([np.sin(0.3 * k), np.cos(0.3 * k)])
+        x = cv_transition(60.0) @ x
+        Lbar = predict_bound_factor(L, 60.0, 0.0)
+        L = update_bound_factor(Lbar, x, platform, sigma)
+        assert np.all(np.isfinite(L))
+        # a bearing never loosens the bound
+        assert factor_position_rms_bound(L) <= factor_position_rms_bound(Lbar) * (1 + 1e-12)
+        m.append(factor_position_rms_bound(L))
+    m = np.array(m)
+    assert np.all(np.isfinite(m)) and np.all(m > 0.0)
+    assert m[-1] < 1e-2 * m[0]  # the manoeuvring platform pins it down
+
+
+def test_square_root_of_a_rounded_covariance_is_positive_semidefinite():
+    # a covariance whose spread spans the float range can come out slightly indefinite
+    u = np.array([0.6, 0.8])
+    P = np.zeros((4, 4))
+    P[:2, :2] = 1e12 * np.outer(u, u) - 1e-6 * np.eye(2)
+    P[2:, 2:] = np.eye(2)
+    L = covariance_square_root(P)
+    assert np.all(np.isfinite(L))
+    np.testing.assert_allclose(_outer(L), P, atol=1e-3)
+    assert np.linalg.eigvalsh(_outer(L)).min() > -1e-3
+
+
+def test_square_root_functions_check_their_inputs():
+    L = np.eye(4)
+    with pytest.raises(ValueError, match="dt"):
+        predict_bound_factor(L, -1.0, 0.0)
+    with pytest.raises(ValueError, match="L"):
+        predict_bound_factor(np.full((4, 4), np.nan), 1.0, 0.0)
+    with pytest.raises(ValueError, match="target_state"):
+        update_bound_factor(L, np.zeros(4), np.zeros(2), SIGMA)
+    with pytest.raises(ValueError, match="sigma"):
+        update_bound_factor(L, np.ones(4), np.zeros(2), 0.0)
+    with pytest.raises(ValueError, match="P"):
+        covariance_square_root(np.full((4, 4), np.inf))
