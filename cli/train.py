@@ -27,6 +27,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         action="store_true",
         help="parameter sharing: one policy drives every agent of the env's PettingZoo version",
     )
+    parser.add_argument(
+        "--torch-threads",
+        type=int,
+        default=1,
+        help="torch intra-op threads (default 1: never slower for these small policies)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-episodes", type=int, default=64)
     parser.add_argument("--out", type=Path, default=Path("results/train"))
@@ -54,6 +60,7 @@ def run(args: argparse.Namespace) -> int:
         eval_episodes=args.eval_episodes,
         progress=not args.no_progress,
         agents=args.agents,
+        torch_threads=args.torch_threads,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):

@@ -90,12 +90,22 @@ class SB3VecEnv(VecEnv):
         return self._slots(obs), self._slots(reward).astype(np.float32), dones, per_env
 
     def _split_infos(self, infos: dict[str, Any]) -> list[dict[str, Any]]:
-        """Gymnasium's dict of arrays (with ``_key`` masks) → SB3's list of per-slot dicts."""
-        out: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        """Gymnasium's dict of arrays (with ``_key`` masks) → SB3's list of per-slot dicts.
+
+        Our shells set every diagnostic for every scenario, so the columns are converted to
+        Python floats in one call each and zipped into the dicts; a partial mask (another
+        vector env) takes the general path.
+        """
+        keys = [k for k in infos if not k.startswith("_") and k not in ("final_obs", "final_info")]
         n = self.agents_per_scenario
-        for key, value in infos.items():
-            if key.startswith("_") or key in ("final_obs", "final_info"):
-                continue
+        if all(np.all(infos.get(f"_{k}", True)) for k in keys):
+            columns = [np.repeat(np.asarray(infos[k]), n).tolist() for k in keys]
+            return [dict(zip(keys, row, strict=True)) for row in zip(*columns, strict=True)] or [
+                {} for _ in range(self.num_envs)
+            ]
+        out: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]
+        for key in keys:
+            value = infos[key]
             mask = infos.get(f"_{key}", np.ones(self.scenarios, dtype=bool))
             for b in np.flatnonzero(mask):
                 item = value[b].item() if hasattr(value[b], "item") else value[b]

@@ -70,6 +70,7 @@ def train(
     eval_episodes: int = 64,
     progress: bool = True,
     agents: bool = False,
+    torch_threads: int = 1,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
     override them), save the run and evaluate it beside the rules.
@@ -77,7 +78,34 @@ def train(
     ``agents=True`` trains one policy shared by every agent of the env's PettingZoo version
     (parameter sharing): the slots of the SB3 env are scenarios × agents, each agent sees its
     own observation, and all get the team reward; ``n_envs`` counts scenarios.
+
+    ``torch_threads`` sets torch's intra-op threads for the run (default 1: the policies here
+    are small MLPs, one thread is never slower on them, and torch's default thread pool can
+    stall a run many times over on a busy 2-core machine); it is restored afterwards.
     """
+    import torch
+
+    if torch_threads < 1:
+        raise ValueError(f"torch_threads: must be >= 1, got {torch_threads}")
+    previous_threads = torch.get_num_threads()
+    torch.set_num_threads(torch_threads)
+    try:
+        return _train(env_id, algo, seed, timesteps, n_envs, out, eval_episodes, progress, agents)
+    finally:
+        torch.set_num_threads(previous_threads)
+
+
+def _train(
+    env_id: str,
+    algo: str,
+    seed: int,
+    timesteps: int | None,
+    n_envs: int | None,
+    out: Path,
+    eval_episodes: int,
+    progress: bool,
+    agents: bool,
+) -> TrainResult:
     hp = load_hyperparams(algo, env_id)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps

@@ -168,3 +168,31 @@ def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
     results = json.loads((tmp_path / "bench" / "sensorgym__BearingsManeuver-v0.json").read_text())
     assert "model:sac_seed0" in results["results"]
     assert "trained" in capsys.readouterr().out
+
+
+def test_infos_fast_path_equals_the_general_path():
+    venv = make_sb3_env(ENV_ID, 3, seed=1, agents=True, platforms=2)
+    venv.reset()
+    inner = venv.unwrapped
+    *_, infos = inner.venv.step(np.zeros((3, 2, 2), np.float32))
+    fast = inner._split_infos(infos)
+    partial = {**infos, "_range": np.array([True, True, False])}
+    general = inner._split_infos(partial)
+    assert len(fast) == 6 and all(isinstance(v, float) for v in fast[0].values())
+    assert fast[:4] == general[:4] and "range" not in general[4]
+    assert fast[4] == {**general[4], "range": fast[4]["range"]}
+
+
+def test_training_runs_on_one_torch_thread_and_restores_the_setting(tmp_path, monkeypatch):
+    import torch
+
+    seen = []
+    monkeypatch.setattr(
+        "sensorgym.train.trainer._train", lambda *a, **k: seen.append(torch.get_num_threads())
+    )
+    before = torch.get_num_threads()
+    train(ENV_ID, timesteps=1, out=tmp_path)
+    train(ENV_ID, timesteps=1, out=tmp_path, torch_threads=2)
+    assert seen == [1, 2] and torch.get_num_threads() == before
+    with pytest.raises(ValueError, match="torch_threads"):
+        train(ENV_ID, timesteps=1, out=tmp_path, torch_threads=0)

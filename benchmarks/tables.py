@@ -1,0 +1,81 @@
+"""The docs' speed tables, generated from the committed benchmark results (so they cannot drift).
+
+``python benchmarks/tables.py`` rewrites every block between ``<!-- table:NAME -->`` and
+``<!-- /table:NAME -->`` in README.md and docs/environments.md from
+``benchmarks/results/*.json``; ``--check`` only reports (exit 1) blocks that differ — what
+``tests/test_docs_tables.py`` runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results"
+DOCS = (ROOT / "README.md", ROOT / "docs" / "environments.md")
+ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement")
+
+
+def _rows(name: str) -> dict[str, dict]:
+    doc = json.loads((RESULTS / f"{name}.json").read_text())
+    return {row["case"]: row for row in doc["results"]}, doc["settings"]
+
+
+def env_speed() -> str:
+    """Single env and native vector env beside CartPole-v1, per env."""
+    lines = [
+        "| env | `gym.make`, steps/s | × CartPole-v1 | vector env, 1024 scenarios, scenario-steps/s | × CartPole-v1 | cold start, s |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for name in ENVS:
+        rows, settings = _rows(name)
+        single = rows["gym.make, 1 scenario"]
+        vector = rows["native vector env, 1024"]
+        cold = settings.get("cold_start_s")
+        lines.append(
+            f"| `{settings['env']}` | {single['per_s']:,.0f} | {single['vs_cartpole']:.2f} "
+            f"| {vector['per_s']:,.0f} | {vector['vs_cartpole']:.2f} "
+            f"| {'' if cold is None else f'{cold:.1f}'} |"
+        )
+    return "\n".join(lines)
+
+
+TABLES = {"env-speed": env_speed}
+
+
+def render(text: str) -> str:
+    """``text`` with every generated block replaced by its current table."""
+
+    def block(match: re.Match) -> str:
+        name = match.group(1)
+        return f"<!-- table:{name} -->\n{TABLES[name]()}\n<!-- /table:{name} -->"
+
+    pattern = r"<!-- table:([\w-]+) -->\n(?:.*?\n)?<!-- /table:\1 -->"
+    return re.sub(pattern, block, text, flags=re.S)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--check", action="store_true", help="report stale tables, write none")
+    args = parser.parse_args()
+    stale = []
+    for path in DOCS:
+        text = path.read_text()
+        new = render(text)
+        if new != text:
+            stale.append(path)
+            if not args.check:
+                path.write_text(new)
+                print(f"wrote {path.relative_to(ROOT)}")
+    if args.check and stale:
+        print("stale tables in: " + ", ".join(str(p.relative_to(ROOT)) for p in stale))
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
