@@ -2,7 +2,14 @@
 (:mod:`.contract`), and the Gymnasium (:mod:`.gym_env`), native vector (:mod:`.vector_env`) and
 PettingZoo (:mod:`.parallel_env`) envs over it. Nothing here knows receivers or platforms."""
 
-from sensorgym.envs.shells.contract import OBS_CLIP, Core, EnvSpaces, Simulation, tree_where
+from sensorgym.envs.shells.contract import (
+    OBS_CLIP,
+    Core,
+    EnvSpaces,
+    Simulation,
+    tree_scatter,
+    tree_where,
+)
 from sensorgym.envs.shells.gym_env import CoreEnv
 from sensorgym.envs.shells.parallel_env import CoreParallelEnv
 from sensorgym.envs.shells.vector_env import CoreVectorEnv
@@ -15,5 +22,6 @@ __all__ = [
     "CoreVectorEnv",
     "EnvSpaces",
     "Simulation",
+    "tree_scatter",
     "tree_where",
 ]

@@ -17,7 +17,8 @@ Conventions shared by every env:
   per-agent views ``(B, n_agents, agent obs_dim)`` of the PettingZoo env and of
   parameter-sharing training; both are float32 and clipped to ``[−OBS_CLIP, OBS_CLIP]``;
 * one team reward per scenario; an episode ends for all agents together; the time limit is
-  the shells' business (``max_episode_steps`` lives only in the env's registration).
+  the shells' business (``max_episode_steps`` lives only in the env's registration);
+* autoreset draws fresh scenarios only for those that ended (:func:`tree_scatter`).
 """
 
 from __future__ import annotations
@@ -160,6 +161,39 @@ def tree_where(mask: ArrayLike, new: Any, old: Any) -> Any:
     return pick(new, old, "state")
 
 
+def tree_scatter(mask: ArrayLike, fresh: Any, old: Any) -> Any:
+    """``old`` with the scenarios where ``mask`` ``(B,)`` is True replaced, in order, by the
+    ``k = mask.sum()`` scenarios of ``fresh`` (a batch of ``k``): autoreset draws only the
+    scenarios that ended. Shared scalar fields must be equal, as for :func:`tree_where`."""
+    m = np.asarray(mask, dtype=bool)
+    if m.ndim != 1:
+        raise ValueError(f"mask: expected shape (B,), got {m.shape}")
+    k = int(m.sum())
+
+    def put(a: Any, b: Any, name: str) -> Any:
+        if dataclasses.is_dataclass(b):
+            if type(a) is not type(b):
+                raise ValueError(f"{name}: {type(a).__name__} vs {type(b).__name__}")
+            parts = {
+                f.name: put(getattr(a, f.name), getattr(b, f.name), f"{name}.{f.name}")
+                for f in dataclasses.fields(b)
+            }
+            return type(b)(**parts)
+        if isinstance(b, np.ndarray) and b.ndim >= 1:
+            if b.shape[0] != m.shape[0]:
+                raise ValueError(f"mask: {m.shape[0]} entries for a batch of {b.shape[0]} ({name})")
+            if a.shape != (k, *b.shape[1:]):
+                raise ValueError(f"{name}: fresh shape {a.shape}, expected {(k, *b.shape[1:])}")
+            out = b.copy()
+            out[m] = a
+            return out
+        if not np.array_equal(a, b):
+            raise ValueError(f"{name}: shared value {a!r} differs from {b!r}")
+        return b
+
+    return put(fresh, old, "state")
+
+
 def resolve_params(params_type: type[ParamsT], params: ParamsT | None, **fields: Any) -> ParamsT:
     """``params`` (default ``params_type()``) with ``fields`` replaced: every door (``gym.make``,
     ``gym.make_vec``, ``parallel_env``) takes the params' fields as keyword arguments.
@@ -259,6 +293,11 @@ class Core:
     def where(mask: BoolArray, new: Any, old: Any) -> Any:
         """Scenario-wise select (:func:`tree_where`)."""
         return tree_where(mask, new, old)
+
+    @staticmethod
+    def scatter(mask: BoolArray, fresh: Any, old: Any) -> Any:
+        """``old`` with the masked scenarios replaced by ``fresh`` (:func:`tree_scatter`)."""
+        return tree_scatter(mask, fresh, old)
 
 
 def _core_from_module_name(name: str, params: Any) -> Core:

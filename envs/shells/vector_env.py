@@ -124,11 +124,12 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         return self._step_next(a)
 
     def _restart(self, done: BoolArray, state: Any) -> Any:
-        """Fresh scenarios where ``done`` (all of them when every scenario restarts)."""
+        """Fresh scenarios where ``done``, drawn only for those (all of them when every
+        scenario restarts)."""
         if done.all():
             return self.core.reset(self.np_random, self.num_envs)
-        fresh = self.core.reset(self.np_random, self.num_envs, like=state)
-        return self.core.where(done, fresh, state)
+        fresh = self.core.reset(self.np_random, int(done.sum()), like=state)
+        return self.core.scatter(done, fresh, state)
 
     def _truncated(self) -> BoolArray:
         if self.max_episode_steps is None:
