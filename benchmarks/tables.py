@@ -44,7 +44,22 @@ def env_speed() -> str:
     return "\n".join(lines)
 
 
-TABLES = {"env-speed": env_speed}
+def training_speed() -> str:
+    """PPO fps through our adapter against SB3's DummyVecEnv, per env."""
+    doc = json.loads((RESULTS / "training.json").read_text())
+    n = doc["settings"]["n_envs"]
+    lines = [
+        f"| env | PPO fps, our adapter ({n} scenarios) | PPO fps, SB3 `DummyVecEnv` ({n} envs) | ratio |",
+        "| --- | ---: | ---: | ---: |",
+    ]
+    for r in doc["results"]:
+        lines.append(
+            f"| `{r['env']}` | {r['adapter_fps']:,.0f} | {r['dummy_fps']:,.0f} | {r['ratio']:.0f}× |"
+        )
+    return "\n".join(lines)
+
+
+TABLES = {"env-speed": env_speed, "training-speed": training_speed}
 
 
 def render(text: str) -> str:
