@@ -34,6 +34,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.geometry_kernels import look_at_batch
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -148,18 +149,16 @@ def look_at_rotation(
     p = finite_array(position, "position", tail=(3,))
     t = finite_array(target, "target", tail=(3,))
     u = finite_array(up, "up", tail=(3,))
-    z = t - p
-    zn = np.linalg.norm(z, axis=-1, keepdims=True)
-    if np.any(zn == 0.0):
+    shape = np.broadcast_shapes(p.shape, t.shape, u.shape)
+    flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 3)) for x in (p, t, u)]
+    out = np.empty((flat[0].shape[0], 3, 3))
+    # Z = (t − p)/‖t − p‖,  Y = (up − (up·Z) Z)/‖·‖,  X = Y × Z  (geometry_kernels.look_at3)
+    code = look_at_batch(*flat, out)
+    if code == 1:
         raise ValueError("target: coincides with position, boresight undefined")
-    z = z / zn
-    y = u - np.sum(u * z, axis=-1, keepdims=True) * z
-    yn = np.linalg.norm(y, axis=-1, keepdims=True)
-    if np.any(yn < 1e-12):
+    if code == 2:
         raise ValueError("up: parallel to the boresight, receiver roll undefined")
-    y = y / yn
-    x = np.cross(y, z)
-    return np.stack([x, y, z], axis=-1)
+    return out.reshape(*shape[:-1], 3, 3)
 
 
 def relative_pose(

@@ -29,10 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.envs.worlds.scanning import ReceiverLayout
-from sensorgym.envs.worlds.stereo_scene import perturb_directions
-from sensorgym.trackers.geometry import look_at_rotation, unit_from_angles
-from sensorgym.trackers.stereo.conjugation import solve_conjugation
+from sensorgym.envs.stereo_placement import kernels
+from sensorgym.trackers.stereo.conjugation import DEFAULT_COND_MAX, solve_conjugation
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -75,11 +73,84 @@ def boresight_rotations(origins: FloatArray, aim: FloatArray, max_elevation: flo
     """Local→world rotations ``(B, n, 3, 3)`` of receivers at ``origins (B, n, 3)`` looking at
     ``aim (B, 3)``, the boresight elevation held within ``±max_elevation`` (rad) so that the
     frame's roll (``Y`` towards world up) stays defined even right under the aim point."""
-    d = aim[:, None, :] - origins
-    horizontal = np.hypot(d[..., 0], d[..., 2])
-    azimuth = np.arctan2(d[..., 0], d[..., 2])  # atan2(0, 0) = 0: any azimuth is fine there
-    elevation = np.clip(np.arctan2(d[..., 1], horizontal), -max_elevation, max_elevation)
-    return look_at_rotation(origins, origins + unit_from_angles(azimuth, elevation))
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    out = np.empty((*o.shape, 3))
+    kernels.boresight_batch(o, np.ascontiguousarray(aim, dtype=np.float64), max_elevation, out)
+    return out
+
+
+def _resolve(sol_x, sol_q, kappa, a1, ak, P, b, dt, cond_max: float) -> BoolArray:
+    """Re-solve on the generic SVD path where the closed form left ``κ_F > cond_max`` (exactly
+    what :func:`solve_conjugation` does after its kernel); returns ``used_pinv``."""
+    used = ~(kappa <= cond_max)
+    if kernels.any_true(used):
+        sol = solve_conjugation(a1[used], ak[used], P[used], b[used], dt[used], order=1)
+        sol_x[used] = np.concatenate([sol.ranges, sol.velocity], -1)
+        sol_q[used] = sol.covariance
+        kappa[used] = sol.condition
+        used[used] = sol.used_pinv
+    return used
+
+
+def scan_period(
+    delays: FloatArray,
+    period: float,
+    sigma_ang: float,
+    max_elevation: float,
+    start: FloatArray,
+    end: FloatArray,
+    drone_end: FloatArray,
+    drone_velocity: FloatArray,
+    previous: FloatArray,
+    rng: np.random.Generator,
+    sigma_ref: float = 1.0,
+    reward_clip: float = 5.0,
+) -> tuple[ScanFix, ScanGeometry, FloatArray, FloatArray, FloatArray]:
+    """One period of every scenario through the compiled kernels (:mod:`.kernels`).
+
+    As :func:`scan`, with the receivers' frames looking at ``previous (B, 6)`` (the tracker's
+    last estimate) coasted to mid-period. Returns ``(fix, geometry, estimate (B, 6), bound (B,),
+    reward (B,))``: the estimate is the fix, or ``previous`` coasted by ``τ`` where the fix is
+    degenerate; ``bound`` the CRLB ``σ_pos`` of the true geometry and ``reward``
+    ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate (:mod:`.simulation`).
+    """
+    d = np.ascontiguousarray(delays, dtype=np.float64)
+    B, n = start.shape[0], d.shape[0]
+    m, p = n - 1, n + 3
+    noisy = sigma_ang > 0.0
+    # the draws of perturb_directions, in its order and shape
+    normals = rng.standard_normal((B, n, 3)) if noisy else np.zeros((B, n, 3))
+    origins, los, R = np.empty((B, n, 3)), np.empty((B, n, 3)), np.empty((B, n, 3, 3))
+    ranges = np.empty((B, n))
+    a1, e1, ak, ek = np.empty((B, 3)), np.empty((B, 3)), np.empty((B, m, 3)), np.empty((B, m, 3))
+    P, b, dt = np.empty((B, m, 3, 3)), np.empty((B, m, 3)), np.empty((B, m))
+    X, Q, kappa = np.empty((B, p)), np.empty((B, p, p)), np.full(B, np.inf)
+    Xe, Qe, kappa_e = np.empty((B, p)), np.empty((B, p, p)), np.full(B, np.inf)
+    J, Je, M1, M1e = np.empty(B), np.empty(B), np.empty((B, 3)), np.empty((B, 3))
+    code = kernels.period_systems(
+        d, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity, previous,
+        normals, origins, los, ranges, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, M1,
+        Xe, Je, Qe, kappa_e, M1e,
+    )  # fmt: skip
+    if code:  # a zero line of sight: the checked solver raises naming the argument
+        solve_conjugation(a1, ak, P, b, dt, order=1)
+        raise ValueError("scan: a receiver sits on the drone (no line of sight)")
+    # σ_e = 1 here; the finish rescales Q by σ_e² = (σ_ang · mean r̂)² (module docstring)
+    used = _resolve(X, Q, kappa, a1, ak, P, b, dt, DEFAULT_COND_MAX)
+    if noisy:  # the same system without noise: is the geometry itself degenerate?
+        used_true = _resolve(Xe, Qe, kappa_e, e1, ek, P, b, dt, DEFAULT_COND_MAX)
+    else:
+        used_true = used
+    position, velocity = np.empty((B, 3)), np.empty((B, 3))
+    range_sigma, velocity_sigma = np.empty((B, n)), np.empty(B)
+    estimate, bound, reward = np.empty((B, 6)), np.empty(B), np.empty(B)
+    kernels.period_finish(
+        d, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1, X, Q, used,
+        used_true, previous, position, velocity, range_sigma, velocity_sigma, estimate, bound,
+        reward,
+    )  # fmt: skip
+    fix = ScanFix(position, velocity, range_sigma, velocity_sigma, kappa, used)
+    return fix, ScanGeometry(origins, los, ranges, used_true), estimate, bound, reward
 
 
 def scan(
@@ -102,42 +173,12 @@ def scan(
     is where the receivers' frames look. Draws ``B·n·3`` normals from ``rng`` when
     ``sigma_ang > 0`` (none otherwise).
     """
-    d = np.asarray(delays, dtype=np.float64)
-    # O_k(d_k): receivers drive straight from start to end during the period
-    origins = start + (end - start) * (d / period)[None, :, None]
-    # M(d_k) = M(τ) − V (τ − d_k)
-    targets = drone_end[:, None, :] - drone_velocity[:, None, :] * (period - d)[None, :, None]
-    offset = targets - origins
-    ranges = np.linalg.norm(offset, axis=-1)
-    los = offset / np.maximum(ranges, 1e-9)[..., None]
-    layout = ReceiverLayout(boresight_rotations(origins, aim, max_elevation), origins)
-    P, b = layout.relative
-    measured = perturb_directions(los, sigma_ang, rng) if sigma_ang > 0.0 else los
-    # a_k = R_kᵀ z_k: each receiver reports the direction in its own frame
-    local = np.einsum("bkji,bkj->bki", layout.rotations, measured)
-    # σ_e = 1 here; Q is rescaled below by σ_e² = (σ_ang · mean r̂)² (module docstring)
-    sol = solve_conjugation(local[:, 0], local[:, 1:], P, b, d[1:] - d[0], order=1)
-    if sigma_ang > 0.0:  # the same system without noise: is the geometry itself degenerate?
-        exact = np.einsum("bkji,bkj->bki", layout.rotations, los)
-        true = solve_conjugation(exact[:, 0], exact[:, 1:], P, b, d[1:] - d[0], order=1)
-    else:
-        true = sol
-    n = d.shape[0]
-    sigma_e = sigma_ang * np.mean(np.abs(sol.ranges), axis=-1)
-    Q = sigma_e[:, None, None] ** 2 * sol.covariance
-    diag = np.maximum(np.diagonal(Q, axis1=-2, axis2=-1), 0.0)
-    R1 = layout.rotations[:, 0]
-    # frame 1 → world: M = O_1(d_1) + R_1 M̂_1, V = R_1 V̂_1; then on to the period end
-    velocity = np.einsum("bij,bj->bi", R1, sol.velocity)
-    position = origins[:, 0] + np.einsum("bij,bj->bi", R1, sol.position)
-    position = position + velocity * (period - d[0])
-    fix = ScanFix(
-        position=position,
-        velocity=velocity,
-        range_sigma=np.sqrt(diag[:, :n]),
-        velocity_sigma=np.sqrt(diag[:, n : n + 3].sum(axis=-1)),
-        condition=np.asarray(sol.condition, dtype=np.float64),
-        degenerate=np.asarray(sol.used_pinv, dtype=bool),
-    )
-    geometry = ScanGeometry(origins, los, ranges, np.asarray(true.used_pinv, dtype=bool))
+    arrays = (start, end, drone_end, drone_velocity)
+    start, end, drone_end, drone_velocity = (np.ascontiguousarray(x, np.float64) for x in arrays)
+    aim = np.asarray(aim, dtype=np.float64)
+    previous = np.concatenate([aim, np.zeros_like(aim)], -1)  # aim + ½τ·0 = aim
+    fix, geometry, *_ = scan_period(
+        delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity,
+        previous, rng,
+    )  # fmt: skip
     return fix, geometry

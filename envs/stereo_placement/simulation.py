@@ -37,6 +37,7 @@ reward scores the geometry.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass, field
 
@@ -44,7 +45,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
-from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan
+from sensorgym.envs.stereo_placement import kernels
+from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan_period
 from sensorgym.trackers.stereo.information import (
     MAX_REWARD_CLIP,
     log_ratio_reward,
@@ -138,12 +140,22 @@ class PlacementParams:
         """Speed (m/s) that normalises the observed velocity: the fastest drone or vehicle."""
         return max(self.drone_speed[1], self.max_speed)
 
-    @property
+    @functools.cached_property
     def pairs(self) -> tuple[tuple[int, int], ...]:
         """Receiver pairs ``(k, l)``, ``k < l``, in the order of the observed angles."""
         return tuple(itertools.combinations(range(self.n_receivers), 2))
 
-    @property
+    @functools.cached_property
+    def pairs_array(self) -> NDArray[np.int64]:
+        """:attr:`pairs` as an ``(n(n−1)/2, 2)`` integer array (the kernels' form)."""
+        return np.array(self.pairs, dtype=np.int64).reshape(-1, 2)
+
+    @functools.cached_property
+    def delays_array(self) -> FloatArray:
+        """:attr:`delays` as a float array ``(n,)``."""
+        return np.array(self.delays, dtype=np.float64)
+
+    @functools.cached_property
     def obs_dim(self) -> int:
         """Observation length ``5n + 9 + n(n−1)/2`` (27 for n = 3, see :func:`observe`)."""
         return 5 * self.n_receivers + 9 + len(self.pairs)
@@ -206,20 +218,17 @@ def _period(
     drone_velocity: FloatArray,
     previous: FloatArray,
     rng: np.random.Generator,
-) -> tuple[ScanFix, FloatArray, ScanGeometry, FloatArray]:
-    """One scan period ending at the drone's ``drone_end``: fix, estimate, geometry, bound."""
-    tau = params.period
-    # coasted previous estimate: the aim of the receivers' frames and the fallback estimate
-    coast = np.concatenate([previous[:, :3] + tau * previous[:, 3:], previous[:, 3:]], -1)
-    aim = previous[:, :3] + 0.5 * tau * previous[:, 3:]
-    fix, geometry = scan(
-        np.asarray(params.delays), tau, params.sigma_ang, params.max_boresight_elevation,
-        start, end, drone_end, drone_velocity, aim, rng,
+) -> tuple[ScanFix, FloatArray, ScanGeometry, FloatArray, FloatArray]:
+    """One scan period ending at the drone's ``drone_end``: fix, estimate (the fix, or the
+    previous estimate coasted by ``τ`` where degenerate), geometry, bound and reward, in one
+    compiled pass (:func:`.scan.scan_period`; the same maths as :func:`crlb_sigma` and
+    :func:`reward_of`)."""
+    fix, geometry, estimate, bound, reward = scan_period(
+        params.delays_array, params.period, params.sigma_ang, params.max_boresight_elevation,
+        start, end, drone_end, drone_velocity, previous, rng, params.sigma_ref,
+        params.reward_clip,
     )  # fmt: skip
-    estimate = np.where(
-        fix.degenerate[:, None], coast, np.concatenate([fix.position, fix.velocity], -1)
-    )
-    return fix, estimate, geometry, crlb_sigma(params, geometry)
+    return fix, estimate, geometry, bound, reward
 
 
 def start(
@@ -245,7 +254,8 @@ def start(
     cue_v = v + sv * rng.standard_normal(v.shape)
     # the cue at t = 0, carried back to the start of the first period (t = −τ)
     before = np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
-    fix, estimate, geometry, bound = _period(params, o, o, p, v, before, rng)
+    o, p, v = (np.ascontiguousarray(x) for x in (o, p, v))
+    fix, estimate, geometry, bound, _ = _period(params, o, o, p, v, before, rng)
     return PlacementState(np.zeros(B), o, p, v, fix, estimate, geometry, bound)
 
 
@@ -306,27 +316,34 @@ def step(
     ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always False); the
     time limit is the shells' business.
     """
-    B = state.batch_size
-    end = in_arena(params, state.receivers + params.period * velocities(params, action, B))
+    B, n = state.batch_size, params.n_receivers
+    a = finite_array(action, "action")
+    if a.size != B * 2 * n:
+        raise ValueError(f"action: expected {B * 2 * n} values (B, 2n), got shape {a.shape}")
+    end = np.empty_like(state.receivers)
+    kernels.drive(
+        state.receivers, np.ascontiguousarray(a.reshape(B, n, 2)), params.period,
+        params.max_speed, params.arena_radius, end,
+    )  # fmt: skip
     p = state.drone_position + params.period * state.drone_velocity
-    fix, estimate, geometry, bound = _period(
+    fix, estimate, geometry, bound, reward = _period(
         params, state.receivers, end, p, state.drone_velocity, state.estimate, rng
     )
     new = PlacementState(
         state.t + params.period, end, p, state.drone_velocity, fix, estimate, geometry, bound
     )
-    reward = reward_of(params, bound, fix.degenerate | geometry.degenerate)
     return new, reward, np.zeros(B, dtype=bool)
 
 
 def los_angles(params: PlacementParams, receivers: FloatArray, point: FloatArray) -> FloatArray:
     """Angles ``γ_kl`` ``(B, n(n−1)/2)`` between the lines of sight from receivers ``(B, n, 3)``
     to ``point (B, 3)``, pairs in :attr:`PlacementParams.pairs` order, rad."""
-    d = point[:, None, :] - receivers
-    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
-    k, l = np.array(params.pairs).T
-    cross = np.linalg.norm(np.cross(u[:, k], u[:, l]), axis=-1)
-    return np.arctan2(cross, np.sum(u[:, k] * u[:, l], axis=-1))
+    o = np.ascontiguousarray(receivers, dtype=np.float64)
+    out = np.empty((o.shape[0], len(params.pairs)))
+    kernels.los_angles_kernel(
+        o, np.ascontiguousarray(point, dtype=np.float64), params.pairs_array, out
+    )
+    return out
 
 
 def observe(params: PlacementParams, state: PlacementState) -> NDArray[np.float32]:
@@ -349,23 +366,14 @@ def observe(params: PlacementParams, state: PlacementState) -> NDArray[np.float3
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
-    B, L = state.batch_size, params.length_scale
-    o, fix = state.receivers, state.fix
-    p_hat, v_hat = state.estimate[:, :3], state.estimate[:, 3:]
-    rel = o - p_hat[:, None, :]
-    tiny = 1e-12
-    blocks = [
-        o[..., [0, 2]].reshape(B, -1) / L,
-        rel[..., [0, 2]].reshape(B, -1) / L,
-        p_hat / L,
-        v_hat / params.speed_scale,
-        np.log(np.maximum(fix.range_sigma, tiny) / params.sigma_ref),
-        np.log(np.maximum(fix.velocity_sigma, tiny) * params.period / params.sigma_ref)[:, None],
-        np.log10(np.minimum(fix.condition, 1e300))[:, None],
-        los_angles(params, o, p_hat) / (np.pi / 2),
-        fix.degenerate[:, None].astype(np.float64),
-    ]
-    return clip_observation(np.concatenate(blocks, -1))
+    fix = state.fix
+    out = np.empty((state.batch_size, params.obs_dim))
+    kernels.observe_kernel(
+        state.receivers, state.estimate, fix.range_sigma, fix.velocity_sigma, fix.condition,
+        fix.degenerate, params.length_scale, params.speed_scale, params.sigma_ref, params.period,
+        params.pairs_array, out,
+    )  # fmt: skip
+    return clip_observation(out)
 
 
 def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np.float32]:
@@ -376,14 +384,17 @@ def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np
 
 def info(params: PlacementParams, state: PlacementState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy)."""
-    error = np.linalg.norm(state.estimate[:, :3] - state.drone_position, axis=-1)
-    angles = los_angles(params, state.receivers, state.drone_position)
+    B = state.batch_size
+    error, angle = np.empty(B), np.empty(B)
+    kernels.info_kernel(
+        state.receivers, state.estimate, state.drone_position, params.pairs_array, error, angle
+    )
     return {
         "position_error": error,
         "bound": state.bound,
         "condition": state.fix.condition,
         "degenerate": state.fix.degenerate.astype(np.float64),
-        "min_los_angle": angles.min(axis=-1),
+        "min_los_angle": angle,
     }
 
 

@@ -18,6 +18,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.worlds.scanning import ReceiverLayout
 from sensorgym.trackers.geometry import look_at_rotation
+from sensorgym.trackers.geometry_kernels import perturb_batch
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -141,13 +142,15 @@ def perturb_directions(a: ArrayLike, sigma_ang: ArrayLike, rng: np.random.Genera
     if np.any(s < 0.0):
         raise ValueError("sigma_ang: must be non-negative")
     z = rng.standard_normal(a.shape)
-    # δ = (I − a aᵀ) z σ
-    delta = (z - np.sum(z * a, axis=-1, keepdims=True) * a) * np.asarray(s)[..., None]
-    v = a + delta
-    if not np.any(zero):
-        return v / np.linalg.norm(v, axis=-1, keepdims=True)
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    return np.where(zero[..., None], 0.0, v / np.where(zero[..., None], 1.0, norm))
+    # δ = (I − a aᵀ) z σ,  (a + δ)/‖a + δ‖  (geometry_kernels.perturbed_direction3; zeros stay)
+    sig = np.broadcast_to(s, np.broadcast_shapes(s.shape, a.shape[:-1]))
+    shape = (*sig.shape, 3)
+    flat_a, flat_z = (
+        np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 3)) for x in (a, z)
+    )
+    out = np.empty(flat_a.shape)
+    perturb_batch(flat_a, flat_z, np.ascontiguousarray(sig, dtype=np.float64).reshape(-1), out)
+    return out.reshape(shape)
 
 
 def perturb_positions(M: ArrayLike, sigma: ArrayLike, rng: np.random.Generator) -> FloatArray:

@@ -11,6 +11,7 @@ WORLDS = Path(__file__).resolve().parents[3] / "envs" / "worlds"
 #: shared geometry, input checks and the bearings motion/measurement model, not trackers
 ALLOWED = {
     "sensorgym.trackers.geometry",
+    "sensorgym.trackers.geometry_kernels",
     "sensorgym.trackers.validation",
     "sensorgym.trackers.bearings.models",
 }
