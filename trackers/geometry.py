@@ -32,6 +32,7 @@ Every function accepts leading batch axes.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.geometry_kernels import look_at_batch
@@ -47,6 +48,13 @@ R_YUP_FROM_ZUP: FloatArray = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 
 def wrap_angle(angle: ArrayLike) -> FloatArray:
     """Wrap angles (radians) into ``[-π, π)``. The one angle-wrapping function of sensorgym."""
     a = np.asarray(angle, dtype=np.float64)
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+# wrap(a) = (a + π) mod 2π − π ∈ [−π, π)
+@njit(cache=True, nogil=True, error_model="numpy")
+def wrap_angle_scalar(a: float) -> float:
+    """:func:`wrap_angle` of one float, compiled (for the numba kernels)."""
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
 

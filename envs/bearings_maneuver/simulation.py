@@ -32,6 +32,13 @@ bearing: range uniform over ``bank_ranges`` (default the generator's ``initial_r
 course uniform over the full circle, speed with the mean and standard deviation of the
 uniform ``target_speed`` draw (unless ``prior_speed`` says otherwise), moment-matched.
 
+The step and the observation run as compiled kernels over the whole batch
+(:mod:`.kernels`: :func:`~.kernels.step_kernel`, :func:`~.kernels.observe_kernel`), built from
+the tracker primitives the public functions of :mod:`sensorgym.trackers.bearings` also call
+(:mod:`sensorgym.trackers.bearings.kernels`) and the platform flight
+(:mod:`sensorgym.envs.worlds.platform_kernels`); the random draws are made here with the
+Generator, in the order of the numpy form, and passed in.
+
 Without a manoeuvre range is unobservable (theory §7.6, §10.5 OC-5): a platform that keeps a
 straight course collects almost no reward after the first bearings.
 
@@ -49,27 +56,24 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.shells.contract import EnvSpaces, clip_observation
+from sensorgym.envs.bearings_maneuver.kernels import observe_kernel, step_kernel
+from sensorgym.envs.shells.contract import OBS_CLIP, EnvSpaces
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
-    fly,
     noisy_bearings,
-    propagate_target,
 )
 from sensorgym.trackers.bearings.crlb import (
     covariance_square_root,
-    factor_position_rms_bound,
-    factor_range_bound,
     predict_bound_factor,
     update_bound_factor,
 )
 from sensorgym.trackers.bearings.filters import (
     RangeBankState,
-    range_bank_predict,
     range_bank_prior,
     range_bank_update,
 )
-from sensorgym.trackers.bearings.models import BearingsGaussian
+from sensorgym.trackers.bearings.kernels import accuracy_batch
+from sensorgym.trackers.bearings.models import BearingsGaussian, cwna_covariance
 from sensorgym.trackers.validation import count, finite_array
 
 #: accuracies are kept inside ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that every reward
@@ -275,12 +279,21 @@ def accuracy_of(
     relative range bound taken from ``origin`` ``(..., 2)`` (platform 1). The env and the oracle
     call this. Read off ``L`` as sums of squares, it is never negative; it is kept inside
     ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that log-ratio rewards are always finite."""
-    if params.metric == "position":
-        m = factor_position_rms_bound(L)
-    else:
-        d = target[..., :2] - origin
-        m = factor_range_bound(L, target[..., :2], origin) / np.hypot(d[..., 0], d[..., 1])
-    return np.clip(m, ACCURACY_FLOOR, 1.0 / ACCURACY_FLOOR)
+    L = np.asarray(L, dtype=np.float64)
+    target = np.asarray(target, dtype=np.float64)
+    origin = np.asarray(origin, dtype=np.float64)
+    batch = np.broadcast_shapes(L.shape[:-2], target.shape[:-1], origin.shape[:-1])
+    out = np.empty(batch)
+    # compiled: trackers.bearings.kernels.accuracy (the step kernel calls the same)
+    accuracy_batch(
+        params.metric == "relative_range",
+        np.ascontiguousarray(np.broadcast_to(L, (*batch, 4, 4))).reshape(-1, 4, 4),
+        np.ascontiguousarray(np.broadcast_to(target, (*batch, 4))).reshape(-1, 4),
+        np.ascontiguousarray(np.broadcast_to(origin, (*batch, 2))).reshape(-1, 2),
+        ACCURACY_FLOOR,
+        out.reshape(-1),
+    )
+    return out
 
 
 def fuse_bound(
@@ -412,22 +425,68 @@ def step(
     a = finite_array(action, "action", tail=(2,))
     if a.ndim == 2 and K == 1:
         a = a[:, None]
-    a = np.clip(np.broadcast_to(a, (B, K, 2)), -1.0, 1.0)
+    a = np.ascontiguousarray(np.broadcast_to(a, (B, K, 2)))
     w = params.world
-    command = a * np.array([w.max_turn_rate, w.max_speed_change])
-    positions, heading, speed = fly(state.platform_position, state.heading, state.speed, command, w)
-    target = propagate_target(state.target, w, rng)
-    z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
-    bank = range_bank_predict(state.bank, state.bank.t + w.dt, w.q_tilde)
-    bank = _fuse(bank, z, positions, w.sigma_bearing)
-    # P̄ = F P Fᵀ + Q, P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹, in square-root form
-    L = advance_bound(params, state.bound_factor, target, positions)
-    accuracy = accuracy_of(params, L, target, positions[:, 0])
-    new = ManeuverState(state.t + w.dt, positions, heading, speed, target, bank, L, accuracy, z)
-    # reward_k = ln m_k − ln m_{k+1}
-    reward = np.log(state.accuracy) - np.log(accuracy)
-    terminated = np.any(new.range < params.min_range, axis=1)
-    reward = reward - params.close_penalty * terminated
+    # the draws of the numpy form, in its order: target noise (q̃ > 0), then the bearing noise
+    if w.q_tilde > 0.0:
+        target_noise = rng.standard_normal((B, 4))
+        noise_factor = np.linalg.cholesky(cwna_covariance(w.dt, w.q_tilde))
+    else:
+        target_noise = noise_factor = np.zeros((0, 0))
+    bearing_noise = rng.standard_normal((B, K))
+    t_bank = state.bank.t + w.dt
+    new_arrays = [
+        np.array(v, dtype=np.float64)
+        for v in (
+            state.platform_position,
+            state.heading,
+            state.speed,
+            state.target,
+            state.bank.log_weights,
+            state.bank.members.x,
+            state.bank.members.P,
+            state.bound_factor,
+            state.accuracy,
+        )
+    ]
+    pos, heading, speed, target, lw, X, P, L, accuracy = new_arrays
+    z = np.empty((B, K))
+    reward = np.empty(B)
+    terminated = np.empty(B, dtype=bool)
+    # fly, move the target, bearings, bank predict + update, P̄ = F P Fᵀ + Q,
+    # P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹ in square-root form, reward_k = ln m_k − ln m_{k+1}
+    step_kernel(
+        pos,
+        heading,
+        speed,
+        target,
+        lw,
+        X,
+        P,
+        L,
+        accuracy,
+        z,
+        a,
+        target_noise,
+        noise_factor,
+        bearing_noise,
+        float(w.dt),
+        float(t_bank - state.bank.t),
+        float(w.q_tilde),
+        float(w.sigma_bearing),
+        float(w.max_turn_rate),
+        float(w.max_speed_change),
+        float(w.min_speed),
+        float(w.max_speed),
+        params.metric == "relative_range",
+        ACCURACY_FLOOR,
+        float(params.min_range),
+        float(params.close_penalty),
+        reward,
+        terminated,
+    )
+    bank = RangeBankState(lw, BearingsGaussian(X, P, t_bank))
+    new = ManeuverState(state.t + w.dt, pos, heading, speed, target, bank, L, accuracy, z)
     return new, reward, terminated
 
 
@@ -481,27 +540,20 @@ def observe_agents(params: ManeuverParams, state: ManeuverState) -> NDArray[np.f
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
     B, K = state.heading.shape
-    est = state.estimate
-    psi = state.heading
-    rel_bearing = state.bearing - psi
-    rel_pos = body_frame(psi, est.position[:, None] - state.platform_position)
-    rel_vel = body_frame(psi, est.velocity[:, None] - state.platform_velocity)
-    # position covariance in each platform frame: R P Rᵀ with R the rows of body_frame
-    s, c = np.sin(psi), np.cos(psi)
-    R = np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], axis=-2)  # (B, K, 2, 2)
-    Pb = R @ est.P[:, None, :2, :2] @ np.swapaxes(R, -1, -2)
-    sd = np.sqrt(np.clip(np.diagonal(Pb, axis1=-2, axis2=-1), 1e-12, None))
-    rho = Pb[..., 0, 1] / (sd[..., 0] * sd[..., 1])
-    parts = [
-        np.stack([np.sin(rel_bearing), np.cos(rel_bearing)], -1),
-        (state.speed / max(params.world.max_speed, 1e-12))[..., None],
-        rel_pos / params.range_scale,
-        rel_vel / params.speed_scale,
-        np.log(sd / params.range_scale),
-        rho[..., None],
-    ]
-    if K > 1:
-        others = np.array([[j for j in range(K) if j != k] for k in range(K)])  # (K, K−1)
-        d = state.platform_position[:, others] - state.platform_position[:, :, None]
-        parts.append(body_frame(psi[..., None], d).reshape(B, K, 2 * (K - 1)) / params.range_scale)
-    return clip_observation(np.concatenate(parts, axis=-1))
+    bank = state.bank
+    out = np.empty((B, K, params.obs_dim), dtype=np.float32)
+    observe_kernel(
+        np.ascontiguousarray(state.platform_position, dtype=np.float64),
+        np.ascontiguousarray(state.heading, dtype=np.float64),
+        np.ascontiguousarray(state.speed, dtype=np.float64),
+        np.ascontiguousarray(state.bearing, dtype=np.float64),
+        np.ascontiguousarray(bank.log_weights),
+        np.ascontiguousarray(bank.members.x),
+        np.ascontiguousarray(bank.members.P),
+        float(params.world.max_speed),
+        float(params.range_scale),
+        float(params.speed_scale),
+        OBS_CLIP,
+        out,
+    )
+    return out

@@ -47,6 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.worlds.platform_kernels import fly_batch
 from sensorgym.trackers.bearings.models import (
     STATE_DIM,
     bearing,
@@ -144,13 +145,6 @@ class PlatformWorldState:
         return self.speed[:, None] * np.stack([np.sin(self.heading), np.cos(self.heading)], -1)
 
 
-def _clip_command(a: FloatArray, speed: FloatArray, params: PlatformWorldParams) -> FloatArray:
-    omega = np.clip(a[..., 0], -params.max_turn_rate, params.max_turn_rate)
-    dv = np.clip(a[..., 1], -params.max_speed_change, params.max_speed_change)
-    new_speed = np.clip(speed + dv, params.min_speed, params.max_speed)
-    return np.stack([omega, new_speed - speed], axis=-1)
-
-
 def fly(
     position: FloatArray,
     heading: FloatArray,
@@ -161,16 +155,26 @@ def fly(
     """Platform kinematics over one step, for any leading shape ``(...)`` (e.g. ``(B, K)``
     platforms): ``position (..., 2)``, ``heading``, ``speed`` ``(...)``, ``command (..., 2)``
     (heading rate, speed change; clipped to the limits). Returns the new three."""
-    a = _clip_command(finite_array(command, "action", tail=(2,)), speed, params)
-    T = params.dt
-    omega = a[..., 0]
-    v = speed + a[..., 1]
+    c = finite_array(command, "action", tail=(2,))
+    shape = np.broadcast_shapes(c.shape[:-1], np.shape(speed), np.shape(heading))
+    shape = np.broadcast_shapes(shape, np.shape(position)[:-1])
+    p = np.array(np.broadcast_to(position, (*shape, 2)), dtype=np.float64)
+    h = np.array(np.broadcast_to(heading, shape), dtype=np.float64)
+    v = np.array(np.broadcast_to(speed, shape), dtype=np.float64)
     # exact arc: Δp = v T sinc(ωT/2) (sin ψ_m, cos ψ_m), ψ_m = ψ₀ + ωT/2
-    half = 0.5 * omega * T
-    psi_mid = heading + half
-    chord = v * T * np.sinc(half / np.pi)
-    dp = chord[..., None] * np.stack([np.sin(psi_mid), np.cos(psi_mid)], axis=-1)
-    return position + dp, wrap_angle(heading + omega * T), v
+    # (compiled: platform_kernels.fly_platform)
+    fly_batch(
+        p.reshape(-1, 2),
+        h.reshape(-1),
+        v.reshape(-1),
+        np.ascontiguousarray(np.broadcast_to(c, (*shape, 2))).reshape(-1, 2),
+        float(params.dt),
+        float(params.max_turn_rate),
+        float(params.max_speed_change),
+        float(params.min_speed),
+        float(params.max_speed),
+    )
+    return p, h, v
 
 
 def propagate_target(

@@ -54,6 +54,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.bearings import kernels
 from sensorgym.trackers.bearings.models import (
     STATE_DIM,
     bearing_jacobian,
@@ -293,13 +294,16 @@ def predict_bound_factor(L: ArrayLike, dt: float, q_tilde: float) -> FloatArray:
     if not np.isfinite(dt) or dt < 0.0:
         raise ValueError(f"dt: must be finite and >= 0, got {dt}")
     L = finite_array(L, "L", tail=(STATE_DIM, STATE_DIM))
-    FL = cv_transition(dt) @ L
-    if q_tilde == 0.0:
-        return FL
-    G = np.broadcast_to(cwna_covariance_factor(dt, q_tilde), FL.shape)
-    # P̄ = [F L, G][F L, G]ᵀ = Rᵀ R with [F L, G]ᵀ = Q R
-    R = np.linalg.qr(np.swapaxes(np.concatenate([FL, G], axis=-1), -1, -2), mode="r")
-    return np.swapaxes(R, -1, -2)
+    cwna_covariance_factor(dt, q_tilde)  # checks q̃
+    out = np.empty(L.shape)
+    # P̄ = [F L, G][F L, G]ᵀ = Rᵀ R with [F L, G]ᵀ = Q R  (compiled: kernels.bound_predict)
+    kernels.bound_predict_batch(
+        np.ascontiguousarray(L).reshape(-1, STATE_DIM, STATE_DIM),
+        float(dt),
+        float(q_tilde),
+        out.reshape(-1, STATE_DIM, STATE_DIM),
+    )
+    return out
 
 
 def update_bound_factor(
@@ -323,21 +327,26 @@ def update_bound_factor(
     r = np.hypot(d[..., 0], d[..., 1])
     if np.any(r == 0.0):
         raise ValueError("target_state: position coincides with the platform")
-    normal = np.stack([d[..., 1], -d[..., 0]], axis=-1) / r[..., None]
-    batch = np.broadcast_shapes(L.shape[:-2], normal.shape[:-1], s.shape)
-    M = np.zeros((*batch, STATE_DIM + 1, STATE_DIM + 1))
-    M[..., 0, 0] = r * s
-    M[..., 0, 1:] = np.einsum("...i,...ij->...j", normal, L[..., :2, :])
-    M[..., 1:, 1:] = L
-    R = np.linalg.qr(np.swapaxes(M, -1, -2), mode="r")
-    return np.swapaxes(R[..., 1:, 1:], -1, -2)
+    batch = np.broadcast_shapes(L.shape[:-2], d.shape[:-1], s.shape)
+    out = np.empty((*batch, STATE_DIM, STATE_DIM))
+    # triangularise the pre-array [[r σ, n̂ᵀ L_pos], [0, L]]  (compiled: kernels.bound_update)
+    kernels.bound_update_batch(
+        np.ascontiguousarray(np.broadcast_to(L, out.shape)).reshape(-1, STATE_DIM, STATE_DIM),
+        np.ascontiguousarray(np.broadcast_to(x, (*batch, STATE_DIM))).reshape(-1, STATE_DIM),
+        np.ascontiguousarray(np.broadcast_to(p, (*batch, 2))).reshape(-1, 2),
+        np.ascontiguousarray(np.broadcast_to(s, batch)).reshape(-1),
+        out.reshape(-1, STATE_DIM, STATE_DIM),
+    )
+    return out
 
 
 def factor_position_rms_bound(L: ArrayLike) -> FloatArray:
     """Position RMS bound ``√(P_xx + P_yy)`` (m) of ``P = L Lᵀ``: the norm of ``L``'s position
     rows, ``(...,)``."""
-    L = np.asarray(L, dtype=np.float64)
-    return np.sqrt(np.sum(L[..., :2, :] ** 2, axis=(-2, -1)))
+    L = np.ascontiguousarray(L, dtype=np.float64)
+    out = np.empty(L.shape[:-2])
+    kernels.position_rms_batch(L.reshape(-1, STATE_DIM, STATE_DIM), out.reshape(-1))
+    return out
 
 
 def factor_range_bound(
@@ -346,9 +355,17 @@ def factor_range_bound(
     """Range standard-deviation bound ``σ_r = ‖gᵀ L_pos‖``, ``g = (Δx, Δy)/r`` (m), of
     ``P = L Lᵀ`` (:func:`range_bound` on the square root)."""
     L = np.asarray(L, dtype=np.float64)
-    d = finite_array(target_position, "target_position", tail=(2,)) - finite_array(
-        platform_position, "platform_position", tail=(2,)
+    t = finite_array(target_position, "target_position", tail=(2,))
+    p = finite_array(platform_position, "platform_position", tail=(2,))
+    batch = np.broadcast_shapes(L.shape[:-2], t.shape[:-1], p.shape[:-1])
+    out = np.empty(batch)
+    # compiled: kernels.range_sigma
+    kernels.range_sigma_batch(
+        np.ascontiguousarray(np.broadcast_to(L, (*batch, STATE_DIM, STATE_DIM))).reshape(
+            -1, STATE_DIM, STATE_DIM
+        ),
+        np.ascontiguousarray(np.broadcast_to(t, (*batch, 2))).reshape(-1, 2),
+        np.ascontiguousarray(np.broadcast_to(p, (*batch, 2))).reshape(-1, 2),
+        out.reshape(-1),
     )
-    g = d / np.hypot(d[..., 0], d[..., 1])[..., None]
-    v = np.einsum("...i,...ij->...j", g, L[..., :2, :])
-    return np.sqrt(np.sum(v**2, axis=-1))
+    return out

@@ -32,11 +32,11 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.bearings import kernels
 from sensorgym.trackers.bearings.models import (
     STATE_DIM,
     BearingsGaussian,
     bearing,
-    bearing_jacobian,
     bearing_sequence,
     predict,
 )
@@ -168,20 +168,24 @@ def bearing_prior(
 def _ekf_terms(
     state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
 ) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
-    H = bearing_jacobian(state.x, p)
-    # ν = wrap(z − β(x⁻))
-    nu = wrap_angle(z - bearing(state.x[..., :2], p))
-    PHt = np.einsum("...ij,...j->...i", state.P, H)
-    # S = H P Hᵀ + σ²; H P Hᵀ >= 0 in exact arithmetic, so rounding below zero (a covariance
-    # whose spread spans the float range) counts as zero and S never falls below σ²
-    S = np.maximum(np.einsum("...i,...i->...", H, PHt), 0.0) + sigma**2
-    # K = P Hᵀ S⁻¹
-    K = PHt / S[..., None]
-    x = state.x + K * nu[..., None]
-    IKH = np.eye(STATE_DIM) - K[..., :, None] * H[..., None, :]
-    # P⁺ = (I − K H) P (I − K H)ᵀ + K σ² Kᵀ   (Joseph form)
-    P = IKH @ state.P @ np.swapaxes(IKH, -1, -2) + sigma**2 * K[..., :, None] * K[..., None, :]
-    return BearingsGaussian(x, _sym(P), state.t), nu, S
+    """The EKF update of every element (compiled: :func:`.kernels.ekf_bearing_update`, whose
+    comment holds the equations); returns the updated state, ``ν`` and ``S``. ``S`` is never
+    taken below ``σ²``: rounding of ``H P Hᵀ`` below zero counts as zero."""
+    x = np.array(state.x, dtype=np.float64)
+    P = np.array(state.P, dtype=np.float64)
+    lead = x.shape[:-1]
+    nu = np.empty(lead)
+    S = np.empty(lead)
+    kernels.ekf_update_batch(
+        x.reshape(-1, STATE_DIM),
+        P.reshape(-1, STATE_DIM, STATE_DIM),
+        np.ascontiguousarray(z, dtype=np.float64).reshape(-1),
+        np.ascontiguousarray(p, dtype=np.float64).reshape(-1, 2),
+        float(sigma),
+        nu.reshape(-1),
+        S.reshape(-1),
+    )
+    return BearingsGaussian(x, P, state.t), nu, S
 
 
 def _ckf_terms(
@@ -282,11 +286,19 @@ class RangeBankState:
 
     def estimate(self) -> BearingsGaussian:
         """Moment-matched Gaussian: ``x = Σ wᵢ xᵢ``, ``P = Σ wᵢ (Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ)``."""
-        w = self.weights
-        x = np.einsum("...n,...ni->...i", w, self.members.x)
-        d = self.members.x - x[..., None, :]
-        P = np.einsum("...n,...nij->...ij", w, self.members.P + d[..., :, None] * d[..., None, :])
-        return BearingsGaussian(x, _sym(P), self.t)
+        lw = self.log_weights
+        N = lw.shape[-1]
+        x = np.empty((*lw.shape[:-1], STATE_DIM))
+        P = np.empty((*lw.shape[:-1], STATE_DIM, STATE_DIM))
+        # compiled: kernels.bank_estimate
+        kernels.bank_estimate_batch(
+            np.ascontiguousarray(lw).reshape(-1, N),
+            np.ascontiguousarray(self.members.x).reshape(-1, N, STATE_DIM),
+            np.ascontiguousarray(self.members.P).reshape(-1, N, STATE_DIM, STATE_DIM),
+            x.reshape(-1, STATE_DIM),
+            P.reshape(-1, STATE_DIM, STATE_DIM),
+        )
+        return BearingsGaussian(x, P, self.t)
 
 
 def range_bank_prior(
@@ -390,6 +402,21 @@ def range_bank_update(
         finite_array(platform_position, "platform_position", tail=(2,)), (*lead, 2)
     )[..., None, :]
     z, p = _checked(state.members, z, p, sigma)
+    if component == "ekf":
+        # compiled: kernels.bank_update (EKF update of every member, then the weights)
+        N = state.log_weights.shape[-1]
+        lw = np.array(state.log_weights, dtype=np.float64)
+        x = np.array(state.members.x, dtype=np.float64)
+        P = np.array(state.members.P, dtype=np.float64)
+        kernels.bank_update_batch(
+            lw.reshape(-1, N),
+            x.reshape(-1, N, STATE_DIM),
+            P.reshape(-1, N, STATE_DIM, STATE_DIM),
+            np.ascontiguousarray(z[..., 0]).reshape(-1),
+            np.ascontiguousarray(p[..., 0, :]).reshape(-1, 2),
+            float(sigma),
+        )
+        return RangeBankState(lw, BearingsGaussian(x, P, state.t))
     members, nu, S = _TERMS[component](state.members, z, p, sigma)
     lw = state.log_weights - 0.5 * (nu**2 / S + np.log(2.0 * np.pi * S))
     lw = lw - _logsumexp(lw)[..., None]

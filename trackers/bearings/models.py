@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.bearings import kernels
 from sensorgym.trackers.geometry import wrap_angle
 from sensorgym.trackers.validation import finite_array
 
@@ -171,13 +172,15 @@ def predict(state: BearingsGaussian, t: float, q_tilde: float) -> BearingsGaussi
             f"t: prediction time {t} must be finite and not before the estimate's time {state.t}"
         )
     T = t - state.t
-    F = cv_transition(T)
-    Q = cwna_covariance(T, q_tilde)
-    # x⁻ = F x
-    x = state.x @ F.T
-    # P⁻ = F P Fᵀ + Q
-    P = F @ state.P @ F.T + Q
-    return BearingsGaussian(x, 0.5 * (P + np.swapaxes(P, -1, -2)), t)
+    _check_q_tilde(q_tilde)
+    _interval(T)
+    x = np.array(state.x, dtype=np.float64)
+    P = np.array(np.broadcast_to(state.P, (*x.shape, STATE_DIM)), dtype=np.float64)
+    # x⁻ = F x,  P⁻ = F P Fᵀ + Q  (compiled: kernels.cv_predict)
+    kernels.cv_predict_batch(
+        x.reshape(-1, STATE_DIM), P.reshape(-1, STATE_DIM, STATE_DIM), T, float(q_tilde)
+    )
+    return BearingsGaussian(x, P, t)
 
 
 def bearing_sequence(

@@ -1,0 +1,363 @@
+"""Compiled primitives of bearings-only tracking: one element (member, scenario) per call.
+
+The batched public functions of :mod:`.models` (``predict``), :mod:`.filters` (the EKF update and
+the range-parameterised bank) and :mod:`.crlb` (the square-root bound recursion and the bounds
+read off it) loop these over their flattened batch, and the BearingsManeuver simulation fuses
+them into one step kernel (:mod:`sensorgym.envs.bearings_maneuver.kernels`): every formula is
+written here once. The checks of the inputs stay with the public functions; a kernel trusts
+its arguments (finite values, a target off the platform).
+
+Conventions (:mod:`.models`): state ``x = (x, y, ẋ, ẏ)`` (m, m/s), bearings from North
+clockwise (rad), ``F(T) = [[I, T I], [0, I]]`` and CWNA ``Q(T)``. Arrays are written in place
+where the argument says ``out``; small 4×4 products are explicit loops (no temporaries).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sensorgym.trackers.geometry import wrap_angle_scalar as wrap
+
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+STATE_DIM = 4
+_TWO_PI = 2.0 * np.pi
+
+
+# --- constant-velocity prediction -------------------------------------------------------------
+
+
+# x⁻ = F x,  P⁻ = F P Fᵀ + Q,  F = F(T), Q = q̃ [[T³/3 I, T²/2 I], [T²/2 I, T I]];  P⁻ symmetrised
+@njit(**_JIT)
+def cv_predict(x, P, T, q_tilde):
+    """In place on ``x (4,)`` and ``P (4, 4)``."""
+    for i in range(2):
+        x[i] = x[i] + T * x[i + 2]
+    # F P: rows i < 2 gain T · row i + 2
+    for i in range(2):
+        for j in range(STATE_DIM):
+            P[i, j] = P[i, j] + T * P[i + 2, j]
+    # (F P) Fᵀ: columns j < 2 gain T · column j + 2
+    for i in range(STATE_DIM):
+        for j in range(2):
+            P[i, j] = P[i, j] + T * P[i, j + 2]
+    q3, q2, q1 = q_tilde * (T**3 / 3.0), q_tilde * (T**2 / 2.0), q_tilde * T
+    for i in range(2):
+        P[i, i] += q3
+        P[i, i + 2] += q2
+        P[i + 2, i] += q2
+        P[i + 2, i + 2] += q1
+    for i in range(STATE_DIM):
+        for j in range(i + 1, STATE_DIM):
+            s = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = s
+            P[j, i] = s
+
+
+# --- EKF bearing update -----------------------------------------------------------------------
+
+
+# H = (Δy, −Δx, 0, 0)/r²,  ν = wrap(z − β(x⁻)),  S = max(H P Hᵀ, 0) + σ²,  K = P Hᵀ S⁻¹,
+# x⁺ = x⁻ + K ν,  P⁺ = (I − K H) P (I − K H)ᵀ + K σ² Kᵀ (Joseph form, symmetrised)
+@njit(**_JIT)
+def ekf_bearing_update(x, P, z, px, py, sigma):
+    """In place on ``x (4,)`` and ``P (4, 4)``; returns ``(ν, S)``. Vectors of four are
+    register tuples (no allocation)."""
+    dx = x[0] - px
+    dy = x[1] - py
+    r2 = dx * dx + dy * dy
+    h0 = dy / r2
+    h1 = -dx / r2
+    nu = wrap(z - math.atan2(dx, dy))
+    # P Hᵀ
+    pht = (
+        P[0, 0] * h0 + P[0, 1] * h1,
+        P[1, 0] * h0 + P[1, 1] * h1,
+        P[2, 0] * h0 + P[2, 1] * h1,
+        P[3, 0] * h0 + P[3, 1] * h1,
+    )
+    S = max(h0 * pht[0] + h1 * pht[1], 0.0) + sigma * sigma
+    k = (pht[0] / S, pht[1] / S, pht[2] / S, pht[3] / S)
+    for i in range(STATE_DIM):
+        x[i] = x[i] + k[i] * nu
+    # H P (row), and (A Hᵀ)ᵢ for A = (I − K H) P
+    hp = (
+        h0 * P[0, 0] + h1 * P[1, 0],
+        h0 * P[0, 1] + h1 * P[1, 1],
+        h0 * P[0, 2] + h1 * P[1, 2],
+        h0 * P[0, 3] + h1 * P[1, 3],
+    )
+    ah = (
+        (P[0, 0] - k[0] * hp[0]) * h0 + (P[0, 1] - k[0] * hp[1]) * h1,
+        (P[1, 0] - k[1] * hp[0]) * h0 + (P[1, 1] - k[1] * hp[1]) * h1,
+        (P[2, 0] - k[2] * hp[0]) * h0 + (P[2, 1] - k[2] * hp[1]) * h1,
+        (P[3, 0] - k[3] * hp[0]) * h0 + (P[3, 1] - k[3] * hp[1]) * h1,
+    )
+    # P⁺ = A (I − K H)ᵀ + σ² K Kᵀ, Aᵢⱼ = Pᵢⱼ − kᵢ (H P)ⱼ
+    s2 = sigma * sigma
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            P[i, j] = (P[i, j] - k[i] * hp[j]) - ah[i] * k[j] + s2 * k[i] * k[j]
+    for i in range(STATE_DIM):
+        for j in range(i + 1, STATE_DIM):
+            s = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = s
+            P[j, i] = s
+    return nu, S
+
+
+# --- range-parameterised bank -----------------------------------------------------------------
+
+
+# log wᵢ ← log wᵢ − log Σⱼ wⱼ   (normalised in place, max-shifted)
+@njit(**_JIT)
+def normalise_log_weights(lw):
+    m = lw[0]
+    for n in range(1, lw.shape[0]):
+        m = max(m, lw[n])
+    s = 0.0
+    for n in range(lw.shape[0]):
+        s += np.exp(lw[n] - m)
+    lse = m + np.log(s)
+    for n in range(lw.shape[0]):
+        lw[n] = lw[n] - lse
+
+
+# every member: x⁻ = F x, P⁻ = F P Fᵀ + Q; weights unchanged
+@njit(**_JIT)
+def bank_predict(X, P, T, q_tilde):
+    """In place on members ``X (N, 4)``, ``P (N, 4, 4)``."""
+    for n in range(X.shape[0]):
+        cv_predict(X[n], P[n], T, q_tilde)
+
+
+# every member: EKF update;  log wᵢ += log N(νᵢ; 0, Sᵢ) = −½(νᵢ²/Sᵢ + ln 2πSᵢ), renormalised
+@njit(**_JIT)
+def bank_update(lw, X, P, z, px, py, sigma):
+    """In place on ``lw (N,)``, ``X (N, 4)``, ``P (N, 4, 4)``."""
+    for n in range(X.shape[0]):
+        nu, S = ekf_bearing_update(X[n], P[n], z, px, py, sigma)
+        lw[n] = lw[n] - 0.5 * (nu * nu / S + np.log(_TWO_PI * S))
+    normalise_log_weights(lw)
+
+
+# moment match: x = Σ wᵢ xᵢ,  P = Σ wᵢ (Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ), symmetrised
+@njit(**_JIT)
+def bank_estimate(lw, X, P, x_out, P_out):
+    N = X.shape[0]
+    for i in range(STATE_DIM):
+        x_out[i] = 0.0
+        for j in range(STATE_DIM):
+            P_out[i, j] = 0.0
+    for n in range(N):
+        w = np.exp(lw[n])
+        for i in range(STATE_DIM):
+            x_out[i] += w * X[n, i]
+    for n in range(N):
+        w = np.exp(lw[n])
+        for i in range(STATE_DIM):
+            di = X[n, i] - x_out[i]
+            for j in range(STATE_DIM):
+                P_out[i, j] += w * (P[n, i, j] + di * (X[n, j] - x_out[j]))
+    for i in range(STATE_DIM):
+        for j in range(i + 1, STATE_DIM):
+            s = 0.5 * (P_out[i, j] + P_out[j, i])
+            P_out[i, j] = s
+            P_out[j, i] = s
+
+
+# --- square-root bound ------------------------------------------------------------------------
+
+
+# ‖v‖ without overflow or underflow: s √Σ(vᵢ/s)², s = maxᵢ |vᵢ|
+@njit(**_JIT)
+def _scaled_norm(A, j, lo, hi):
+    s = 0.0
+    for i in range(lo, hi):
+        s = max(s, abs(A[i, j]))
+    if s == 0.0 or not np.isfinite(s):
+        return s
+    acc = 0.0
+    for i in range(lo, hi):
+        v = A[i, j] / s
+        acc += v * v
+    return s * np.sqrt(acc)
+
+
+# A = Q R by Householder reflections (LAPACK dgeqr2 conventions: β = −sign(α)‖(α, v)‖);
+# the upper triangle of A is left holding R (below it: scratch)
+@njit(**_JIT)
+def householder_r(A):
+    m, n = A.shape
+    for j in range(min(m - 1, n)):
+        alpha = A[j, j]
+        xnorm = _scaled_norm(A, j, j + 1, m)
+        if xnorm == 0.0:
+            continue
+        beta = -math.copysign(math.hypot(alpha, xnorm), alpha)
+        tau = (beta - alpha) / beta
+        scale = 1.0 / (alpha - beta)
+        for i in range(j + 1, m):
+            A[i, j] *= scale
+        A[j, j] = beta
+        # H = I − τ v vᵀ, v = (1, A[j+1:, j]) applied to the columns on the right
+        for c in range(j + 1, n):
+            w = A[j, c]
+            for i in range(j + 1, m):
+                w += A[i, j] * A[i, c]
+            w *= tau
+            A[j, c] -= w
+            for i in range(j + 1, m):
+                A[i, c] -= w * A[i, j]
+
+
+# P̄ = F P Fᵀ + Q = [F L, G][F L, G]ᵀ = Rᵀ R with [F L, G]ᵀ = Q R;  L̄ = Rᵀ (= F L when q̃ = 0);
+# G = √q̃ [[√(T³/3), 0], [(√3/2)√T, √T/2]] per axis (G Gᵀ = Q)
+@njit(**_JIT)
+def bound_predict(L, T, q_tilde, out):
+    """Square root ``out (4, 4)`` of the predicted bound from the square root ``L (4, 4)``."""
+    if q_tilde == 0.0:
+        for i in range(STATE_DIM):
+            for j in range(STATE_DIM):
+                out[i, j] = L[i, j] + (T * L[i + 2, j] if i < 2 else 0.0)
+        return
+    A = np.zeros((2 * STATE_DIM, STATE_DIM))  # [F L, G]ᵀ
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            A[j, i] = L[i, j] + (T * L[i + 2, j] if i < 2 else 0.0)
+    sq = np.sqrt(q_tilde)
+    g_pos, g_cross, g_vel = (
+        sq * np.sqrt(T**3 / 3.0),
+        sq * 0.5 * np.sqrt(3.0 * T),
+        sq * 0.5 * np.sqrt(T),
+    )
+    for i in range(2):
+        # G[i, i], G[i + 2, i], G[i + 2, i + 2] as rows 4 + column of Gᵀ
+        A[STATE_DIM + i, i] = g_pos
+        A[STATE_DIM + i, i + 2] = g_cross
+        A[STATE_DIM + i + 2, i + 2] = g_vel
+    householder_r(A)
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            out[i, j] = A[j, i] if j <= i else 0.0
+
+
+# P⁺ = (P̄⁻¹ + Hᵀ H/σ²)⁻¹ with H = n̂ᵀ/r, n̂ = (Δy, −Δx)/r: triangularise the pre-array
+# M = [[r σ, n̂ᵀ L_pos], [0, L]] (Mᵀ = Q R, M Q = Rᵀ); P⁺ = Rᵀ[1:, 1:] (Rᵀ[1:, 1:])ᵀ
+@njit(**_JIT)
+def bound_update(L, tx, ty, px, py, sigma, out):
+    """Square root ``out (4, 4)`` of the bound after one bearing at the true target
+    position ``(tx, ty)`` from ``(px, py)``, from the square root ``L (4, 4)`` of ``P̄``."""
+    dx = tx - px
+    dy = ty - py
+    r = math.hypot(dx, dy)
+    n0 = dy / r
+    n1 = -dx / r
+    A = np.zeros((STATE_DIM + 1, STATE_DIM + 1))  # Mᵀ
+    A[0, 0] = r * sigma
+    for j in range(STATE_DIM):
+        A[j + 1, 0] = n0 * L[0, j] + n1 * L[1, j]
+        for i in range(STATE_DIM):
+            A[j + 1, i + 1] = L[i, j]
+    householder_r(A)
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            out[i, j] = A[j + 1, i + 1] if j <= i else 0.0
+
+
+# √(P_xx + P_yy) = ‖L_pos‖ (the position rows of L)
+@njit(**_JIT)
+def position_rms(L):
+    s = 0.0
+    for i in range(2):
+        for j in range(STATE_DIM):
+            s += L[i, j] * L[i, j]
+    return np.sqrt(s)
+
+
+# σ_r = ‖gᵀ L_pos‖, g = (Δx, Δy)/r
+@njit(**_JIT)
+def range_sigma(L, tx, ty, px, py):
+    dx = tx - px
+    dy = ty - py
+    r = math.hypot(dx, dy)
+    g0 = dx / r
+    g1 = dy / r
+    s = 0.0
+    for j in range(STATE_DIM):
+        v = g0 * L[0, j] + g1 * L[1, j]
+        s += v * v
+    return np.sqrt(s)
+
+
+# m(P) = √(P_xx + P_yy) ("position") or σ_r/r ("relative range", from the origin platform),
+# clipped to [floor, 1/floor]
+@njit(**_JIT)
+def accuracy(relative_range, L, tx, ty, px, py, floor):
+    if relative_range:
+        m = range_sigma(L, tx, ty, px, py) / math.hypot(tx - px, ty - py)
+    else:
+        m = position_rms(L)
+    return min(max(m, floor), 1.0 / floor)
+
+
+# --- flattened batches (what the public numpy-facing functions call) -------------------------
+
+
+@njit(**_JIT)
+def cv_predict_batch(X, P, T, q_tilde):
+    for b in range(X.shape[0]):
+        cv_predict(X[b], P[b], T, q_tilde)
+
+
+@njit(**_JIT)
+def ekf_update_batch(X, P, z, pos, sigma, nu, S):
+    for b in range(X.shape[0]):
+        nu[b], S[b] = ekf_bearing_update(X[b], P[b], z[b], pos[b, 0], pos[b, 1], sigma)
+
+
+@njit(**_JIT)
+def bank_update_batch(lw, X, P, z, pos, sigma):
+    for b in range(X.shape[0]):
+        bank_update(lw[b], X[b], P[b], z[b], pos[b, 0], pos[b, 1], sigma)
+
+
+@njit(**_JIT)
+def bank_estimate_batch(lw, X, P, x_out, P_out):
+    for b in range(X.shape[0]):
+        bank_estimate(lw[b], X[b], P[b], x_out[b], P_out[b])
+
+
+@njit(**_JIT)
+def bound_predict_batch(L, T, q_tilde, out):
+    for b in range(L.shape[0]):
+        bound_predict(L[b], T, q_tilde, out[b])
+
+
+@njit(**_JIT)
+def bound_update_batch(L, target, pos, sigma, out):
+    for b in range(L.shape[0]):
+        bound_update(L[b], target[b, 0], target[b, 1], pos[b, 0], pos[b, 1], sigma[b], out[b])
+
+
+@njit(**_JIT)
+def position_rms_batch(L, out):
+    for b in range(L.shape[0]):
+        out[b] = position_rms(L[b])
+
+
+@njit(**_JIT)
+def range_sigma_batch(L, target, pos, out):
+    for b in range(L.shape[0]):
+        out[b] = range_sigma(L[b], target[b, 0], target[b, 1], pos[b, 0], pos[b, 1])
+
+
+@njit(**_JIT)
+def accuracy_batch(relative_range, L, target, origin, floor, out):
+    for b in range(L.shape[0]):
+        out[b] = accuracy(
+            relative_range, L[b], target[b, 0], target[b, 1], origin[b, 0], origin[b, 1], floor
+        )
