@@ -187,3 +187,17 @@ def observe_kernel(
                     _put(out, b, k, i, o0 / range_scale, clip)
                     _put(out, b, k, i + 1, o1 / range_scale, clip)
                     i += 2
+
+
+# nearest platform's range min_k ‖x_t − p_k‖ and the estimate's position error ‖x̂ − x_t‖
+@njit(**_JIT)
+def info_kernel(pos, target, lw, X, P, nearest, error):
+    x = np.empty(STATE_DIM)
+    Pe = np.empty((STATE_DIM, STATE_DIM))
+    for b in range(pos.shape[0]):
+        r = np.inf
+        for k in range(pos.shape[1]):
+            r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
+        nearest[b] = r
+        bank_estimate(lw[b], X[b], P[b], x, Pe)
+        error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])

@@ -56,7 +56,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.bearings_maneuver.kernels import observe_kernel, step_kernel
+from sensorgym.envs.bearings_maneuver.kernels import info_kernel, observe_kernel, step_kernel
 from sensorgym.envs.shells.contract import OBS_CLIP, EnvSpaces
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
@@ -485,7 +485,7 @@ def step(
         reward,
         terminated,
     )
-    bank = RangeBankState(lw, BearingsGaussian(X, P, t_bank))
+    bank = RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t_bank))
     new = ManeuverState(state.t + w.dt, pos, heading, speed, target, bank, L, accuracy, z)
     return new, reward, terminated
 
@@ -510,12 +510,22 @@ def info(params: ManeuverParams, state: ManeuverState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the nearest
     platform's range, the bound the reward measures, the estimate's position error, the
     tracker clock."""
-    est = state.estimate
+    B = state.batch_size
+    nearest, error = np.empty(B), np.empty(B)
+    info_kernel(
+        np.ascontiguousarray(state.platform_position, dtype=np.float64),
+        np.ascontiguousarray(state.target, dtype=np.float64),
+        np.ascontiguousarray(state.bank.log_weights),
+        np.ascontiguousarray(state.bank.members.x),
+        np.ascontiguousarray(state.bank.members.P),
+        nearest,
+        error,
+    )
     return {
-        "range": state.range.min(axis=1),
+        "range": nearest,
         "bound": state.accuracy,
-        "position_error": np.hypot(*(est.position - state.target[:, :2]).T),
-        "tracker_t": np.full(state.batch_size, state.bank.t),
+        "position_error": error,
+        "tracker_t": np.full(B, state.bank.t),
     }
 
 

@@ -274,6 +274,15 @@ class RangeBankState:
             raise ValueError("log_weights: contains NaN")
         object.__setattr__(self, "log_weights", lw)
 
+    @classmethod
+    def trusted(cls, log_weights: FloatArray, members: BearingsGaussian) -> RangeBankState:
+        """A bank from arrays a compiled kernel has just written, without the constructor's
+        checks (hot paths only)."""
+        obj = object.__new__(cls)
+        object.__setattr__(obj, "log_weights", log_weights)
+        object.__setattr__(obj, "members", members)
+        return obj
+
     @property
     def t(self) -> float:
         """Time (s) of the estimate."""
@@ -298,7 +307,7 @@ class RangeBankState:
             x.reshape(-1, STATE_DIM),
             P.reshape(-1, STATE_DIM, STATE_DIM),
         )
-        return BearingsGaussian(x, P, self.t)
+        return BearingsGaussian.trusted(x, P, self.t)
 
 
 def range_bank_prior(
@@ -416,7 +425,7 @@ def range_bank_update(
             np.ascontiguousarray(p[..., 0, :]).reshape(-1, 2),
             float(sigma),
         )
-        return RangeBankState(lw, BearingsGaussian(x, P, state.t))
+        return RangeBankState.trusted(lw, BearingsGaussian.trusted(x, P, state.t))
     members, nu, S = _TERMS[component](state.members, z, p, sigma)
     lw = state.log_weights - 0.5 * (nu**2 / S + np.log(2.0 * np.pi * S))
     lw = lw - _logsumexp(lw)[..., None]

@@ -61,6 +61,16 @@ class BearingsGaussian:
         object.__setattr__(self, "P", P)
         object.__setattr__(self, "t", float(self.t))
 
+    @classmethod
+    def trusted(cls, x: FloatArray, P: FloatArray, t: float) -> BearingsGaussian:
+        """An estimate from arrays a compiled kernel has just written (float64, matching
+        shapes), without the checks of the constructor (hot paths only)."""
+        obj = object.__new__(cls)
+        object.__setattr__(obj, "x", x)
+        object.__setattr__(obj, "P", P)
+        object.__setattr__(obj, "t", float(t))
+        return obj
+
     @property
     def position(self) -> FloatArray:
         """Estimated position ``(..., 2)`` (m)."""
