@@ -48,30 +48,22 @@ finite fallback:
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
-from sensorgym.envs.worlds.stereo_scene import perturb_directions
+from sensorgym.envs.stereo_pointing.kernels import (
+    lines_of_sight_batch,
+    observe_kernel,
+    pointing_offsets_batch,
+    step_kernel,
+)
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
-from sensorgym.trackers.stereo.information import (
-    MAX_REWARD_CLIP,
-    MIN_RANGE,
-    fix_in_front,
-    log_ratio_reward,
-    observable,
-    position_information,
-    position_sigma,
-    weighted_fix,
-)
-from sensorgym.trackers.stereo.kalman import (
-    CVTrack,
-    cv_predict,
-    cv_prior,
-    cv_update,
-)
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP, MIN_RANGE, log_ratio_reward
+from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior
 from sensorgym.trackers.validation import count, finite_array
 
 FloatArray = NDArray[np.float64]
@@ -191,6 +183,13 @@ class PointingParams:
         r = self.circle_radius
         return np.stack([r * np.sin(ang), np.zeros_like(ang), r * np.cos(ang)], -1)
 
+    @functools.cached_property
+    def _receivers(self) -> FloatArray:
+        """:attr:`receiver_positions`, computed once (read-only) for the compiled kernels."""
+        o = np.ascontiguousarray(self.receiver_positions)
+        o.flags.writeable = False
+        return o
+
     @property
     def length_scale(self) -> float:
         """Length (m) that normalises observed positions: the far edge of the start distances."""
@@ -254,9 +253,12 @@ def lines_of_sight(params: PointingParams, points: FloatArray) -> tuple[FloatArr
     (:func:`~sensorgym.envs.worlds.stereo_scene.perturb_directions`) and reads as a zero
     pointing offset (:func:`pointing_offsets`).
     """
-    d = points[:, None, :, :] - params.receiver_positions[None, :, None, :]
-    r = np.linalg.norm(d, axis=-1)
-    return _unit_or_zero(d, r), r
+    p = _c(points)
+    B, m = p.shape[:2]
+    n = params.n_receivers
+    u, r = np.empty((B, n, m, 3)), np.empty((B, n, m))
+    lines_of_sight_batch(params._receivers, p, u, r)
+    return u, r
 
 
 def _unit_or_zero(d: FloatArray, r: FloatArray) -> FloatArray:
@@ -361,6 +363,12 @@ def reward_of(params: PointingParams, sigma_pos: FloatArray) -> FloatArray:
     return log_ratio_reward(sigma_pos, params.sigma_ref, params.reward_clip).mean(axis=-1)
 
 
+def _c(a: ArrayLike) -> FloatArray:
+    """``a`` as a C-contiguous float64 array (no copy if it is one): the one layout the
+    compiled kernels are built for."""
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
 def step(
     params: PointingParams, state: PointingState, action: ArrayLike, rng: np.random.Generator
 ) -> tuple[PointingState, FloatArray, BoolArray]:
@@ -370,39 +378,49 @@ def step(
     Returns ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always
     False); the time limit is the shells' business.
     """
-    n, B = params.n_receivers, state.batch_size
+    n, m, B = params.n_receivers, params.n_drones, state.batch_size
     a = finite_array(action, "action")
     if a.size != B * n * 2:
         raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
-    a = np.clip(a.reshape(B, n, 2), -1.0, 1.0)
-    turn = a * (params.slew_rate * params.dt)
-    az = wrap_angle(state.azimuth + turn[..., 0])
-    el = np.clip(state.elevation + turn[..., 1], -params.max_elevation, params.max_elevation)
-    p = state.drone_position + state.drone_velocity * params.dt
-    u, r = lines_of_sight(params, p)  # (B, n, m, 3), (B, n, m)
-    bore = boresights(az, el)  # (B, n, 3)
-    # a zero line of sight (drone on the receiver) gives 0 here and is never seen
-    seen = np.einsum("bki,bkji->bkj", bore, u) >= np.cos(params.fov)
-    # measure every pair (a fixed number of draws), use only what is seen
-    z = perturb_directions(u, params.sigma_ang, rng) if params.sigma_ang > 0.0 else u
-    # per drone: (B, m, n, ...) views
-    origins = np.broadcast_to(params.receiver_positions[None, None], (B, params.n_drones, n, 3))
-    z_t, seen_t = np.swapaxes(z, 1, 2), np.swapaxes(seen, 1, 2)
-    fix, G_fix, ok_fix = weighted_fix(origins, z_t, seen_t)
-    # not trusted: a fix behind, on or next to a receiver that sees it (near-singular geometry
-    # the noisy observability test let through, theory §4.3)
-    ok_fix = ok_fix & fix_in_front(fix, origins, z_t, seen_t)
-    track = cv_predict(state.track, params.dt, params.process_noise)
-    # R = σ² G⁻¹ at the fix's own ranges
-    R = params.sigma_ang**2 * np.linalg.inv(np.where(ok_fix[..., None, None], G_fix, np.eye(3)))
-    track = cv_update(track, fix, R, ok_fix)
-    # the reward's bound: true lines of sight and ranges of the receivers that see the drone
-    G_true = position_information(np.swapaxes(u, 1, 2), np.swapaxes(r, 1, 2), mask=seen_t)
-    bound = position_sigma(G_true, observable(G_true, seen_t), params.sigma_ang)
-    new = PointingState(
-        state.t + params.dt, az, el, p, state.drone_velocity, track, seen, ok_fix, bound
+    # measure every pair (a fixed number of draws, perturb_directions' draws), use what is seen
+    noise = rng.standard_normal((B, n, m, 3)) if params.sigma_ang > 0.0 else np.empty((B, n, m, 3))
+    az, el = np.empty((B, n)), np.empty((B, n))
+    p, x, P = np.empty((B, m, 3)), np.empty((B, m, 6)), np.empty((B, m, 6, 6))
+    seen, fixed = np.empty((B, n, m), dtype=bool), np.empty((B, m), dtype=bool)
+    bound, reward = np.empty((B, m)), np.empty(B)
+    step_kernel(
+        params._receivers,
+        _c(state.azimuth),
+        _c(state.elevation),
+        _c(state.drone_position),
+        _c(state.drone_velocity),
+        _c(state.track.x),
+        _c(state.track.P),
+        np.ascontiguousarray(a.reshape(B, n, 2)),
+        noise,
+        params.slew_rate * params.dt,
+        params.max_elevation,
+        params.dt,
+        params.process_noise,
+        np.cos(params.fov),
+        params.sigma_ang,
+        params.sigma_ref,
+        params.reward_clip,
+        az,
+        el,
+        p,
+        x,
+        P,
+        seen,
+        fixed,
+        bound,
+        reward,
     )
-    return new, reward_of(params, bound), np.zeros(B, dtype=bool)
+    track = CVTrack(x, P)
+    new = PointingState(
+        state.t + params.dt, az, el, p, state.drone_velocity, track, seen, fixed, bound
+    )
+    return new, reward, np.zeros(B, dtype=bool)
 
 
 def predicted_track(params: PointingParams, state: PointingState) -> CVTrack:
@@ -417,10 +435,17 @@ def pointing_offsets(
     ``(wrap(α_kj − α_k), ε_kj − ε_k)`` with ``(α_kj, ε_kj)`` the direction of point ``j``
     from receiver ``k``; slewing by exactly these offsets puts the point on the boresight.
     A point on a receiver (no direction, :func:`lines_of_sight`) reads as a zero offset."""
-    u, _ = lines_of_sight(params, points)
-    az, el, has = _angles(u)
-    offsets = np.stack([wrap_angle(az - azimuth[..., None]), el - elevation[..., None]], -1)
-    return offsets if np.all(has) else np.where(has[..., None], offsets, 0.0)
+    p = _c(points)
+    B, m = p.shape[:2]
+    out = np.empty((B, params.n_receivers, m, 2))
+    pointing_offsets_batch(
+        params._receivers,
+        _c(azimuth),
+        _c(elevation),
+        p,
+        out,
+    )
+    return out
 
 
 def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]:
@@ -441,22 +466,20 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]`` (an offset of more than ten
     half-angles reads as ±10).
     """
-    B = state.batch_size
-    pred = predicted_track(params, state)
-    gimbals = np.stack(
-        [np.sin(state.azimuth), np.cos(state.azimuth), state.elevation / (np.pi / 2)], -1
-    )
-    offsets = pointing_offsets(params, state.azimuth, state.elevation, pred.position) / params.fov
-    per_pair = np.concatenate([offsets, state.seen[..., None].astype(np.float64)], -1)
-    drones = np.concatenate(
-        [
-            pred.position / params.length_scale,
-            np.log(np.maximum(pred.position_sigma, 1e-12) / params.sigma_ref)[..., None],
-        ],
-        -1,
-    )
-    obs = np.concatenate(
-        [gimbals.reshape(B, -1), per_pair.reshape(B, -1), drones.reshape(B, -1)], -1
+    obs = np.empty((state.batch_size, params.obs_dim))
+    observe_kernel(
+        params._receivers,
+        _c(state.azimuth),
+        _c(state.elevation),
+        _c(state.track.x),
+        _c(state.track.P),
+        np.ascontiguousarray(state.seen, dtype=bool),
+        params.dt,
+        params.process_noise,
+        params.fov,
+        params.length_scale,
+        params.sigma_ref,
+        obs,
     )
     return clip_observation(obs)
 

@@ -25,6 +25,12 @@ where the receivers stand, and the information at that fix's own (tiny) ranges i
 ``MIN_FIX_RANGE`` in front of every receiver that sees it. The checked public API of
 :mod:`.accuracy` (``position_information``, ``position_crlb``) validates its inputs and calls
 these.
+
+Each formula is written once, as a compiled primitive of :mod:`.kernels`; the functions here
+broadcast their inputs, flatten the batch and loop over it in compiled code. Two keep a numpy
+form, each saying why: :func:`position_sigma` (LAPACK's inverse) and :func:`log_ratio_reward`
+(numpy's vectorised logarithm) — StereoPlacement's recorded episodes pass through them bit for
+bit, and the compiled twins round differently in the last bit.
 """
 
 from __future__ import annotations
@@ -32,19 +38,41 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.stereo import kernels
+from sensorgym.trackers.stereo.kernels import CONDITION, MIN_FIX_RANGE, MIN_RANGE
+
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-#: the information is regular where ``det I > CONDITION · (tr I)³``
-CONDITION = 1e-12
-#: ranges are floored at this (m) so that a receiver on the point gives finite information
-MIN_RANGE = 1e-9
+__all__ = [
+    "CONDITION",
+    "MAX_REWARD_CLIP",
+    "MIN_FIX_RANGE",
+    "MIN_RANGE",
+    "fix_in_front",
+    "log_ratio_reward",
+    "observable",
+    "position_information",
+    "position_sigma",
+    "weighted_fix",
+]
+
 #: largest clip ``R`` of :func:`log_ratio_reward` an env accepts: sums of ``±R`` over drones and
 #: episodes stay finite
 MAX_REWARD_CLIP = 1e6
-#: a fix is trusted only if it lies at least this far (m) in front of every receiver that sees
-#: it, along that receiver's line of sight (:func:`fix_in_front`)
-MIN_FIX_RANGE = 1e-2
+
+
+def _flat(value: ArrayLike, shape: tuple[int, ...], dtype=np.float64) -> np.ndarray:
+    """``value`` broadcast to ``shape`` as a C-contiguous array of ``dtype`` with the batch axes
+    ``shape[:-k]`` flattened by the caller's reshape."""
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=dtype), shape))
+
+
+def _views(mask: ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:
+    """``mask`` broadcast to ``shape`` (None: every receiver sees) as C-contiguous bools."""
+    if mask is None:
+        return np.ones(shape, dtype=bool)
+    return _flat(mask, shape, bool)
 
 
 def position_information(
@@ -58,30 +86,48 @@ def position_information(
     Leading axes broadcast.
     """
     u = np.asarray(los, dtype=np.float64)
-    r = np.maximum(np.asarray(ranges, dtype=np.float64), MIN_RANGE)
-    w = 1.0 / (np.broadcast_to(sigma, r.shape) * r) ** 2
-    if mask is not None:
-        w = np.asarray(mask, dtype=bool) * w
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    # I = Σ_k w_k Π_k,  Π_k = I − u_k u_kᵀ
-    return np.einsum("...k,...kij->...ij", w, proj)
+    r = np.asarray(ranges, dtype=np.float64)
+    s, m = np.asarray(sigma, dtype=np.float64), None if mask is None else np.asarray(mask, bool)
+    batch = np.broadcast_shapes(u.shape[:-1], r.shape, s.shape, () if m is None else m.shape)
+    n = batch[-1]
+    out = np.empty((*batch[:-1], 3, 3))
+    kernels.position_information_batch(
+        _flat(u, (*batch, 3)).reshape(-1, n, 3),
+        _flat(r, batch).reshape(-1, n),
+        _flat(s, batch).reshape(-1, n),
+        _views(m, batch).reshape(-1, n),
+        out.reshape(-1, 3, 3),
+    )
+    return out
 
 
 def observable(information: ArrayLike, mask: ArrayLike | None = None) -> BoolArray:
     """Where the position is observable ``(...)``: ``det I > CONDITION · (tr I)³`` and, with a
     ``mask (..., n)``, at least two receivers see the point."""
     info = np.asarray(information, dtype=np.float64)
-    tr = np.trace(info, axis1=-2, axis2=-1)
-    regular = np.linalg.det(info) > CONDITION * tr**3
     if mask is None:
-        return regular
-    return (np.sum(np.asarray(mask, dtype=bool), axis=-1) >= 2) & regular
+        batch = info.shape[:-2]
+        views = np.full(batch, 3, dtype=np.int64)  # no mask: the determinant test alone
+    else:
+        m = np.asarray(mask, dtype=bool)
+        batch = np.broadcast_shapes(info.shape[:-2], m.shape[:-1])
+        views = np.broadcast_to(np.sum(m, axis=-1), batch)
+    out = np.empty(batch, dtype=bool)
+    kernels.observable_batch(
+        _flat(info, (*batch, 3, 3)).reshape(-1, 3, 3),
+        _flat(views, batch, np.int64).reshape(-1),
+        out.reshape(-1),
+    )
+    return out
 
 
 def position_sigma(information: ArrayLike, ok: ArrayLike, sigma: float = 1.0) -> FloatArray:
     """Position RMS bound ``σ √tr I⁻¹`` ``(...)`` (m) where ``ok``; ``+inf`` elsewhere (the
     documented value of an unobservable position). ``sigma`` scales a geometry part
     ``G = σ² I`` (pass the information itself with the default 1)."""
+    # numpy form kept on purpose (the compiled twin is kernels.position_sigma): LAPACK's inverse
+    # rounds differently from the compiled LU in the last bits, and StereoPlacement's recorded
+    # episodes are bit-exact through this function
     info = np.asarray(information, dtype=np.float64)
     good = np.asarray(ok, dtype=bool)
     safe = np.where(good[..., None, None], info, np.eye(3))
@@ -92,6 +138,9 @@ def position_sigma(information: ArrayLike, ok: ArrayLike, sigma: float = 1.0) ->
 def log_ratio_reward(sigma_pos: ArrayLike, sigma_ref: float, clip: float) -> FloatArray:
     """``clip(ln(σ_ref / σ_pos), −R, R)`` elementwise (theory §11.1): ``+R`` for an exact fix
     (``σ_pos = 0``), ``−R`` where ``σ_pos`` is ``inf`` or NaN (no fix) — always finite."""
+    # numpy form kept on purpose (the compiled twin is kernels.log_ratio_reward): numpy's SIMD
+    # log differs from libm's in the last bit for about 1e-4 of arguments, and StereoPlacement's
+    # recorded episodes are bit-exact through this function
     s = np.asarray(sigma_pos, dtype=np.float64)
     finite = np.isfinite(s)
     positive = finite & (s > 0.0)
@@ -119,28 +168,27 @@ def weighted_fix(
     ``(M (..., 3), I (..., 3, 3) at the final ranges, ok (...))``; where ``ok`` is False (fewer
     than two views, parallel lines of sight) ``M`` is zero and must not be used.
     """
-    o = np.asarray(origins, dtype=np.float64)
-    u = np.asarray(los, dtype=np.float64)
     if iterations < 1:
         raise ValueError(f"iterations: must be at least 1, got {iterations}")
-    batch = np.broadcast_shapes(o.shape[:-1], u.shape[:-1])
-    s = np.ones(batch, dtype=bool) if mask is None else np.asarray(mask, dtype=bool)
-    o = np.broadcast_to(o, (*s.shape, 3))
-    proj = np.eye(3) - u[..., :, None] * u[..., None, :]
-    r = np.ones(s.shape)
-    M = np.zeros((*s.shape[:-1], 3))
-    ok = np.zeros(s.shape[:-1], dtype=bool)
-    for _ in range(iterations):
-        info = position_information(u, r, sigma, s)
-        ok = observable(info, s)
-        w = s / (np.broadcast_to(sigma, r.shape) * r) ** 2
-        # (Σ w_k Π_k) M = Σ w_k Π_k o_k
-        rhs = np.einsum("...k,...kij,...kj->...i", w, proj, o)
-        safe = np.where(ok[..., None, None], info, np.eye(3))
-        M = np.where(ok[..., None], np.linalg.solve(safe, rhs[..., None])[..., 0], 0.0)
-        r = np.maximum(np.linalg.norm(M[..., None, :] - o, axis=-1), MIN_RANGE)
-    info = position_information(u, r, sigma, s)
-    return M, info, ok & observable(info, s)
+    o = np.asarray(origins, dtype=np.float64)
+    u = np.asarray(los, dtype=np.float64)
+    s, m = np.asarray(sigma, dtype=np.float64), None if mask is None else np.asarray(mask, bool)
+    batch = np.broadcast_shapes(o.shape[:-1], u.shape[:-1], s.shape, () if m is None else m.shape)
+    n = batch[-1]
+    M = np.empty((*batch[:-1], 3))
+    info = np.empty((*batch[:-1], 3, 3))
+    ok = np.empty(batch[:-1], dtype=bool)
+    kernels.weighted_fix_batch(
+        _flat(o, (*batch, 3)).reshape(-1, n, 3),
+        _flat(u, (*batch, 3)).reshape(-1, n, 3),
+        _views(m, batch).reshape(-1, n),
+        _flat(s, batch).reshape(-1, n),
+        int(iterations),
+        M.reshape(-1, 3),
+        info.reshape(-1, 3, 3),
+        ok.reshape(-1),
+    )
+    return M, info, ok
 
 
 def fix_in_front(
@@ -161,7 +209,18 @@ def fix_in_front(
     M = np.asarray(fix, dtype=np.float64)
     o = np.asarray(origins, dtype=np.float64)
     u = np.asarray(los, dtype=np.float64)
-    ahead = np.einsum("...ki,...ki->...k", u, M[..., None, :] - o) > min_range
-    if mask is not None:
-        ahead = ahead | ~np.asarray(mask, dtype=bool)
-    return np.all(ahead, axis=-1)
+    m = None if mask is None else np.asarray(mask, dtype=bool)
+    batch = np.broadcast_shapes(
+        (*M.shape[:-1], 1), o.shape[:-1], u.shape[:-1], () if m is None else m.shape
+    )
+    n = batch[-1]
+    out = np.empty(batch[:-1], dtype=bool)
+    kernels.fix_in_front_batch(
+        _flat(M, (*batch[:-1], 3)).reshape(-1, 3),
+        _flat(o, (*batch, 3)).reshape(-1, n, 3),
+        _flat(u, (*batch, 3)).reshape(-1, n, 3),
+        _views(m, batch).reshape(-1, n),
+        float(min_range),
+        out.reshape(-1),
+    )
+    return out

@@ -28,9 +28,12 @@ uses the pseudo-inverse gain instead of ``S⁻¹``: ``K = P Hᵀ S⁺`` on the r
 null space ``N = I − S S⁺`` (directions in which both the prediction and the fix claim to be
 exact), the fix itself, ``K_p += N``. ``S = 0`` therefore gives the fix as the position and
 leaves the velocity and its covariance unchanged; ``σ = 0`` with a regular ``S = P_pp`` gives
-``K_p = I``, the fix again (to round-off). Regular ``S`` keeps ``np.linalg.solve``, bit for bit.
+``K_p = I``, the fix again (to round-off). Regular ``S`` is solved by LU with partial pivoting
+(:func:`~.kernels.lu3`).
 
-Every function takes leading batch axes.
+Every function takes leading batch axes. Each formula is written once, as a compiled primitive
+of :mod:`.kernels` (``cv_predict``, ``cv_update``, ``singular_innovation``, ``pseudo_gain``); the
+functions here broadcast, flatten the batch and loop over it in compiled code.
 """
 
 from __future__ import annotations
@@ -40,16 +43,22 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.stereo import kernels
+from sensorgym.trackers.stereo.kernels import RCOND, SCREEN
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-#: the innovation covariance ``S`` is singular where an eigenvalue ``λ ≤ RCOND · max|λ|``
-RCOND = 1e-13
-#: cheap pre-screen of :func:`singular_innovation`: only matrices with a leading principal
-#: minor ``≤ SCREEN · ‖S‖^k`` (``k`` = its order) are decomposed
-SCREEN = 1e-9
+__all__ = [
+    "RCOND",
+    "SCREEN",
+    "CVTrack",
+    "cv_predict",
+    "cv_prior",
+    "cv_update",
+    "singular_innovation",
+]
 
 
 @dataclass(frozen=True)
@@ -97,13 +106,19 @@ def cv_prior(position: ArrayLike, velocity: ArrayLike, sigma_p: float, sigma_v: 
 
 def cv_predict(track: CVTrack, dt: float, q: float) -> CVTrack:
     """Predictor: ``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q`` over ``dt`` seconds (``q`` in m²/s³)."""
-    # F = [[I, dt I], [0, I]],  Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]
-    F = np.kron([[1.0, dt], [0.0, 1.0]], np.eye(3))
-    Q = np.kron(q * np.array([[dt**3 / 3.0, dt**2 / 2.0], [dt**2 / 2.0, dt]]), np.eye(3))
-    x = track.x @ F.T
-    # P⁻ = F P Fᵀ + Q
-    P = F @ track.P @ F.T + Q
-    return CVTrack(x, P)
+    # F = [[I, dt I], [0, I]],  Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]  (kernels.cv_predict)
+    x = np.ascontiguousarray(track.x, dtype=np.float64)
+    P = np.ascontiguousarray(track.P, dtype=np.float64)
+    x_out, P_out = np.empty_like(x), np.empty_like(P)
+    kernels.cv_predict_batch(
+        x.reshape(-1, 6),
+        P.reshape(-1, 6, 6),
+        float(dt),
+        float(q),
+        x_out.reshape(-1, 6),
+        P_out.reshape(-1, 6, 6),
+    )
+    return CVTrack(x_out, P_out)
 
 
 def singular_innovation(S: ArrayLike) -> BoolArray:
@@ -115,31 +130,10 @@ def singular_innovation(S: ArrayLike) -> BoolArray:
     ``λ_min ≤ RCOND · λ_max`` has ``det S ≤ RCOND · ‖S‖³``; so every singular ``S`` has a leading
     minor of order ``k`` at most ``SCREEN · ‖S‖^k`` (``SCREEN > RCOND``, ``‖·‖`` Frobenius).
     """
-    S = np.asarray(S, dtype=np.float64)
-    norm = np.sqrt(np.sum(S * S, axis=(-2, -1)))  # Frobenius ‖S‖ ≥ max|λ|
-    m1 = S[..., 0, 0]
-    m2 = S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] * S[..., 1, 0]
-    m3 = np.linalg.det(S)
-    suspect = (m1 <= SCREEN * norm) | (m2 <= SCREEN * norm**2) | (m3 <= SCREEN * norm**3)
-    singular = np.zeros(S.shape[:-2], dtype=bool)
-    if np.any(suspect):
-        lam = np.linalg.eigvalsh(S[suspect])
-        singular[suspect] = lam[..., 0] <= RCOND * np.abs(lam).max(axis=-1)
-    return singular
-
-
-def _pseudo_gain(P: FloatArray, S: FloatArray) -> FloatArray:
-    """Gain ``(..., 6, 3)`` for singular ``S``: ``P Hᵀ S⁺`` plus the null-space projector of
-    ``S`` on the position rows (there the fix is taken as it is)."""
-    lam, V = np.linalg.eigh(S)
-    keep = lam > RCOND * np.abs(lam).max(axis=-1, keepdims=True)
-    inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
-    # S⁺ = V diag(1/λ on the kept eigenvalues) Vᵀ,  N = I − S S⁺ = V diag(not kept) Vᵀ
-    pinv = np.einsum("...ik,...k,...jk->...ij", V, inv, V)
-    null = np.einsum("...ik,...k,...jk->...ij", V, (~keep).astype(np.float64), V)
-    K = np.swapaxes(P[..., :3, :], -1, -2) @ pinv
-    K[..., :3, :] += null
-    return K
+    S = np.ascontiguousarray(S, dtype=np.float64)
+    out = np.empty(S.shape[:-2], dtype=bool)
+    kernels.singular_innovation_batch(S.reshape(-1, 3, 3), out.reshape(-1))
+    return out
 
 
 def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CVTrack:
@@ -152,18 +146,17 @@ def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CV
     z = np.asarray(z, dtype=np.float64)
     R = np.asarray(R, dtype=np.float64)
     m = np.asarray(mask, dtype=bool)
-    Ppp = track.P[..., :3, :3]
-    # S = H P Hᵀ + R ;  K = P Hᵀ S⁻¹
-    S = Ppp + R
-    S = np.where(m[..., None, None], S, np.eye(3))  # untouched tracks: any invertible S
-    singular = singular_innovation(S)
-    regular = np.where(singular[..., None, None], np.eye(3), S)
-    K = np.swapaxes(np.linalg.solve(regular, track.P[..., :3, :]), -1, -2)
-    if np.any(singular):
-        K[singular] = _pseudo_gain(track.P[singular], S[singular])
-    innovation = z - track.position
-    x = track.x + np.einsum("...ij,...j->...i", K, innovation)
-    # P = P − K S Kᵀ, symmetrised against round-off
-    P = track.P - K @ S @ np.swapaxes(K, -1, -2)
-    P = 0.5 * (P + np.swapaxes(P, -1, -2))
-    return CVTrack(np.where(m[..., None], x, track.x), np.where(m[..., None, None], P, track.P))
+    batch = np.broadcast_shapes(track.x.shape[:-1], z.shape[:-1], R.shape[:-2], m.shape)
+    x = np.ascontiguousarray(np.broadcast_to(track.x, (*batch, 6)), dtype=np.float64)
+    P = np.ascontiguousarray(np.broadcast_to(track.P, (*batch, 6, 6)), dtype=np.float64)
+    x_out, P_out = np.empty_like(x), np.empty_like(P)
+    kernels.cv_update_batch(
+        x.reshape(-1, 6),
+        P.reshape(-1, 6, 6),
+        np.ascontiguousarray(np.broadcast_to(z, (*batch, 3))).reshape(-1, 3),
+        np.ascontiguousarray(np.broadcast_to(R, (*batch, 3, 3))).reshape(-1, 3, 3),
+        np.ascontiguousarray(np.broadcast_to(m, batch)).reshape(-1),
+        x_out.reshape(-1, 6),
+        P_out.reshape(-1, 6, 6),
+    )
+    return CVTrack(x_out, P_out)

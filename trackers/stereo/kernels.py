@@ -1,0 +1,467 @@
+"""Compiled primitives of the stereo trackers: the one copy of each formula (theory §4, §11.3).
+
+Small numba functions over one object at a time — lines of sight, the masked position
+information, the observability test, the weighted least-squares fix and its in-front test, the
+position bound and the log-ratio reward, the constant-velocity Kalman predict/update and the
+angles of a unit vector. The batched public functions of :mod:`.information` and :mod:`.kalman`
+loop over their batch in compiled code and call these; the environments' fused steps (e.g.
+:mod:`sensorgym.envs.stereo_pointing.kernels`) call the same ones. Every function works on
+array views it is given (no allocation on the regular paths), never raises and keeps the
+documented fallbacks of the public functions.
+
+3×3 systems are solved by Gaussian elimination with partial pivoting (:func:`lu3`,
+:func:`lu_solve3`); determinants by cofactors (:func:`det3`). Both are the textbook algorithms
+LAPACK runs for these sizes, in another order of operations: results agree with the former
+``np.linalg`` forms to round-off (last bits), and every decision (observable, singular) to
+round-off at its threshold.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+#: the information is regular where ``det I > CONDITION · (tr I)³``
+CONDITION = 1e-12
+#: ranges are floored at this (m) so that a receiver on the point gives finite information
+MIN_RANGE = 1e-9
+#: a fix is trusted only if it lies at least this far (m) in front of every receiver that sees
+#: it, along that receiver's line of sight
+MIN_FIX_RANGE = 1e-2
+#: the innovation covariance ``S`` is singular where an eigenvalue ``λ ≤ RCOND · max|λ|``
+RCOND = 1e-13
+#: cheap pre-screen of :func:`singular_innovation`: only matrices with a leading principal
+#: minor ``≤ SCREEN · ‖S‖^k`` (``k`` = its order) are decomposed
+SCREEN = 1e-9
+
+JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+
+# ---------------------------------------------------------------- scalars and small algebra
+
+
+@njit(**JIT)
+def clip(x, lo, hi):
+    """``np.clip`` of one value (NaN stays NaN)."""
+    if x < lo:
+        return lo
+    if x > hi:
+        return hi
+    return x
+
+
+@njit(**JIT)
+def floor_range(r):
+    """``max(r, MIN_RANGE)`` (NaN stays NaN, as ``np.maximum``)."""
+    return MIN_RANGE if r < MIN_RANGE else r
+
+
+@njit(**JIT)
+def wrap_angle(a):
+    """``(a + π) mod 2π − π``: the angle in ``[−π, π)`` (theory §2, ``geometry.wrap_angle``)."""
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@njit(**JIT)
+def det3(A):
+    """``det A`` of a 3×3 ``A`` by cofactors along the first row."""
+    return (
+        A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
+        - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+        + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
+    )
+
+
+@njit(**JIT)
+def lu3(A, LU, piv):
+    """``P A = L U`` of a 3×3 ``A`` by Gaussian elimination with partial pivoting: ``LU`` gets
+    ``U`` on and above the diagonal and the multipliers of ``L`` below, ``piv[i]`` the row
+    swapped into row ``i`` at step ``i``. A zero pivot is left in ``U`` (a singular ``A``)."""
+    LU[:, :] = A
+    for i in range(3):
+        # pivot: the largest |a_ki| of column i at or below row i
+        p = i
+        for k in range(i + 1, 3):
+            if abs(LU[k, i]) > abs(LU[p, i]):
+                p = k
+        piv[i] = p
+        if p != i:
+            for c in range(3):
+                LU[i, c], LU[p, c] = LU[p, c], LU[i, c]
+        if LU[i, i] != 0.0:
+            for k in range(i + 1, 3):
+                # l_ki = a_ki / a_ii ;  a_kc −= l_ki a_ic
+                LU[k, i] /= LU[i, i]
+                for c in range(i + 1, 3):
+                    LU[k, c] -= LU[k, i] * LU[i, c]
+
+
+@njit(**JIT)
+def lu_solve3(LU, piv, B, X):
+    """``X = A⁻¹ B`` (``B``, ``X`` of shape ``(3, k)``, may be the same array) from
+    :func:`lu3`'s factors: row swaps, then ``L y = P b`` and ``U x = y`` per column."""
+    if X is not B:
+        X[:, :] = B
+    for i in range(3):
+        p = piv[i]
+        if p != i:
+            for c in range(X.shape[1]):
+                X[i, c], X[p, c] = X[p, c], X[i, c]
+    for c in range(X.shape[1]):
+        # forward: y_i = b_i − Σ_{j<i} l_ij y_j
+        X[1, c] -= LU[1, 0] * X[0, c]
+        X[2, c] -= LU[2, 0] * X[0, c] + LU[2, 1] * X[1, c]
+        # back: x_i = (y_i − Σ_{j>i} u_ij x_j) / u_ii
+        X[2, c] /= LU[2, 2]
+        X[1, c] = (X[1, c] - LU[1, 2] * X[2, c]) / LU[1, 1]
+        X[0, c] = (X[0, c] - LU[0, 1] * X[1, c] - LU[0, 2] * X[2, c]) / LU[0, 0]
+
+
+@njit(**JIT)
+def inverse3(A, LU, piv, out):
+    """``out = A⁻¹`` of a regular 3×3 ``A`` (scratch ``LU (3, 3)``, ``piv (3,)``)."""
+    lu3(A, LU, piv)
+    for i in range(3):
+        for j in range(3):
+            out[i, j] = 1.0 if i == j else 0.0
+    lu_solve3(LU, piv, out, out)
+
+
+# ---------------------------------------------------------------- lines of sight and angles
+
+
+@njit(**JIT)
+def line_of_sight(o, p, u):
+    """Unit line of sight ``u = (p − o)/‖p − o‖`` from ``o`` to ``p`` into ``u (3,)``; returns the
+    range ``r = ‖p − o‖``. Within ``MIN_RANGE`` of ``o`` there is no direction: ``u = 0``."""
+    d0, d1, d2 = p[0] - o[0], p[1] - o[1], p[2] - o[2]
+    r = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    if r > MIN_RANGE:
+        u[0], u[1], u[2] = d0 / r, d1 / r, d2 / r
+    else:
+        u[0], u[1], u[2] = 0.0, 0.0, 0.0
+    return r
+
+
+@njit(**JIT)
+def unit_from_angles(azimuth, elevation, u):
+    """``u = (cos ε sin α, sin ε, cos ε cos α)`` (000 eq. 2, theory §2.2) into ``u (3,)``."""
+    ce = math.cos(elevation)
+    u[0], u[1], u[2] = ce * math.sin(azimuth), math.sin(elevation), ce * math.cos(azimuth)
+
+
+@njit(**JIT)
+def angles_from_unit(u):
+    """``(α, ε, has)``: azimuth ``atan2(u_x, u_z)`` and elevation ``arcsin u_y`` (000 eq. 3) of a
+    unit ``u``; the zero vector (no direction) gives ``(0, 0, False)``."""
+    if u[0] == 0.0 and u[1] == 0.0 and u[2] == 0.0:
+        return 0.0, 0.0, False
+    return math.atan2(u[0], u[2]), math.asin(clip(u[1], -1.0, 1.0)), True
+
+
+@njit(**JIT)
+def perturb_direction(a, z, sigma, out):
+    """Isotropic angular noise (``stereo_scene.perturb_directions``) from the standard normal
+    draws ``z (3,)``: ``v = a + σ (I − a aᵀ) z``, ``out = v/‖v‖``; a zero ``a`` stays zero."""
+    if a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0:
+        out[0], out[1], out[2] = 0.0, 0.0, 0.0
+        return
+    za = z[0] * a[0] + z[1] * a[1] + z[2] * a[2]
+    # δ = (I − a aᵀ) z σ
+    v0 = a[0] + (z[0] - za * a[0]) * sigma
+    v1 = a[1] + (z[1] - za * a[1]) * sigma
+    v2 = a[2] + (z[2] - za * a[2]) * sigma
+    norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    out[0], out[1], out[2] = v0 / norm, v1 / norm, v2 / norm
+
+
+# ---------------------------------------------------------------- information and the fix
+
+
+@njit(**JIT)
+def position_information(u, r, sigma, mask, out):
+    """``I = Σ_k m_k (I − u_k u_kᵀ) / (σ_k² r_k²)`` into ``out (3, 3)`` (theory §4.1), ranges
+    floored at ``MIN_RANGE``; ``u (n, 3)``, ``r``, ``sigma``, ``mask`` of shape ``(n,)``."""
+    out[:, :] = 0.0
+    for k in range(u.shape[0]):
+        sr = sigma[k] * floor_range(r[k])
+        w = (1.0 if mask[k] else 0.0) * (1.0 / (sr * sr))
+        for i in range(3):
+            for j in range(3):
+                # Π_k = I − u_k u_kᵀ
+                out[i, j] += w * ((1.0 if i == j else 0.0) - u[k, i] * u[k, j])
+
+
+@njit(**JIT)
+def observable(info, views):
+    """``det I > CONDITION · (tr I)³`` and at least two views (theory §4.3)."""
+    tr = info[0, 0] + info[1, 1] + info[2, 2]
+    return views >= 2 and det3(info) > CONDITION * tr**3
+
+
+@njit(**JIT)
+def count_views(mask):
+    """Number of receivers that see the point."""
+    n = 0
+    for k in range(mask.shape[0]):
+        if mask[k]:
+            n += 1
+    return n
+
+
+@njit(**JIT)
+def weighted_fix(o, u, mask, sigma, iterations, M, info, r, rhs, LU, piv):
+    """The position fix efficient to first order under angle noise (theory §4.2) into ``M (3,)``,
+    its information at the final ranges into ``info (3, 3)``; returns ``ok``.
+
+    ``(Σ_k w_k Π_k) M = Σ_k w_k Π_k o_k`` with ``w_k = m_k/(σ_k r_k)²``, ranges starting at 1
+    and refreshed from the fix ``iterations − 1`` times; ``M = 0`` where not observable.
+    Scratch: ``r (n,)``, ``rhs (3, 1)``, ``LU (3, 3)``, ``piv (3,)``.
+    """
+    n = o.shape[0]
+    views = count_views(mask)
+    r[:] = 1.0
+    ok = False
+    for _ in range(iterations):
+        position_information(u, r, sigma, mask, info)
+        ok = observable(info, views)
+        rhs[:, 0] = 0.0
+        for k in range(n):
+            sr = sigma[k] * r[k]
+            w = (1.0 if mask[k] else 0.0) / (sr * sr)
+            for i in range(3):
+                # Σ_k w_k Π_k o_k
+                rhs[i, 0] += w * (
+                    o[k, i] - u[k, i] * (u[k, 0] * o[k, 0] + u[k, 1] * o[k, 1] + u[k, 2] * o[k, 2])
+                )
+        if ok:
+            lu3(info, LU, piv)
+            lu_solve3(LU, piv, rhs, rhs)
+            M[0], M[1], M[2] = rhs[0, 0], rhs[1, 0], rhs[2, 0]
+        else:
+            M[0], M[1], M[2] = 0.0, 0.0, 0.0
+        for k in range(n):
+            d0, d1, d2 = M[0] - o[k, 0], M[1] - o[k, 1], M[2] - o[k, 2]
+            r[k] = floor_range(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2))
+    position_information(u, r, sigma, mask, info)
+    return ok and observable(info, views)
+
+
+@njit(**JIT)
+def fix_in_front(M, o, u, mask, min_range):
+    """``u_k · (M − o_k) > min_range`` for every receiver ``k`` that sees the fix (theory §4.3)."""
+    for k in range(o.shape[0]):
+        if mask[k]:
+            ahead = (
+                u[k, 0] * (M[0] - o[k, 0]) + u[k, 1] * (M[1] - o[k, 1]) + u[k, 2] * (M[2] - o[k, 2])
+            )
+            if not ahead > min_range:
+                return False
+    return True
+
+
+@njit(**JIT)
+def position_sigma(info, ok, sigma, LU, piv, inv):
+    """Position RMS bound ``σ √tr I⁻¹`` (m) where ``ok``, ``+inf`` elsewhere (theory §4.1)."""
+    if not ok:
+        return np.inf
+    inverse3(info, LU, piv, inv)
+    tr = inv[0, 0] + inv[1, 1] + inv[2, 2]
+    return sigma * math.sqrt(max(tr, 0.0))
+
+
+@njit(**JIT)
+def log_ratio_reward(sigma_pos, sigma_ref, clip_r):
+    """``clip(ln(σ_ref/σ_pos), −R, R)`` (theory §11.1): ``+R`` for ``σ_pos = 0``, ``−R`` for an
+    infinite or NaN ``σ_pos`` (no fix) — always finite."""
+    if not math.isfinite(sigma_pos):
+        return -clip_r
+    if not sigma_pos > 0.0:
+        return clip_r
+    return clip(math.log(sigma_ref) - math.log(sigma_pos), -clip_r, clip_r)
+
+
+# ---------------------------------------------------------------- constant-velocity Kalman filter
+
+
+@njit(**JIT)
+def cv_predict(x, P, dt, q, x_out, P_out):
+    """``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q`` (theory §4.2, :mod:`.kalman`), blockwise with
+    ``F = [[I, dt I], [0, I]]``, ``Q = q [[dt³/3 I, dt²/2 I], [dt²/2 I, dt I]]``:
+    ``P⁻_pp = P_pp + dt (P_vp + P_pv) + dt² P_vv``, ``P⁻_pv = P_pv + dt P_vv``, ``P⁻_vv = P_vv``
+    plus ``Q``. ``x_out``/``P_out`` may not alias ``x``/``P``."""
+    q_pp, q_pv, q_vv = q * (dt**3 / 3.0), q * (dt**2 / 2.0), q * dt
+    for i in range(3):
+        x_out[i] = x[i] + dt * x[i + 3]
+        x_out[i + 3] = x[i + 3]
+        for j in range(3):
+            pv = P[i, j + 3] + dt * P[i + 3, j + 3]
+            vp = P[i + 3, j] + dt * P[i + 3, j + 3]
+            P_out[i, j] = P[i, j] + dt * P[i + 3, j] + dt * pv
+            P_out[i, j + 3] = pv
+            P_out[i + 3, j] = vp
+            P_out[i + 3, j + 3] = P[i + 3, j + 3]
+        P_out[i, i] += q_pp
+        P_out[i, i + 3] += q_pv
+        P_out[i + 3, i] += q_pv
+        P_out[i + 3, i + 3] += q_vv
+
+
+@njit(**JIT)
+def singular_innovation(S):
+    """Whether the symmetric 3×3 ``S`` is singular to working precision: ``λ_min ≤ RCOND ·
+    max|λ|`` (:mod:`.kalman`); only matrices with a leading minor of order ``k`` at most
+    ``SCREEN · ‖S‖^k`` (Frobenius) are decomposed (Sylvester's criterion)."""
+    norm = 0.0
+    for i in range(3):
+        for j in range(3):
+            norm += S[i, j] * S[i, j]
+    norm = math.sqrt(norm)
+    m1 = S[0, 0]
+    m2 = S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    m3 = det3(S)
+    if m1 > SCREEN * norm and m2 > SCREEN * norm**2 and m3 > SCREEN * norm**3:
+        return False
+    lam = np.linalg.eigvalsh(np.ascontiguousarray(S))
+    return lam[0] <= RCOND * max(abs(lam[0]), abs(lam[2]))
+
+
+@njit(**JIT)
+def pseudo_gain(P, S, K):
+    """Gain ``K (6, 3)`` for singular ``S``: ``P Hᵀ S⁺`` plus the null-space projector
+    ``N = I − S S⁺`` of ``S`` on the position rows (there the fix is taken as it is)."""
+    lam, V = np.linalg.eigh(np.ascontiguousarray(S))
+    top = max(abs(lam[0]), abs(lam[2]))
+    pinv = np.zeros((3, 3))
+    null = np.zeros((3, 3))
+    for e in range(3):
+        keep = lam[e] > RCOND * top
+        for i in range(3):
+            for j in range(3):
+                # S⁺ = V diag(1/λ kept) Vᵀ,  N = V diag(not kept) Vᵀ
+                if keep:
+                    pinv[i, j] += V[i, e] * (1.0 / lam[e]) * V[j, e]
+                else:
+                    null[i, j] += V[i, e] * V[j, e]
+    for i in range(6):
+        for j in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += P[k, i] * pinv[k, j]
+            K[i, j] = acc + (null[i, j] if i < 3 else 0.0)
+
+
+@njit(**JIT)
+def cv_update(x, P, z, R, x_out, P_out, S, K, LU, piv, work):
+    """Kalman update with the position fix ``z (3,)`` of covariance ``R (3, 3)`` (:mod:`.kalman`):
+    ``S = P_pp + R``, ``K = P Hᵀ S⁻¹`` (the pseudo-inverse gain where ``S`` is singular),
+    ``x = x + K (z − p)``, ``P = P − K S Kᵀ`` symmetrised. Scratch ``S (3, 3)``, ``K (6, 3)``,
+    ``LU (3, 3)``, ``piv (3,)``, ``work (3, 6)``; the outputs may not alias the inputs."""
+    for i in range(3):
+        for j in range(3):
+            S[i, j] = P[i, j] + R[i, j]
+    if singular_innovation(S):
+        pseudo_gain(P, S, K)
+    else:
+        # Kᵀ = S⁻¹ P_{p·}
+        lu3(S, LU, piv)
+        lu_solve3(LU, piv, P[:3, :], work)
+        for i in range(6):
+            for j in range(3):
+                K[i, j] = work[j, i]
+    e0, e1, e2 = z[0] - x[0], z[1] - x[1], z[2] - x[2]
+    for i in range(6):
+        x_out[i] = x[i] + (K[i, 0] * e0 + K[i, 1] * e1 + K[i, 2] * e2)
+    # P − K S Kᵀ
+    for i in range(6):
+        ks0 = K[i, 0] * S[0, 0] + K[i, 1] * S[1, 0] + K[i, 2] * S[2, 0]
+        ks1 = K[i, 0] * S[0, 1] + K[i, 1] * S[1, 1] + K[i, 2] * S[2, 1]
+        ks2 = K[i, 0] * S[0, 2] + K[i, 1] * S[1, 2] + K[i, 2] * S[2, 2]
+        for j in range(6):
+            P_out[i, j] = P[i, j] - (ks0 * K[j, 0] + ks1 * K[j, 1] + ks2 * K[j, 2])
+    for i in range(6):
+        for j in range(i + 1, 6):
+            s = 0.5 * (P_out[i, j] + P_out[j, i])
+            P_out[i, j] = s
+            P_out[j, i] = s
+
+
+# ---------------------------------------------------------------- batched loops of the public API
+# (flat batch ``N`` on the leading axis; the public functions broadcast and reshape)
+
+
+@njit(**JIT)
+def position_information_batch(u, r, sigma, mask, out):
+    """:func:`position_information` over ``u (N, n, 3)``, ``r``/``sigma``/``mask (N, n)``."""
+    for b in range(u.shape[0]):
+        position_information(u[b], r[b], sigma[b], mask[b], out[b])
+
+
+@njit(**JIT)
+def observable_batch(info, views, out):
+    """:func:`observable` over ``info (N, 3, 3)`` with ``views (N,)``."""
+    for b in range(info.shape[0]):
+        out[b] = observable(info[b], views[b])
+
+
+@njit(**JIT)
+def position_sigma_batch(info, ok, sigma, out):
+    """:func:`position_sigma` over ``info (N, 3, 3)``, ``ok``/``sigma (N,)``."""
+    LU, piv, inv = np.empty((3, 3)), np.empty(3, np.int64), np.empty((3, 3))
+    for b in range(info.shape[0]):
+        out[b] = position_sigma(info[b], ok[b], sigma[b], LU, piv, inv)
+
+
+@njit(**JIT)
+def log_ratio_reward_batch(sigma_pos, sigma_ref, clip_r, out):
+    """:func:`log_ratio_reward` over a flat ``sigma_pos (N,)``."""
+    for b in range(sigma_pos.shape[0]):
+        out[b] = log_ratio_reward(sigma_pos[b], sigma_ref, clip_r)
+
+
+@njit(**JIT)
+def weighted_fix_batch(o, u, mask, sigma, iterations, M, info, ok):
+    """:func:`weighted_fix` over ``o``/``u (N, n, 3)``, ``mask``/``sigma (N, n)``."""
+    r = np.empty(o.shape[1])
+    rhs, LU, piv = np.empty((3, 1)), np.empty((3, 3)), np.empty(3, np.int64)
+    for b in range(o.shape[0]):
+        ok[b] = weighted_fix(
+            o[b], u[b], mask[b], sigma[b], iterations, M[b], info[b], r, rhs, LU, piv
+        )
+
+
+@njit(**JIT)
+def fix_in_front_batch(M, o, u, mask, min_range, out):
+    """:func:`fix_in_front` over ``M (N, 3)``, ``o``/``u (N, n, 3)``, ``mask (N, n)``."""
+    for b in range(M.shape[0]):
+        out[b] = fix_in_front(M[b], o[b], u[b], mask[b], min_range)
+
+
+@njit(**JIT)
+def cv_predict_batch(x, P, dt, q, x_out, P_out):
+    """:func:`cv_predict` over ``x (N, 6)``, ``P (N, 6, 6)``."""
+    for b in range(x.shape[0]):
+        cv_predict(x[b], P[b], dt, q, x_out[b], P_out[b])
+
+
+@njit(**JIT)
+def singular_innovation_batch(S, out):
+    """:func:`singular_innovation` over ``S (N, 3, 3)``."""
+    for b in range(S.shape[0]):
+        out[b] = singular_innovation(S[b])
+
+
+@njit(**JIT)
+def cv_update_batch(x, P, z, R, mask, x_out, P_out):
+    """:func:`cv_update` over ``x (N, 6)``, ``P (N, 6, 6)``, ``z (N, 3)``, ``R (N, 3, 3)``
+    where ``mask (N,)``; elsewhere the track is copied unchanged."""
+    S, K, LU = np.empty((3, 3)), np.empty((6, 3)), np.empty((3, 3))
+    piv, work = np.empty(3, np.int64), np.empty((3, 6))
+    for b in range(x.shape[0]):
+        if mask[b]:
+            cv_update(x[b], P[b], z[b], R[b], x_out[b], P_out[b], S, K, LU, piv, work)
+        else:
+            x_out[b] = x[b]
+            P_out[b] = P[b]
