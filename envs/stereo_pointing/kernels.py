@@ -16,10 +16,13 @@ import numpy as np
 from numba import njit
 
 from sensorgym.trackers.stereo.kernels import (
+    INLINE,
     JIT,
     MIN_FIX_RANGE,
     angles_from_unit,
     clip,
+    copy1,
+    copy2,
     count_views,
     cv_predict,
     cv_update,
@@ -37,14 +40,14 @@ from sensorgym.trackers.stereo.kernels import (
 )
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def in_view(boresight, u, cos_fov):
     """Field-of-view test: the line of sight ``u`` lies in the cone ``u · b ≥ cos fov`` around the
     boresight ``b`` (a zero ``u``, a point on the receiver, is never seen)."""
     return boresight[0] * u[0] + boresight[1] * u[1] + boresight[2] * u[2] >= cos_fov
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def pointing_offset(azimuth, elevation, u):
     """World-angle offset ``(wrap(α_u − α), ε_u − ε)`` of the direction ``u`` from a boresight at
     ``(α, ε)``; a zero ``u`` (no direction) reads as ``(0, 0)``."""
@@ -120,7 +123,7 @@ def step_kernel(
                 if sigma_ang > 0.0:
                     perturb_direction(u[k], noise[b, k, j], sigma_ang, z[k])
                 else:
-                    z[k] = u[k]
+                    copy1(u[k], z[k])
             # 3. the fix, trusted only in front of its receivers; the track predicted and updated
             ok = weighted_fix(receivers, z, mask, ones, 2, M, G, r_fix, rhs, LU, piv)
             ok = ok and fix_in_front(M, receivers, z, mask, MIN_FIX_RANGE)
@@ -134,8 +137,8 @@ def step_kernel(
                         R[i, c] *= sigma_ang**2
                 cv_update(x_pred, P_pred, M, R, x_out[b, j], P_out[b, j], S, K, LU, piv, work)
             else:
-                x_out[b, j] = x_pred
-                P_out[b, j] = P_pred
+                copy1(x_pred, x_out[b, j])
+                copy2(P_pred, P_out[b, j])
             # 4. the bound of the true geometry of the receivers that see the drone, the reward
             position_information(u, r, ones, mask, G_true)
             ok_true = observable(G_true, count_views(mask))
