@@ -4,7 +4,7 @@ The maths is that of :mod:`.scan` and :mod:`.simulation` (theory §3, §11.4); e
 primitive of the module that owns it — :mod:`sensorgym.trackers.geometry_kernels` (look-at
 rotation, relative poses, angular noise, angles between lines of sight),
 :mod:`sensorgym.trackers.stereo.conjugation_kernels` (the n = 3 order-1 conjugation, called per
-scenario) and :mod:`sensorgym.trackers.stereo.bound_kernels` (information, bound, reward) — and
+scenario) and :mod:`sensorgym.trackers.stereo.kernels` (information, bound, reward) — and
 these kernels only chain them per scenario:
 
 * :func:`drive` — the action's velocities and the receivers' new positions held in the disc;
@@ -34,12 +34,13 @@ from sensorgym.trackers.geometry_kernels import (
     to_world3,
     unit_from_angles3,
 )
-from sensorgym.trackers.stereo.bound_kernels import (
-    add_line_of_sight,
-    log_ratio_reward1,
-    position_sigma3,
-)
 from sensorgym.trackers.stereo.conjugation_kernels import triple_velocity_kernel
+from sensorgym.trackers.stereo.kernels import (
+    log_ratio_reward,
+    observable,
+    position_information,
+    position_sigma,
+)
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
@@ -225,6 +226,11 @@ def period_finish(
     """
     B, n = origins.shape[0], origins.shape[1]
     to_end = period - delays[0]
+    # scratch of the bound (the stereo tracker kernels' information, test and bound)
+    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    piv = np.empty(3, np.int64)
+    unit = np.ones(n)
+    every = np.ones(n, np.bool_)
     for i in range(B):
         # σ_e = σ_ang · mean_k |r̂_k|
         total = 0.0
@@ -254,14 +260,12 @@ def period_finish(
                 estimate[i, j] = position[i, j]
                 estimate[i, 3 + j] = v[j]
         # σ_pos of the true geometry, G = Σ_k (I − u_k u_kᵀ)/r_k²
-        G = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-        for k in range(n):
-            G = add_line_of_sight(G, _row3(los, i, k), ranges[i, k], 1.0)
-        bound[i] = position_sigma3(G, sigma_ang)
+        position_information(los[i], ranges[i], unit, every, G)
+        bound[i] = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
         if degenerate[i] or degenerate_true[i]:
             reward[i] = -reward_clip
         else:
-            reward[i] = log_ratio_reward1(bound[i], sigma_ref, reward_clip)
+            reward[i] = log_ratio_reward(bound[i], sigma_ref, reward_clip)
 
 
 @njit(**_JIT)
