@@ -59,7 +59,56 @@ def training_speed() -> str:
     return "\n".join(lines)
 
 
-TABLES = {"env-speed": env_speed, "training-speed": training_speed}
+SCORES = ROOT / "docs" / "scores"
+
+#: what each scored policy is, for the score tables (``model:…`` rows are the PPO runs)
+POLICY_LABELS = {
+    "oracle-lookahead": "`OracleLookahead` (ceiling: knows the truth; best constant action over 5 steps on the true bound, receding horizon)",
+    "paper002": "`Paper002Maneuver` (theory §10.5 OC-5: run along the bearing, then turn abeam at full speed)",
+    "straight-course": "`StraightCourse` (no manoeuvre: range unobservable)",
+    "orthogonal-pairs": "`OrthogonalPairs` (theory §10.1 OC-1: pair the receivers whose lines of sight are closest to 90°)",
+    "track-nearest": "`TrackNearest` (each receiver on its nearest drone)",
+    "hold-still": "`HoldStill` (stay on the cue until the drones leave the field of view)",
+    "circle-placement": "`CirclePlacement` (theory §10.3 OC-3: circle of radius √2·ĥ around the estimated ground point)",
+    "hold-position": "`HoldPosition` (stay in the 15 m start cluster)",
+}
+
+
+GREEDY_LABELS = {
+    "BearingsManeuver-v0": "`GreedyManeuver` (one-step D-optimal, from the tracker's estimate)",
+    "StereoPointing-v0": "`GreedyPointing` (assignment maximising Σ ln det of the predicted position information)",
+    "StereoPlacement-v0": "`GreedyPlacement` (one-step move of every receiver maximising ln det of the predicted position information)",
+}
+
+
+def scores(env: str) -> str:
+    """Mean return ± 95 % of every policy of ``docs/scores/<env>.json``, best first."""
+    doc = json.loads((SCORES / f"sensorgym__{env}.json").read_text())
+    settings = doc["settings"]
+    lines = [
+        f"Seed {settings['seed']}, {settings['episodes']} episodes "
+        f"(`docs/scores/sensorgym__{env}.json`):",
+        "",
+        "| policy | mean return | ± 95 % |",
+        "| --- | ---: | ---: |",
+    ]
+    for name, r in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"]):
+        label = (
+            GREEDY_LABELS[env] if name == "greedy-information" else POLICY_LABELS.get(name, name)
+        )
+        if name.startswith("model:"):
+            label = f"PPO (`train/hyperparams/ppo.yml`, training seed 0), `{name[6:]}`"
+        lines.append(f"| {label} | {r['mean']:.3f} | {r['ci95']:.3f} |")
+    return "\n".join(lines)
+
+
+TABLES = {
+    "env-speed": env_speed,
+    "training-speed": training_speed,
+    "scores-bearings": lambda: scores("BearingsManeuver-v0"),
+    "scores-pointing": lambda: scores("StereoPointing-v0"),
+    "scores-placement": lambda: scores("StereoPlacement-v0"),
+}
 
 
 def render(text: str) -> str:

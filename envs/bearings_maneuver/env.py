@@ -156,7 +156,8 @@ class BearingsManeuverParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; issue 10 changed its episodes in place as for
+      :class:`BearingsManeuverEnv` (honest prior, square-root bound).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"name": "bearings_maneuver_v0", "render_modes": []}

@@ -88,7 +88,8 @@ class StereoPlacementEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version. Issue 11 (in place): the step is a compiled kernel; observations are
+      unchanged and rewards agree with the former numpy step to below 1e-12 relative.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
@@ -155,7 +156,7 @@ class StereoPlacementParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; issue 11 as for :class:`StereoPlacementEnv`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"name": "stereo_placement_v0", "render_modes": []}

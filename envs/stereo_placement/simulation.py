@@ -49,10 +49,6 @@ from sensorgym.envs.stereo_placement import kernels
 from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan_period
 from sensorgym.trackers.stereo.information import (
     MAX_REWARD_CLIP,
-    log_ratio_reward,
-    observable,
-    position_information,
-    position_sigma,
 )
 from sensorgym.trackers.validation import finite_array
 
@@ -196,20 +192,6 @@ def spaces(params: PlacementParams) -> EnvSpaces:
     return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 2)
 
 
-def crlb_sigma(params: PlacementParams, geometry: ScanGeometry) -> FloatArray:
-    """``σ_pos = σ_ang √tr G⁻¹`` (m) of the period's true geometry, ``G = Σ_k Π_k / r_k²``
-    (``I(M) = G/σ_ang²``); ``inf`` where ``G`` is singular (parallel lines of sight)."""
-    G = position_information(geometry.los, geometry.ranges)
-    return position_sigma(G, observable(G), params.sigma_ang)
-
-
-def reward_of(params: PlacementParams, bound: FloatArray, degenerate: BoolArray) -> FloatArray:
-    """``clip(ln(σ_ref / σ_pos), −R, R)`` ``(B,)``; ``−R`` where degenerate or singular,
-    ``+R`` for a noise-free bound ``σ_pos = 0``."""
-    value = log_ratio_reward(bound, params.sigma_ref, params.reward_clip)
-    return np.where(degenerate, -params.reward_clip, value)
-
-
 def _period(
     params: PlacementParams,
     start: FloatArray,
@@ -221,8 +203,9 @@ def _period(
 ) -> tuple[ScanFix, FloatArray, ScanGeometry, FloatArray, FloatArray]:
     """One scan period ending at the drone's ``drone_end``: fix, estimate (the fix, or the
     previous estimate coasted by ``τ`` where degenerate), geometry, bound and reward, in one
-    compiled pass (:func:`.scan.scan_period`; the same maths as :func:`crlb_sigma` and
-    :func:`reward_of`)."""
+    compiled pass (:func:`.scan.scan_period`: ``σ_pos = σ_ang √tr G⁻¹`` of the true geometry,
+    ``G = Σ_k Π_k / r_k²``, and ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate, with
+    the stereo tracker kernels)."""
     fix, geometry, estimate, bound, reward = scan_period(
         params.delays_array, params.period, params.sigma_ang, params.max_boresight_elevation,
         start, end, drone_end, drone_velocity, previous, rng, params.sigma_ref,

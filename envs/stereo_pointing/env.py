@@ -86,7 +86,11 @@ class StereoPointingEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version. Issue 10 (in place; default episodes unchanged): two receivers may
+      no longer share a place on the circle; degenerate inputs that used to crash (exact fixes
+      with no process noise, a fix on or behind a receiver, a drone at a receiver) now take the
+      documented fallbacks. Issue 11: the step is a compiled kernel; rewards agree with the
+      former numpy step to below 1e-12 relative.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
@@ -154,7 +158,7 @@ class StereoPointingParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; issues 10 and 11 as for :class:`StereoPointingEnv`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"name": "stereo_pointing_v0", "render_modes": []}

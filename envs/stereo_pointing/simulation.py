@@ -62,7 +62,7 @@ from sensorgym.envs.stereo_pointing.kernels import (
     step_kernel,
 )
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
-from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP, MIN_RANGE, log_ratio_reward
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP, MIN_RANGE
 from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior
 from sensorgym.trackers.validation import count, finite_array
 
@@ -356,11 +356,6 @@ def aim_at(
     if not np.all(has):
         az, el = np.where(has, az, azimuth), np.where(has, el, elevation)
     return az, np.clip(el, -params.max_elevation, params.max_elevation)
-
-
-def reward_of(params: PointingParams, sigma_pos: FloatArray) -> FloatArray:
-    """Mean over drones of ``clip(ln(σ_ref / σ_pos), −R, R)``: ``(B, m)`` → ``(B,)``."""
-    return log_ratio_reward(sigma_pos, params.sigma_ref, params.reward_clip).mean(axis=-1)
 
 
 def _c(a: ArrayLike) -> FloatArray:
