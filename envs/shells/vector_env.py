@@ -90,6 +90,8 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         self._state: Any = None
         self._steps = np.zeros(num_envs, dtype=np.int64)
         self._done = np.zeros(num_envs, dtype=bool)  # NEXT_STEP: ended on the last step
+        self._all_set = np.ones(num_envs, dtype=bool)
+        self._all_set.flags.writeable = False
 
     @property
     def simulator_state(self) -> Any:
@@ -170,9 +172,10 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
 
     def _infos(self, state: Any) -> dict[str, Any]:
         # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them
+        # every env sets every key: one read-only mask serves them all
         infos: dict[str, Any] = {}
         for key, value in self.core.info(state).items():
-            infos[key], infos[f"_{key}"] = value, np.ones(self.num_envs, dtype=bool)
+            infos[key], infos[f"_{key}"] = value, self._all_set
         return infos
 
 
