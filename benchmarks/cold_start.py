@@ -1,0 +1,69 @@
+"""Compile time paid once: every registered env started in one fresh process, cold and warm.
+
+A fresh interpreter imports sensorgym, then for each registered env in turn makes the Gymnasium
+env and a native vector env of 4 scenarios, resets and steps both (so every kernel the env
+needs is compiled or loaded). It runs twice on one numba cache directory: first empty (*cold*:
+every kernel compiles and is written to the cache), then again (*warm*: every kernel loads from
+the cache). Per env the seconds are those its first reset and step took (an env that shares
+kernels with one before it pays less), plus the import. Prints a table and writes
+``benchmarks/results/cold_start.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from timing import RESULTS, write_results
+
+_CHILD = """
+import json, time
+t0 = time.perf_counter()
+import gymnasium as gym
+import numpy as np
+import sensorgym.envs as envs
+out = {"import": time.perf_counter() - t0}
+for env_id in envs.ENV_IDS:
+    t = time.perf_counter()
+    env = gym.make(env_id)
+    env.reset(seed=0)
+    env.step(np.zeros(env.action_space.shape, np.float32))
+    v = gym.make_vec(env_id, 4, vectorization_mode="vector_entry_point")
+    v.reset(seed=0)
+    v.step(np.zeros(v.action_space.shape, np.float32))
+    out[env_id] = time.perf_counter() - t
+out["total"] = time.perf_counter() - t0
+print(json.dumps(out))
+"""
+
+
+def _run(cache: str) -> dict[str, float]:
+    env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+    out = subprocess.run([sys.executable, "-c", _CHILD], env=env, capture_output=True, text=True)
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=RESULTS / "cold_start.json")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as cache:
+        cold = _run(cache)
+        warm = _run(cache)
+    rows = [{"case": k, "cold_s": cold[k], "warm_s": warm[k]} for k in cold]
+    print(f"{'':<36} {'cold, s':>9} {'warm, s':>9}")
+    print("-" * 56)
+    for r in rows:
+        print(f"{r['case']:<36} {r['cold_s']:>9.1f} {r['warm_s']:>9.2f}")
+    write_results(args.out, rows)
+
+
+if __name__ == "__main__":
+    main()
