@@ -1,10 +1,17 @@
-"""``sensorgym benchmark``: score the heuristic rules (and trained models) on an environment.
+"""``sensorgym benchmark``: score every rule and trained policy on every env — the main job.
 
-Every rule registered for the env in :mod:`sensorgym.agents.registry`, and every model given
-with ``--model``, is evaluated with one seed over the same scenarios (SB3's
-``evaluate_policy`` on the native vector env); the table shows mean return, standard
-deviation and the 95 % confidence half-width, and the numbers go to
-``OUT/<env>.json``.
+Every env registered under ``sensorgym/`` (or those given with ``--env``) is scored: every rule
+registered for it in :mod:`sensorgym.agents.registry`, every policy shipped with sensorgym
+(:mod:`sensorgym.train.shipped`) and every model given with ``--model``, each evaluated with one
+seed over the same scenarios (SB3's ``evaluate_policy`` on the native vector env). One table per
+env shows mean return, the 95 % confidence half-width and interval and the mean episode length
+(the JSON also holds the standard deviation); the numbers go to
+``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
+``OUT/benchmark.png``.
+
+The default seed 10000 is held out: no training run draws its scenarios from it (``sensorgym
+train`` trains on its ``--seed`` and evaluates on seed + 10000), so a shipped policy scores here
+what ``docs/scores/`` records.
 """
 
 from __future__ import annotations
@@ -14,7 +21,7 @@ import json
 from pathlib import Path
 from typing import Any
 
-HELP = "Score the heuristic rules (and trained models) on an environment, seeded."
+HELP = "Score every rule and trained policy on every env (seeded, same scenarios), with a chart."
 
 #: the help of ``--unsafe-pickle`` (benchmark and render)
 UNSAFE_PICKLE_HELP = (
@@ -22,17 +29,22 @@ UNSAFE_PICKLE_HELP = (
     "unpickles the file, which EXECUTES ANY CODE IN IT; use it only on files you trust"
 )
 
+#: the held-out evaluation seed (never a training scenario seed)
+DEFAULT_SEED = 10_000
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--env",
         action="append",
         default=None,
-        help="env id; repeatable (default: every env with registered rules)",
+        help="env id; repeatable (default: every registered sensorgym/ env)",
     )
     parser.add_argument("--episodes", type=int, default=64, help="episodes per policy")
     parser.add_argument("--n-envs", type=int, default=16, help="scenarios stepped at once")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--seed", type=int, default=DEFAULT_SEED, help=f"default {DEFAULT_SEED} (held out)"
+    )
     parser.add_argument(
         "--model",
         type=Path,
@@ -40,25 +52,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=[],
         help="a `sensorgym train` run folder (policy.safetensors + config.yaml); repeatable",
     )
+    parser.add_argument(
+        "--no-shipped", action="store_true", help="leave out the policies shipped with sensorgym"
+    )
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
+    parser.add_argument("--no-chart", action="store_true", help="write no PNG chart")
     parser.add_argument("--out", type=Path, default=Path("results/benchmark"))
 
 
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from sensorgym.agents.registry import RULES
+    from sensorgym.train.benchmark import plot_scores, registered_envs
+    from sensorgym.train.models import RunFolderError, check_run_folder
 
     if args.n_envs < 1 or args.episodes < args.n_envs:
         raise SystemExit(
             "--episodes must be >= --n-envs >= 1 (every scenario slot ends an episode)"
         )
-    from sensorgym.train.models import RunFolderError, check_run_folder
-
-    env_ids = args.env or list(RULES)
-    unknown = [e for e in env_ids if e not in RULES]
+    known = registered_envs()
+    env_ids = args.env or known
+    unknown = [e for e in env_ids if e not in known]
     if unknown:
-        raise SystemExit(f"--env: no rules registered for {unknown}; known: {sorted(RULES)}")
+        raise SystemExit(f"--env: not a registered env: {unknown}; known: {known}")
     for path in args.model:
         try:
             trained_on = check_run_folder(path, args.unsafe_pickle)["env"]
@@ -67,57 +83,64 @@ def run(args: argparse.Namespace) -> int:
         if trained_on not in env_ids:
             raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
     console = Console()
+    settings = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
+    scores: dict[str, dict[str, dict[str, float]]] = {}
+    written: list[Path] = []
     for env_id in env_ids:
-        _benchmark(env_id, args, console)
+        results = _benchmark(env_id, args, console)
+        if results is None:
+            continue
+        scores[env_id] = results
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = args.out / f"{env_id.replace('/', '__')}.json"
+        doc = {"settings": {"env": env_id, **settings}, "results": results}
+        path.write_text(json.dumps(doc, indent=2) + "\n")
+        written.append(path)
+    if scores:
+        summary = args.out / "benchmark.json"
+        summary.write_text(json.dumps({"settings": settings, "scores": scores}, indent=2) + "\n")
+        written.append(summary)
+        if not args.no_chart:
+            written.append(plot_scores(scores, args.out / "benchmark.png"))
+    console.print("wrote:")
+    for path in written:
+        console.print(f"  {path}")
     return 0
 
 
-def _benchmark(env_id: str, args: argparse.Namespace, console: Any) -> None:
+def _benchmark(
+    env_id: str, args: argparse.Namespace, console: Any
+) -> dict[str, dict[str, float]] | None:
+    """Score every policy of ``env_id`` and print its table; ``None`` when it has none."""
     from rich.table import Table
 
-    from sensorgym.agents.registry import rules_for
-    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-    from sensorgym.train.models import RunFolderError, load_model, read_config, run_dir_of
+    from sensorgym.train.benchmark import policies_for, score
+    from sensorgym.train.models import RunFolderError
 
-    env = make_sb3_env(env_id, args.n_envs, args.seed)
-    # name -> (policy, the SB3 env it acts on): rules and single-agent models on the joint
-    # view, parameter-sharing models on the per-agent view of the same scenarios
-    policies = {
-        name: (rule, env)
-        for name, rule in rules_for(env_id, env_params(env), simulator_state(env)).items()
-    }
-    for path in args.model:
-        run_dir = run_dir_of(path)
-        config = read_config(run_dir)
-        if config["env"] == env_id:
-            agents = bool(config.get("agents", False))
-            view = make_sb3_env(env_id, args.n_envs, args.seed, agents=True) if agents else env
+    specs = policies_for(env_id, args.model, shipped=not args.no_shipped)
+    if not specs:
+        console.print(f"{env_id}: no rule registered and no trained policy: skipped")
+        return None
+    results = {}
+    with console.status(f"evaluating {len(specs)} policies on {env_id}"):
+        for name, spec in specs.items():
             try:
-                model = load_model(path, view, unsafe_pickle=args.unsafe_pickle)
+                results[name] = score(
+                    env_id, spec, args.episodes, args.n_envs, args.seed, args.unsafe_pickle
+                )
             except RunFolderError as exc:
                 raise SystemExit(f"--model: {exc}") from None
-            policies[f"model:{run_dir.name}"] = (model, view)
-    results = {}
-    with console.status(f"evaluating {len(policies)} policies on {env_id}"):
-        for name, (policy, view) in policies.items():
-            results[name] = evaluate(policy, view, args.episodes, args.seed).as_dict()
-    for _, view in policies.values():
-        view.close()
 
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
-    for column in ("policy", "mean", "std", "±95 %", "mean length"):
-        table.add_column(column, justify="left" if column == "policy" else "right")
+    for column in ("policy", "mean", "±95 %", "95 % interval", "length"):
+        table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
         table.add_row(
             name,
             f"{r['mean']:.3f}",
-            f"{r['std']:.3f}",
             f"{r['ci95']:.3f}",
+            f"[{r['mean'] - r['ci95']:.2f}, {r['mean'] + r['ci95']:.2f}]",
             f"{r['mean_length']:.1f}",
         )
     console.print(table)
-    args.out.mkdir(parents=True, exist_ok=True)
-    path = args.out / f"{env_id.replace('/', '__')}.json"
-    settings = {"env": env_id, "episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
-    path.write_text(json.dumps({"settings": settings, "results": results}, indent=2) + "\n")
-    console.print(f"wrote {path}")
+    return results

@@ -22,7 +22,7 @@ COMMANDS: dict[str, str] = {
 }
 
 #: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments
-DEFAULT_JOB: list[str] = ["triangulate-demo"]
+DEFAULT_JOB: list[str] = ["benchmark"]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,4 +1,5 @@
-"""The wheel holds only ``sensorgym/…``: no top-level ``envs``, ``train``, … and no file left out."""
+"""The wheel holds only ``sensorgym/…``: no top-level ``envs``, ``train``, … and no file left out;
+the build raises no setuptools warning about the data folders."""
 
 from __future__ import annotations
 
@@ -39,10 +40,17 @@ def test_package_dirs_in_pyproject_cover_every_folder():
 
 @pytest.mark.slow
 def test_wheel_contains_only_sensorgym(tmp_path):
-    subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(tmp_path), str(ROOT)],
+    build = subprocess.run(
+        [sys.executable, "-m", "pip", "wheel", "--no-deps", "-v", "-w", str(tmp_path), str(ROOT)],
         check=True,
+        capture_output=True,
+        text=True,
     )
+    # setuptools is content with the data folders inside package folders (no "Package would
+    # be ignored" warning about train/hyperparams or train/policies)
+    log = build.stdout + build.stderr
+    assert "absent from the `packages` configuration" not in log
+    assert "would be ignored" not in log
     (wheel,) = tmp_path.glob("sensorgym-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
     tops = {n.split("/", 1)[0] for n in names}
@@ -57,3 +65,10 @@ def test_wheel_contains_only_sensorgym(tmp_path):
     # package data: the training hyperparameters
     for p in (ROOT / "train" / "hyperparams").glob("*.yml"):
         assert f"sensorgym/train/hyperparams/{p.name}" in names, f"{p.name} missing from the wheel"
+    # package data: the shipped policies (run folders), every file of each
+    policies = ROOT / "train" / "policies"
+    shipped = [p for p in policies.rglob("*") if p.is_file()]
+    assert shipped, "no shipped policy found"
+    for p in shipped:
+        rel = p.relative_to(policies).as_posix()
+        assert f"sensorgym/train/policies/{rel}" in names, f"{rel} missing from the wheel"

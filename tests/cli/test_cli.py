@@ -20,9 +20,36 @@ def test_every_subcommand_has_help(capsys):
     assert DEFAULT_JOB[0] in COMMANDS
 
 
-def test_no_arguments_runs_the_main_job(capsys):
+def test_no_arguments_runs_the_main_job_the_benchmark_of_every_env(tmp_path, monkeypatch, capsys):
+    from PIL import Image
+
+    import sensorgym.cli.main as cli_main
+    from sensorgym.train.benchmark import registered_envs
+    from sensorgym.train.shipped import shipped_policies
+
+    assert DEFAULT_JOB == ["benchmark"]
+    # the main job exactly, on tiny settings (the defaults write under ./results)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cli_main, "DEFAULT_JOB", [*DEFAULT_JOB, "--episodes", "2", "--n-envs", "2"])
     assert main([]) == 0
-    assert "iid formula" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    out = tmp_path / "results" / "benchmark"
+    summary = json.loads((out / "benchmark.json").read_text())
+    envs = registered_envs()
+    assert len(envs) >= 3 and set(summary["scores"]) == set(envs)
+    for env_id in envs:
+        assert env_id in printed
+        per_env = json.loads((out / f"{env_id.replace('/', '__')}.json").read_text())
+        assert per_env["results"] == summary["scores"][env_id]
+        assert per_env["settings"]["seed"] == 10_000
+        for run in shipped_policies(env_id):  # every shipped policy is scored
+            assert f"shipped:{run}" in per_env["results"]
+        for r in per_env["results"].values():
+            assert r["episodes"] == 2 and r["ci95"] >= 0.0
+    assert shipped_policies("sensorgym/StereoPlacement-v0")  # one is shipped at least
+    with Image.open(out / "benchmark.png") as png:
+        assert png.format == "PNG" and png.size[1] > png.size[0] / 2
+    assert "benchmark.png" in printed and "95 % interval" in printed
 
 
 def test_version(capsys):

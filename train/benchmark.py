@@ -1,0 +1,156 @@
+"""Scoring every policy of an env on the same seeded scenarios, and the chart of the scores.
+
+A policy is named by a :class:`PolicySpec`: a rule registered in
+:mod:`sensorgym.agents.registry`, or a ``sensorgym train`` run folder (given by the user or
+shipped, :mod:`.shipped`). :func:`score` builds the env and the policy from the spec and
+evaluates it, so one policy is one independent job — what ``sensorgym benchmark`` runs in turn
+and ``sensorgym sweep`` fans out as Ray tasks.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: namespace of the registered envs the benchmark covers
+NAMESPACE = "sensorgym/"
+
+
+@dataclass(frozen=True)
+class PolicySpec:
+    """What to score: a registered rule or a run folder."""
+
+    kind: str
+    """``"rule"`` or ``"model"``."""
+    name: str
+    """The rule's registered name, or the run folder (as a string) for a model."""
+    shipped: bool = False
+    """A model shipped with sensorgym (:mod:`.shipped`) rather than given by the user."""
+
+
+def registered_envs() -> list[str]:
+    """Every env id registered under ``sensorgym/``, in registration order."""
+    import gymnasium as gym
+
+    import sensorgym.envs  # noqa: F401  (registers the ids)
+
+    return [env_id for env_id in gym.registry if env_id.startswith(NAMESPACE)]
+
+
+def policies_for(
+    env_id: str, models: list[Path] | tuple[Path, ...] = (), shipped: bool = True
+) -> dict[str, PolicySpec]:
+    """Display name → spec of every policy scored on ``env_id``: its registered rules, the
+    shipped policies (``shipped:<run>``, unless ``shipped`` is false) and those of ``models``
+    (run folders) trained on it (``model:<run>``)."""
+    from sensorgym.agents.registry import RULES
+    from sensorgym.train.models import read_config, run_dir_of
+    from sensorgym.train.shipped import shipped_policies
+
+    specs = {name: PolicySpec("rule", name) for name in RULES.get(env_id, {})}
+    if shipped:
+        for run, folder in shipped_policies(env_id).items():
+            specs[f"shipped:{run}"] = PolicySpec("model", str(folder), shipped=True)
+    for path in models:
+        run_dir = run_dir_of(path)
+        if read_config(run_dir)["env"] == env_id:
+            specs[f"model:{run_dir.name}"] = PolicySpec("model", str(path))
+    return specs
+
+
+def score(
+    env_id: str,
+    spec: PolicySpec,
+    episodes: int,
+    n_envs: int,
+    seed: int,
+    unsafe_pickle: bool = False,
+) -> dict[str, float]:
+    """Episode-return statistics (:class:`~.evaluation.EpisodeStats` as a dict) of one policy
+    over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
+    with one seed meets the same scenarios. Parameter-sharing models act on the per-agent view
+    of those scenarios."""
+    from sensorgym.agents.registry import RULES
+    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
+    from sensorgym.train.models import load_model, read_config, run_dir_of
+
+    if spec.kind == "rule":
+        env = make_sb3_env(env_id, n_envs, seed)
+        policy: Any = RULES[env_id][spec.name](env_params(env), simulator_state(env))
+    elif spec.kind == "model":
+        agents = bool(read_config(run_dir_of(Path(spec.name))).get("agents", False))
+        env = make_sb3_env(env_id, n_envs, seed, agents=agents)
+        policy = load_model(Path(spec.name), env, unsafe_pickle=unsafe_pickle)
+    else:
+        raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
+    try:
+        return evaluate(policy, env, episodes, seed).as_dict()
+    finally:
+        env.close()
+
+
+def pool(parts: list[dict[str, float]]) -> dict[str, float]:
+    """The statistics of the episodes of several :func:`score` results taken together (exact
+    pooled mean and sample standard deviation; normal 95 % half-width of the mean)."""
+    if not parts:
+        raise ValueError("parts: expected at least one result")
+    n = np.array([p["episodes"] for p in parts], dtype=np.float64)
+    mean = np.array([p["mean"] for p in parts])
+    std = np.array([p["std"] for p in parts])
+    total = n.sum()
+    grand = float((n * mean).sum() / total)
+    # Σ (x − x̄)² = Σ_k [(n_k − 1) s_k² + n_k (x̄_k − x̄)²]
+    ss = float(((n - 1) * std**2 + n * (mean - grand) ** 2).sum())
+    sd = float(np.sqrt(ss / (total - 1))) if total > 1 else 0.0
+    length = float((n * np.array([p["mean_length"] for p in parts])).sum() / total)
+    return {
+        "mean": grand,
+        "std": sd,
+        "ci95": float(1.96 * sd / np.sqrt(total)),
+        "episodes": int(total),
+        "mean_length": length,
+    }
+
+
+def plot_scores(
+    scores: dict[str, dict[str, dict[str, float]]], path: Path, title: str = "episode return"
+) -> Path:
+    """A PNG at ``path``: per env (one panel each, its own scale) a horizontal bar per policy,
+    mean episode return with its 95 % interval; trained policies in orange, rules in blue."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    envs = [e for e, rows in scores.items() if rows]
+    if not envs:
+        raise ValueError("scores: no env has any result to plot")
+    heights = [0.6 + 0.32 * len(scores[e]) for e in envs]
+    fig, axes = plt.subplots(
+        len(envs),
+        1,
+        figsize=(7.5, sum(heights) + 0.6),
+        gridspec_kw={"height_ratios": heights},
+        squeeze=False,
+    )
+    for ax, env_id in zip(axes[:, 0], envs, strict=True):
+        rows = sorted(scores[env_id].items(), key=lambda kv: kv[1]["mean"])
+        names = [name for name, _ in rows]
+        means = [r["mean"] for _, r in rows]
+        cis = [r["ci95"] for _, r in rows]
+        colors = ["#e8833a" if ":" in name else "#4878a8" for name in names]
+        ax.barh(names, means, xerr=cis, color=colors, capsize=3, height=0.6)
+        ax.axvline(0.0, color="black", linewidth=0.6)
+        ax.set_title(env_id, fontsize=10, loc="left")
+        ax.tick_params(labelsize=8)
+        ax.grid(axis="x", alpha=0.3)
+    axes[-1, 0].set_xlabel(f"{title} (mean ± 95 % interval)", fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path
