@@ -1,17 +1,17 @@
 """The fused compiled step and observation of the receiver-pointing environments.
 
-One loop over the scenarios of a batch; each scenario runs the compiled primitives of
-:mod:`sensorgym.trackers.stereo.kernels` (lines of sight, field-of-view test, noisy
-directions, weighted fix and its in-front test, Kalman predict/update, the bound and the
-reward) in the order :func:`~sensorgym.envs.stereo_pointing.simulation.step` documents. The
-random draws stay with numpy's Generator: the caller draws them (same order and shapes as the
-numpy form had) and passes them in.
+:func:`step_kernel` loops over a range of the scenarios of a batch; each scenario runs the
+compiled primitives of :mod:`sensorgym.trackers.stereo.kernels` (lines of sight, field-of-view
+test, noisy directions, weighted fix and its in-front test, Kalman predict/update, the bound and
+the reward) in the order :func:`~sensorgym.envs.stereo_pointing.simulation.step` documents, then
+writes the new state's observation (:func:`observe_row`) and diagnostics (:func:`info_row`), so
+that ``observe`` and ``info`` only read them. The random draws stay with numpy's Generator: the
+caller draws them (same order and shapes as the numpy form had) and passes them in.
 
-The loop is serial on purpose. A ``prange`` version (the batch in 8 slices, bit-identical
-results) measured 2.0–2.2× the kernel's speed at 256–4096 scenarios on the 2-core reference
-machine (1.2–1.3× the native vector env's) but 0.85× at 16, cost 9 s more cold compile, and
-numba's OpenMP layer then kills any ``fork()`` child ("fork() called from a process already
-using GNU OpenMP") — the way subprocess vector envs start their workers.
+Rows are independent, so the caller splits a large batch over threads
+(:func:`sensorgym.envs.shells.rows.run_rows`; the kernels release the GIL) with bit-identical
+results; ``prange`` is not used (seconds of cold compile, and numba's OpenMP layer kills any
+``fork()`` child, the way subprocess vector envs start their workers).
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
+from sensorgym.envs.shells.contract import OBS_CLIP
 from sensorgym.trackers.stereo.kernels import (
     INLINE,
     JIT,
@@ -63,9 +64,71 @@ def pointing_offset(azimuth, elevation, u):
     return wrap_angle(az - azimuth), el - elevation
 
 
+#: layout of the per-params constants array (``simulation.PointingParams._constants``)
+C_SLEW, C_MAX_EL, C_DT, C_Q, C_COS_FOV, C_SIGMA, C_SIGMA_REF, C_CLIP, C_FOV, C_LENGTH = range(10)
+#: rows of the diagnostics array ``info (3, B)`` (``simulation.info``)
+I_ERROR, I_FIXED, I_VIEWS = range(3)
+
+
+@njit(**JIT)
+def observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_pred, u):
+    """``simulation.observe`` of scenario ``b`` into ``obs[b]`` (float32, clipped to
+    ``±OBS_CLIP``): gimbals, offsets of the predicted drones from each boresight and who saw
+    whom, the predicted positions and their log accuracy. Scratch ``x_pred (6,)``,
+    ``P_pred (6, 6)``, ``u (3,)``."""
+    n, m = azimuth.shape[1], x.shape[1]
+    fov, length, sigma_ref = c[C_FOV], c[C_LENGTH], c[C_SIGMA_REF]
+    for k in range(n):
+        obs[b, 3 * k] = clip(math.sin(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
+        obs[b, 3 * k + 1] = clip(math.cos(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
+        obs[b, 3 * k + 2] = clip(elevation[b, k] / (np.pi / 2), -OBS_CLIP, OBS_CLIP)
+    for j in range(m):
+        # the tracker's prediction for the next measurement time
+        cv_predict(x[b, j], P[b, j], c[C_DT], c[C_Q], x_pred, P_pred)
+        for k in range(n):
+            line_of_sight(receivers[k], x_pred, u)
+            d_az, d_el = pointing_offset(azimuth[b, k], elevation[b, k], u)
+            col = 3 * n + 3 * (k * m + j)
+            obs[b, col] = clip(d_az / fov, -OBS_CLIP, OBS_CLIP)
+            obs[b, col + 1] = clip(d_el / fov, -OBS_CLIP, OBS_CLIP)
+            obs[b, col + 2] = 1.0 if seen[b, k, j] else 0.0
+        col = 3 * n + 3 * n * m + 4 * j
+        for i in range(3):
+            obs[b, col + i] = clip(x_pred[i] / length, -OBS_CLIP, OBS_CLIP)
+        # σ̂ = √tr P_pp
+        sigma = math.sqrt(max(P_pred[0, 0] + P_pred[1, 1] + P_pred[2, 2], 0.0))
+        obs[b, col + 3] = clip(math.log(max(sigma, 1e-12) / sigma_ref), -OBS_CLIP, OBS_CLIP)
+
+
+@njit(**INLINE)
+def info_row(b, x, position, seen, fixed, info):
+    """``simulation.info`` of scenario ``b`` into ``info[:, b]``: the mean position error of
+    the tracks ``mean_j ‖x̂_j − p_j‖``, the number of drones fixed and of receiver-drone views."""
+    n, m = seen.shape[1], seen.shape[2]
+    error = 0.0
+    n_fixed = 0.0
+    for j in range(m):
+        d0 = x[b, j, 0] - position[b, j, 0]
+        d1 = x[b, j, 1] - position[b, j, 1]
+        d2 = x[b, j, 2] - position[b, j, 2]
+        error += math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        n_fixed += 1.0 if fixed[b, j] else 0.0
+    views = 0.0
+    for k in range(n):
+        for j in range(m):
+            views += 1.0 if seen[b, k, j] else 0.0
+    info[I_ERROR, b] = error / m
+    info[I_FIXED, b] = n_fixed
+    info[I_VIEWS, b] = views
+
+
 @njit(**JIT)
 def step_kernel(
+    lo,  # first scenario row
+    hi,  # end of the rows (the caller splits a batch over threads, envs/shells/rows.py)
     receivers,  # (n, 3) receiver places
+    c,  # per-params constants (C_* layout)
+    t,  # (B,) time before the step
     azimuth,  # (B, n) boresights before the step
     elevation,
     position,  # (B, m, 3) drones before the step
@@ -74,15 +137,8 @@ def step_kernel(
     P,  # (B, m, 6, 6)
     action,  # (B, n, 2) raw actions
     noise,  # (B, n, m, 3) standard normal draws (ignored where sigma_ang == 0)
-    slew,  # slew_rate · dt
-    max_elevation,
-    dt,
-    q,
-    cos_fov,
-    sigma_ang,
-    sigma_ref,
-    reward_clip,
-    # outputs
+    # outputs (out of place: none may alias an input)
+    t_out,  # (B,)
     az_out,  # (B, n)
     el_out,
     p_out,  # (B, m, 3)
@@ -92,11 +148,20 @@ def step_kernel(
     fixed,  # (B, m) bool
     bound,  # (B, m)
     reward,  # (B,)
+    obs,  # (B, obs_dim) float32: the observation of the new state (observe_row)
+    info,  # (3, B): the diagnostics of the new state (info_row)
 ):
-    """One step of every scenario (``simulation.step``): slew, move, see, measure, fix, track,
-    score."""
-    B, n = azimuth.shape
+    """One step of scenarios ``lo … hi − 1`` (``simulation.step``): slew, move, see, measure,
+    fix, track, score; then the new state's observation and diagnostics. Returns False (and
+    stops) if an action is NaN or infinite."""
+    n = azimuth.shape[1]
     m = position.shape[1]
+    for b in range(lo, hi):
+        for k in range(n):
+            if not (math.isfinite(action[b, k, 0]) and math.isfinite(action[b, k, 1])):
+                return False
+    slew, max_elevation, dt, q = c[C_SLEW], c[C_MAX_EL], c[C_DT], c[C_Q]
+    cos_fov, sigma_ang, sigma_ref, reward_clip = c[C_COS_FOV], c[C_SIGMA], c[C_SIGMA_REF], c[C_CLIP]
     ones = np.ones(n)
     u = np.empty((n, 3))  # true lines of sight to one drone
     r = np.empty(n)
@@ -107,7 +172,8 @@ def step_kernel(
     R, x_pred, P_pred = np.empty((3, 3)), np.empty(6), np.empty((6, 6))
     r_fix, rhs, LU, piv = np.empty(n), np.empty((3, 1)), np.empty((3, 3)), np.empty(3, np.int64)
     S, K, work, inv = np.empty((3, 3)), np.empty((6, 3)), np.empty((3, 6)), np.empty((3, 3))
-    for b in range(B):
+    for b in range(lo, hi):
+        t_out[b] = t[b] + dt
         # 1. slew the gimbals (actions clipped to [−1, 1]), move the drones
         for k in range(n):
             az_out[b, k] = wrap_angle(azimuth[b, k] + clip(action[b, k, 0], -1.0, 1.0) * slew)
@@ -139,8 +205,8 @@ def step_kernel(
                 # R = σ² G⁻¹ at the fix's own ranges
                 inverse3(G, LU, piv, R)
                 for i in range(3):
-                    for c in range(3):
-                        R[i, c] *= sigma_ang**2
+                    for col in range(3):
+                        R[i, col] *= sigma_ang**2
                 cv_update(x_pred, P_pred, M, R, x_out[b, j], P_out[b, j], S, K, LU, piv, work)
             else:
                 copy1(x_pred, x_out[b, j])
@@ -151,49 +217,20 @@ def step_kernel(
             bound[b, j] = position_sigma(G_true, ok_true, sigma_ang, LU, piv, inv)
             total += log_ratio_reward(bound[b, j], sigma_ref, reward_clip)
         reward[b] = total / m
+        # 5. what the new state shows: the observation and the diagnostics
+        observe_row(b, receivers, c, az_out, el_out, x_out, P_out, seen, obs, x_pred, P_pred, u[0])
+        info_row(b, x_out, p_out, seen, fixed, info)
+    return True
 
 
 @njit(**JIT)
-def observe_kernel(
-    receivers,  # (n, 3)
-    azimuth,  # (B, n)
-    elevation,
-    x,  # (B, m, 6) tracks
-    P,  # (B, m, 6, 6)
-    seen,  # (B, n, m)
-    dt,
-    q,
-    fov,
-    length_scale,
-    sigma_ref,
-    obs,  # (B, 3n + 3nm + 4m) output, float64 (clipped and cast by the caller)
-):
-    """``simulation.observe`` of every scenario: gimbals, offsets of the predicted drones from
-    each boresight and who saw whom, the predicted positions and their log accuracy."""
-    B, n = azimuth.shape
-    m = x.shape[1]
+def observe_kernel(receivers, c, azimuth, elevation, x, P, seen, position, fixed, obs, info):
+    """The observation ``obs (B, obs_dim)`` float32 and diagnostics ``info (3, B)`` of a state
+    that :func:`step_kernel` did not make (a reset, or a state built by hand)."""
     x_pred, P_pred, u = np.empty(6), np.empty((6, 6)), np.empty(3)
-    for b in range(B):
-        for k in range(n):
-            obs[b, 3 * k] = math.sin(azimuth[b, k])
-            obs[b, 3 * k + 1] = math.cos(azimuth[b, k])
-            obs[b, 3 * k + 2] = elevation[b, k] / (np.pi / 2)
-        for j in range(m):
-            # the tracker's prediction for the next measurement time
-            cv_predict(x[b, j], P[b, j], dt, q, x_pred, P_pred)
-            for k in range(n):
-                line_of_sight(receivers[k], x_pred, u)
-                d_az, d_el = pointing_offset(azimuth[b, k], elevation[b, k], u)
-                c = 3 * n + 3 * (k * m + j)
-                obs[b, c] = d_az / fov
-                obs[b, c + 1] = d_el / fov
-                obs[b, c + 2] = 1.0 if seen[b, k, j] else 0.0
-            c = 3 * n + 3 * n * m + 4 * j
-            for i in range(3):
-                obs[b, c + i] = x_pred[i] / length_scale
-            # σ̂ = √tr P_pp
-            sigma = math.sqrt(max(P_pred[0, 0] + P_pred[1, 1] + P_pred[2, 2], 0.0))
-            obs[b, c + 3] = math.log(max(sigma, 1e-12) / sigma_ref)
+    for b in range(azimuth.shape[0]):
+        observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_pred, u)
+        info_row(b, x, position, seen, fixed, info)
 
 
 @njit(**JIT)

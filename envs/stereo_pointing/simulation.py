@@ -54,13 +54,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
-from sensorgym.envs.stereo_pointing.kernels import (
-    lines_of_sight_batch,
-    observe_kernel,
-    pointing_offsets_batch,
-    step_kernel,
-)
+from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
+from sensorgym.envs.stereo_pointing import kernels
+from sensorgym.envs.stereo_pointing.kernels import lines_of_sight_batch, pointing_offsets_batch
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP, MIN_RANGE
 from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior
@@ -190,6 +187,26 @@ class PointingParams:
         o.flags.writeable = False
         return o
 
+    @functools.cached_property
+    def _constants(self) -> FloatArray:
+        """The scalars the compiled kernels read, computed once (layout ``kernels.C_*``)."""
+        c = np.array(
+            [
+                self.slew_rate * self.dt,
+                self.max_elevation,
+                self.dt,
+                self.process_noise,
+                np.cos(self.fov),
+                self.sigma_ang,
+                self.sigma_ref,
+                self.reward_clip,
+                self.fov,
+                self.length_scale,
+            ]
+        )
+        c.flags.writeable = False
+        return c
+
     @property
     def length_scale(self) -> float:
         """Length (m) that normalises observed positions: the far edge of the start distances."""
@@ -204,7 +221,15 @@ class PointingParams:
 
 @dataclass(frozen=True)
 class PointingState:
-    """Batched episode state (leading axis ``B``)."""
+    """Batched episode state (leading axis ``B``).
+
+    Derived values: a state made by :func:`step` also carries its observation and diagnostics,
+    written by the same compiled kernel (a private attribute, not a field, tagged with the
+    params that made it), so :func:`observe` and :func:`info` only read them. A state built
+    any other way (:func:`start`, ``dataclasses.replace``, the shells' scenario selection) has
+    none: they are computed on the first call and kept. States are values: never change their
+    arrays in place.
+    """
 
     t: FloatArray
     """(B,) time since the episode start, s."""
@@ -369,52 +394,49 @@ def step(
 ) -> tuple[PointingState, FloatArray, BoolArray]:
     """Advance every scenario one step under the joint ``action`` ``(B, n, 2)`` (or ``(B, 2n)``).
 
-    Actions outside ``[−1, 1]`` are clipped; NaN or infinite actions raise ``ValueError``.
-    Returns ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always
-    False); the time limit is the shells' business.
+    Actions outside ``[−1, 1]`` are clipped; NaN or infinite actions raise ``ValueError`` (the
+    compiled step checks them: the noise is drawn first). Returns ``(state, reward (B,),
+    terminated (B,))``: nothing ends an episode here (always False); the time limit is the
+    shells' business. The new state carries its observation and diagnostics
+    (:class:`PointingState`).
     """
-    n, m, B = params.n_receivers, params.n_drones, state.batch_size
-    a = finite_array(action, "action")
+    n, m, B = params.n_receivers, params.n_drones, state.t.shape[0]
+    a = np.asarray(action, dtype=np.float64)
     if a.size != B * n * 2:
         raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
+    a = np.ascontiguousarray(a).reshape(B, n, 2)
     # measure every pair (a fixed number of draws, perturb_directions' draws), use what is seen
     noise = rng.standard_normal((B, n, m, 3)) if params.sigma_ang > 0.0 else np.empty((B, n, m, 3))
-    az, el = np.empty((B, n)), np.empty((B, n))
-    p, x, P = np.empty((B, m, 3)), np.empty((B, m, 6)), np.empty((B, m, 6, 6))
-    seen, fixed = np.empty((B, n, m), dtype=bool), np.empty((B, m), dtype=bool)
-    bound, reward = np.empty((B, m)), np.empty(B)
-    step_kernel(
+    track = state.track
+    args = (
         params._receivers,
+        params._constants,
+        _c(state.t),
         _c(state.azimuth),
         _c(state.elevation),
         _c(state.drone_position),
         _c(state.drone_velocity),
-        _c(state.track.x),
-        _c(state.track.P),
-        np.ascontiguousarray(a.reshape(B, n, 2)),
+        _c(track.x),
+        _c(track.P),
+        a,
         noise,
-        params.slew_rate * params.dt,
-        params.max_elevation,
-        params.dt,
-        params.process_noise,
-        np.cos(params.fov),
-        params.sigma_ang,
-        params.sigma_ref,
-        params.reward_clip,
-        az,
-        el,
-        p,
-        x,
-        P,
-        seen,
-        fixed,
-        bound,
-        reward,
     )
-    track = CVTrack(x, P)
-    new = PointingState(
-        state.t + params.dt, az, el, p, state.drone_velocity, track, seen, fixed, bound
-    )
+    t, az, el = np.empty(B), np.empty((B, n)), np.empty((B, n))
+    p, x, P = np.empty((B, m, 3)), np.empty((B, m, 6)), np.empty((B, m, 6, 6))
+    seen, fixed = np.empty((B, n, m), dtype=bool), np.empty((B, m), dtype=bool)
+    bound, reward = np.empty((B, m)), np.empty(B)
+    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
+    outputs = (t, az, el, p, x, P, seen, fixed, bound, reward, obs, diag)
+    if B < 2 * MIN_ROWS_PER_THREAD:  # what run_rows does for a batch this small, sooner
+        finite = kernels.step_kernel(0, B, *args, *outputs)
+    else:
+        chunks: list[bool] = []
+        run_rows(B, lambda lo, hi: chunks.append(kernels.step_kernel(lo, hi, *args, *outputs)))
+        finite = all(chunks)
+    if not finite:
+        raise ValueError("action: contains NaN or infinite values")
+    new = PointingState(t, az, el, p, state.drone_velocity, CVTrack(x, P), seen, fixed, bound)
+    object.__setattr__(new, "_derived", (params, obs, diag))
     return new, reward, np.zeros(B, dtype=bool)
 
 
@@ -461,22 +483,35 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]`` (an offset of more than ten
     half-angles reads as ±10).
     """
-    obs = np.empty((state.batch_size, params.obs_dim))
-    observe_kernel(
+    return _derived(params, state)[1]
+
+
+def _derived(
+    params: PointingParams, state: PointingState
+) -> tuple[PointingParams, NDArray[np.float32], FloatArray]:
+    """``(params, observation, diagnostics (3, B))`` of ``state``: those :func:`step` wrote,
+    else computed by the compiled kernel and kept on the state (:class:`PointingState`)."""
+    d = state.__dict__.get("_derived")
+    if d is not None and d[0] is params:
+        return d
+    B = state.t.shape[0]
+    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
+    kernels.observe_kernel(
         params._receivers,
+        params._constants,
         _c(state.azimuth),
         _c(state.elevation),
         _c(state.track.x),
         _c(state.track.P),
         np.ascontiguousarray(state.seen, dtype=bool),
-        params.dt,
-        params.process_noise,
-        params.fov,
-        params.length_scale,
-        params.sigma_ref,
+        _c(state.drone_position),
+        np.ascontiguousarray(state.fixed, dtype=bool),
         obs,
+        diag,
     )
-    return clip_observation(obs)
+    d = (params, obs, diag)
+    object.__setattr__(state, "_derived", d)
+    return d
 
 
 def observe_agents(params: PointingParams, state: PointingState) -> NDArray[np.float32]:
@@ -488,11 +523,11 @@ def observe_agents(params: PointingParams, state: PointingState) -> NDArray[np.f
 def info(params: PointingParams, state: PointingState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the mean
     position error of the tracks, the number of drones fixed and of receiver-drone views."""
-    error = np.linalg.norm(state.track.position - state.drone_position, axis=-1)
+    diag = _derived(params, state)[2]
     return {
-        "position_error": error.mean(axis=-1),
-        "drones_fixed": state.fixed.sum(axis=-1).astype(np.float64),
-        "views": state.seen.sum(axis=(1, 2)).astype(np.float64),
+        "position_error": diag[kernels.I_ERROR],
+        "drones_fixed": diag[kernels.I_FIXED],
+        "views": diag[kernels.I_VIEWS],
     }
 
 
