@@ -418,3 +418,61 @@ def test_orthogonal_pairs_beat_track_nearest_when_nearest_pairs_are_collinear():
     assert nearest.tolist() == [0, 0, 1, 1]  # the clusters: nearly parallel lines of sight
     assert returns["OrthogonalPairs"] > returns["TrackNearest"] + 40.0
     assert returns["GreedyPointing"] > returns["TrackNearest"] + 40.0
+
+
+# --- scenario rows over threads -----------------------------------------------------------------
+
+
+def _threaded_run(threads: str, autoreset: str) -> tuple[list, list]:
+    """A 300-scenario vector env stepped 14 times with ``SENSORGYM_THREADS=threads`` (episodes of
+    5 steps: autoresets on the way); every output, and the row ranges the step kernel ran."""
+    from sensorgym.envs.stereo_pointing import kernels
+
+    chunks: list = []
+    step_kernel = kernels.step_kernel
+
+    def spy(lo, hi, *args):
+        chunks.append((lo, hi))
+        return step_kernel(lo, hi, *args)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("SENSORGYM_THREADS", threads)
+        patch.setattr(kernels, "step_kernel", spy)
+        venv = StereoPointingVectorEnv(num_envs=300, max_episode_steps=5, autoreset_mode=autoreset)
+        out = [venv.reset(seed=3)]
+        rng = np.random.default_rng(4)
+        for _ in range(14):
+            out.append(venv.step(rng.uniform(-1.2, 1.2, venv.action_space.shape)))
+    return out, chunks
+
+
+@pytest.mark.parametrize("autoreset", ["NextStep", "SameStep"])
+def test_two_threads_give_the_one_thread_results_bit_for_bit(autoreset):
+    one, chunks_one = _threaded_run("1", autoreset)
+    two, chunks_two = _threaded_run("2", autoreset)
+    assert set(chunks_one) == {(0, 300)} and set(chunks_two) == {(0, 150), (150, 300)}
+    assert "views" in one[-1][-1]
+    _assert_same(one, two)
+
+
+def _assert_same(x, y) -> None:
+    """``x`` and ``y`` equal bit for bit, through tuples, lists and dicts."""
+    if isinstance(x, dict):
+        assert x.keys() == y.keys()
+        for key in x:
+            _assert_same(x[key], y[key])
+    elif isinstance(x, (tuple, list)):
+        assert len(x) == len(y)
+        for a, b in zip(x, y, strict=True):
+            _assert_same(a, b)
+    else:
+        np.testing.assert_array_equal(x, y, strict=True)
+
+
+def test_a_bad_action_in_a_later_chunk_raises(monkeypatch):
+    monkeypatch.setenv("SENSORGYM_THREADS", "2")
+    state = core.reset(PointingParams(), np.random.default_rng(0), 300)
+    action = np.zeros((300, 4, 2))
+    action[299, 3, 1] = np.inf
+    with pytest.raises(ValueError, match="action: contains NaN"):
+        core.step(PointingParams(), state, action, np.random.default_rng(1))
