@@ -4,7 +4,7 @@ Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--t
 ``--n-envs`` override them. The run folder gets the policy weights ``policy.safetensors`` (data
 only: loading them runs no code), the resolved ``config.yaml`` and ``evaluation.json`` (the
 trained policy beside the heuristic rules, same seed and scenarios); ``sensorgym benchmark
---model RUN_FOLDER`` scores it again later.
+--model RUN_FOLDER`` scores it again later. ``--tensorboard DIR`` logs the run for TensorBoard.
 """
 
 from __future__ import annotations
@@ -36,6 +36,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--eval-episodes", type=int, default=64)
     parser.add_argument("--out", type=Path, default=Path("results/train"))
+    parser.add_argument(
+        "--tensorboard",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write TensorBoard event files to DIR: SB3's scalars and the env's accuracy "
+        "metrics per episode (episode/bound, episode/position_error, …); view them with "
+        "`tensorboard --logdir DIR`",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -61,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         agents=args.agents,
         torch_threads=args.torch_threads,
+        tensorboard=args.tensorboard,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):
@@ -70,4 +80,6 @@ def run(args: argparse.Namespace) -> int:
     console = Console()
     console.print(table)
     console.print(f"saved {result.run_dir}")
+    if args.tensorboard is not None:
+        console.print(f"TensorBoard event files in {args.tensorboard}")
     return 0

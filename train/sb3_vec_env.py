@@ -84,9 +84,15 @@ class SB3VecEnv(VecEnv):
         per_env = self._split_infos(infos)
         if dones.any():
             final = self._slots(infos["final_obs"])
+            final_info = infos.get("final_info", {})
             for i in np.flatnonzero(dones):
                 per_env[i]["terminal_observation"] = final[i]
                 per_env[i]["TimeLimit.truncated"] = bool(time_limit[i])
+                # the diagnostics of the step that ended the episode (the slot's own info is
+                # already the next episode's): what per-episode accuracy metrics are read from
+                per_env[i]["final_info"] = self._final_info(
+                    final_info, i // self.agents_per_scenario
+                )
         return self._slots(obs), self._slots(reward).astype(np.float32), dones, per_env
 
     def _split_infos(self, infos: dict[str, Any]) -> list[dict[str, Any]]:
@@ -111,6 +117,18 @@ class SB3VecEnv(VecEnv):
                 item = value[b].item() if hasattr(value[b], "item") else value[b]
                 for i in range(b * n, (b + 1) * n):
                     out[i][key] = item
+        return out
+
+    @staticmethod
+    def _final_info(final_info: dict[str, Any], b: int) -> dict[str, Any]:
+        """Scenario ``b``'s entries of Gymnasium's ``final_info`` (dict of masked arrays)."""
+        out = {}
+        for key, value in final_info.items():
+            mask = final_info.get(f"_{key}")
+            if key.startswith("_") or (mask is not None and not mask[b]):
+                continue
+            item = value[b]
+            out[key] = item.item() if hasattr(item, "item") else item
         return out
 
     def close(self) -> None:

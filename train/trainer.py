@@ -9,7 +9,9 @@ disjoint from training's).
 from __future__ import annotations
 
 import json
+import math
 import platform
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib.metadata import version
 from pathlib import Path
@@ -26,6 +28,22 @@ from sensorgym.train.models import save_run
 
 #: evaluation scenarios come from this offset of the training seed
 EVAL_SEED_OFFSET = 10_000
+
+
+class EpisodeInfoLogger(BaseCallback):
+    """Logs the env's own accuracy metrics per finished episode: every numeric entry of the
+    ``info`` of the step that ended it (``final_info``: the final bound, position error, drones
+    fixed, …) as ``episode/<key>``, averaged over the episodes of a logging interval — next to
+    SB3's own scalars in whatever outputs the logger has (TensorBoard with ``--tensorboard``)."""
+
+    def _on_step(self) -> bool:
+        for done, info in zip(self.locals["dones"], self.locals["infos"], strict=True):
+            if not done:
+                continue
+            for key, value in info.get("final_info", {}).items():
+                if isinstance(value, int | float) and math.isfinite(value):
+                    self.logger.record_mean(f"episode/{key}", float(value))
+        return True
 
 
 class RichProgress(BaseCallback):
@@ -71,6 +89,9 @@ def train(
     progress: bool = True,
     agents: bool = False,
     torch_threads: int = 1,
+    hyperparams: dict[str, Any] | None = None,
+    tensorboard: Path | None = None,
+    callbacks: Sequence[BaseCallback] = (),
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
     override them), save the run and evaluate it beside the rules.
@@ -82,6 +103,12 @@ def train(
     ``torch_threads`` sets torch's intra-op threads for the run (default 1: the policies here
     are small MLPs, one thread is never slower on them, and torch's default thread pool can
     stall a run many times over on a busy 2-core machine); it is restored afterwards.
+
+    ``hyperparams`` override entries of the YAML's (a sweep's sampled configuration; they are
+    saved in ``config.yaml`` like the rest). ``tensorboard``: a folder for TensorBoard event
+    files — SB3's scalars plus the env's accuracy metrics per episode
+    (:class:`EpisodeInfoLogger`) — in ``<tensorboard>/<env id with __>_<algo>_seed<seed>_1``.
+    ``callbacks`` are further SB3 callbacks run during learning.
     """
     import torch
 
@@ -90,7 +117,20 @@ def train(
     previous_threads = torch.get_num_threads()
     torch.set_num_threads(torch_threads)
     try:
-        return _train(env_id, algo, seed, timesteps, n_envs, out, eval_episodes, progress, agents)
+        return _train(
+            env_id,
+            algo,
+            seed,
+            timesteps,
+            n_envs,
+            out,
+            eval_episodes,
+            progress,
+            agents,
+            hyperparams or {},
+            tensorboard,
+            list(callbacks),
+        )
     finally:
         torch.set_num_threads(previous_threads)
 
@@ -105,8 +145,12 @@ def _train(
     eval_episodes: int,
     progress: bool,
     agents: bool,
+    overrides: dict[str, Any],
+    tensorboard: Path | None,
+    callbacks: list[BaseCallback],
 ) -> TrainResult:
     hp = load_hyperparams(algo, env_id)
+    hp.update(overrides)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
     if n_envs is not None:
@@ -115,10 +159,24 @@ def _train(
     if run["n_timesteps"] < 1 or run["n_envs"] < 1:
         raise ValueError(f"timesteps and n_envs must be >= 1, got {run}")
     env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents)
-    model = ALGORITHMS[algo](run["policy"], env, seed=seed, device="cpu", verbose=0, **algo_kwargs)
+    tb_log = None if tensorboard is None else str(Path(tensorboard).resolve())
+    model = ALGORITHMS[algo](
+        run["policy"],
+        env,
+        seed=seed,
+        device="cpu",
+        verbose=0,
+        tensorboard_log=tb_log,
+        **algo_kwargs,
+    )
+    name = run_dir_for(Path("."), env_id, algo, seed, agents)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
-        model.learn(run["n_timesteps"], callback=RichProgress(bar, task))
+        model.learn(
+            run["n_timesteps"],
+            callback=[RichProgress(bar, task), EpisodeInfoLogger(), *callbacks],
+            tb_log_name=f"{name.parent.name}_{name.name}",
+        )
     env.close()
 
     run_dir = run_dir_for(out, env_id, algo, seed, agents)
