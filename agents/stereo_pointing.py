@@ -5,7 +5,10 @@ Each rule reads only the observation (own gimbal angles and the tracker's predic
 env's params, and implements SB3's ``predict``, so
 ``stable_baselines3.common.evaluation.evaluate_policy`` scores it like a trained model. The
 assignment rules enumerate every map of receivers to drones (``m^n`` of them) and slew each
-receiver straight at the predicted position of its drone.
+receiver straight at the predicted position of its drone; the scores of all candidates are the
+compiled :func:`~sensorgym.trackers.stereo.kernels.assignment_orthogonality_batch` and
+:func:`~sensorgym.trackers.stereo.kernels.assignment_log_det_batch`, the lines of sight and
+pointing offsets the env's compiled ones.
 """
 
 from __future__ import annotations
@@ -25,7 +28,8 @@ from sensorgym.envs.stereo_pointing.simulation import (
     pointing_offsets,
     split_observation,
 )
-from sensorgym.trackers.stereo.information import MIN_RANGE, position_information
+from sensorgym.trackers.stereo import kernels
+from sensorgym.trackers.stereo.information import MIN_RANGE
 
 FloatArray = NDArray[np.float64]
 
@@ -164,15 +168,10 @@ class OrthogonalPairs(_AssignAndSlew):
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         cand = _assignments(self.params)  # (C, n)
-        m = self.params.n_drones
-        member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)  # (C, m, n)
-        cos = np.einsum("Nkji,Nlji->Njkl", view.los, view.los)
-        sin2 = np.clip(1.0 - cos**2, 0.0, 1.0)  # (N, m, n, n)
-        # Σ_{l∈S_j} sin²γ_{kl} for every reference k, then the best reference within S_j
-        total = np.einsum("cjl,Njkl->Ncjk", member, sin2)
-        total = np.where(member[None] > 0.0, total, 0.0).max(axis=-1)  # (N, C, m)
-        objective = 0.5 * np.log(np.maximum(total, 1e-300)).sum(axis=-1)
-        objective = objective + _keep_bonus(view, cand, self.keep_bonus)
+        objective = np.empty((view.los.shape[0], cand.shape[0]))
+        # Σ_j ½ ln max_{k∈S_j} Σ_{l∈S_j} sin²γ_kl, compiled
+        kernels.assignment_orthogonality_batch(view.los, cand, objective)
+        objective += _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
 
@@ -198,15 +197,15 @@ class GreedyPointing(_AssignAndSlew):
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         cand = _assignments(self.params)
-        m = self.params.n_drones
-        member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)  # (C, m, n)
-        sigma = max(self.params.sigma_ang, 1e-9)
-        # per drone j: the lines of sight of the receivers candidate c assigns to it
-        u = np.swapaxes(view.los, 1, 2)[:, None]  # (N, 1, m, n, 3)
-        r = np.swapaxes(view.ranges, 1, 2)[:, None]  # (N, 1, m, n)
-        info = position_information(u, r, sigma, mask=member[None] > 0.0)  # (N, C, m, 3, 3)
-        pair = (member.sum(axis=-1) >= 2.0)[None]  # (1, C, m)
-        sign, logdet = np.linalg.slogdet(np.where(pair[..., None, None], info, np.eye(3)))
-        logdet = np.where(pair & (sign > 0.0), logdet, -self.no_fix_cost)
-        objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, self.keep_bonus)
+        objective = np.empty((view.los.shape[0], cand.shape[0]))
+        # Σ_j ln det I_j of the receivers each candidate assigns to drone j, compiled
+        kernels.assignment_log_det_batch(
+            view.los,
+            view.ranges,
+            max(self.params.sigma_ang, 1e-9),
+            cand,
+            float(self.no_fix_cost),
+            objective,
+        )
+        objective += _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]

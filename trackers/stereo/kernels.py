@@ -306,6 +306,68 @@ def log_ratio_reward(sigma_pos, sigma_ref, clip_r):
     return clip(math.log(sigma_ref) - math.log(sigma_pos), -clip_r, clip_r)
 
 
+@njit(**INLINE)
+def sin2_between(u, v):
+    """``sin²γ = clip(1 − (u · v)², 0, 1)`` of the angle ``γ`` between unit vectors ``u``, ``v``
+    (the orthogonality of two lines of sight, theory §10.1 OC-1). The dot product is summed as
+    ``(u_x v_x + u_z v_z) + u_y v_y``, the order of the numpy form it replaced (``np.einsum``):
+    a rule ranking near-equal scores then decides as before."""
+    c = (u[0] * v[0] + u[2] * v[2]) + u[1] * v[1]
+    return clip(1.0 - c * c, 0.0, 1.0)
+
+
+@njit(**JIT)
+def assignment_log_det_batch(u, r, sigma, cand, no_fix, out):
+    """``Σ_j ln det I_j`` of every candidate assignment of receivers to points (theory §10.1–10.2
+    OC-1/OC-2): ``I_j`` the :func:`position_information` of the receivers candidate ``c``
+    assigns to point ``j`` (``cand[c, k] = j``), at lines of sight ``u (N, n, m, 3)`` and ranges
+    ``r (N, n, m)`` with angle noise ``sigma``. A point given fewer than two receivers, or a
+    non-positive ``det I_j``, scores ``−no_fix``. Into ``out (N, C)``."""
+    N, n, m = r.shape
+    sig = np.full(n, sigma)
+    mask = np.empty(n, dtype=np.bool_)
+    info = np.empty((3, 3))
+    for b in range(N):
+        for c in range(cand.shape[0]):
+            total = 0.0
+            for j in range(m):
+                for k in range(n):
+                    mask[k] = cand[c, k] == j
+                score = -no_fix
+                if count_views(mask) >= 2:
+                    position_information(u[b, :, j], r[b, :, j], sig, mask, info)
+                    det = det3(info)
+                    if det > 0.0:
+                        score = math.log(det)
+                total += score
+            out[b, c] = total
+
+
+@njit(**JIT)
+def assignment_orthogonality_batch(u, cand, out):
+    """``Σ_j ½ ln max_{k∈S_j} Σ_{l∈S_j} sin²γ_kl`` of every candidate assignment (theory §10.1
+    OC-1): ``S_j`` the receivers candidate ``c`` assigns to point ``j`` (``cand[c, k] = j``),
+    ``γ_kl`` the angle between their lines of sight ``u (N, n, m, 3)`` (:func:`sin2_between`);
+    the sums are floored at ``1e-300`` (an empty ``S_j``; a single receiver scores its own
+    ``sin²γ_kk``, zero to round-off). Into ``out (N, C)``."""
+    N, n, m = u.shape[0], u.shape[1], u.shape[2]
+    for b in range(N):
+        for c in range(cand.shape[0]):
+            total = 0.0
+            for j in range(m):
+                best = 0.0
+                for k in range(n):
+                    if cand[c, k] != j:
+                        continue
+                    s = 0.0
+                    for l in range(n):
+                        if cand[c, l] == j:
+                            s += sin2_between(u[b, k, j], u[b, l, j])
+                    best = max(best, s)
+                total += math.log(max(best, 1e-300))
+            out[b, c] = 0.5 * total
+
+
 # ---------------------------------------------------------------- constant-velocity Kalman filter
 
 
