@@ -19,6 +19,7 @@ COMMANDS: dict[str, str] = {
     "benchmark": "sensorgym.cli.benchmark",
     "train": "sensorgym.cli.train",
     "render": "sensorgym.cli.render",
+    "sweep": "sensorgym.cli.sweep",
 }
 
 #: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments

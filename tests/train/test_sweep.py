@@ -1,0 +1,66 @@
+"""``sensorgym sweep``: a tiny two-seed sweep on a local Ray instance, and its aggregation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from sensorgym.cli.main import main
+from sensorgym.train.models import read_config
+from sensorgym.train.sweep import aggregate, config_tag, parse_space
+
+pytest.importorskip("ray")
+
+
+def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
+    args = ["--seeds", "0", "1", "--timesteps", "2048", "--n-envs", "8", "--eval-episodes", "8"]
+    assert main(["sweep", *args, "--num-cpus", "2", "--out", str(tmp_path)]) == 0
+    printed = capsys.readouterr().out
+    assert "yaml (best)" in printed and "±95 %" in printed and "sweep.png" in printed
+    doc = json.loads((tmp_path / "sweep.json").read_text())
+    assert doc["best"] == "yaml" and doc["incomplete"] == 0
+    (config,) = doc["configs"].values()
+    assert config["seeds"] == [0, 1]
+    # every trial is an ordinary `sensorgym train` run folder, whose evaluation is aggregated
+    returns = []
+    for seed, run_dir in zip(config["seeds"], config["run_dirs"], strict=True):
+        assert read_config(run_dir)["seed"] == seed
+        assert read_config(run_dir)["hyperparams"]["n_timesteps"] == 2048
+        evaluation = json.loads((tmp_path / run_dir / "evaluation.json").read_text())
+        returns.append(evaluation["results"]["trained"]["mean"])
+    assert config["returns"] == returns
+    assert config["mean"] == pytest.approx(np.mean(returns))
+    half = stats.t.ppf(0.975, 1) * np.std(returns, ddof=1) / np.sqrt(2)
+    assert config["ci95"] == pytest.approx(half)
+    assert (tmp_path / "sweep.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_search_space_specs():
+    from ray import tune
+
+    name, domain = parse_space("learning_rate=loguniform:1e-4:1e-3")
+    assert name == "learning_rate" and isinstance(domain, tune.search.sample.Float)
+    assert parse_space("gamma=grid:0.95,0.99")[1] == {"grid_search": [0.95, 0.99]}
+    for bad in ("gamma", "gamma=choice", "gamma=normal:0:1", "lr=uniform:3:1", "lr=loguniform:0:1"):
+        with pytest.raises(ValueError, match="space"):
+            parse_space(bad)
+
+
+def test_aggregate_groups_configurations_over_seeds():
+    a, b = {"gamma": 0.9}, {"gamma": 0.99}
+    trials = [
+        {"seed": 1, "hyperparams": a, "tag": config_tag(a), "eval_return": 2.0, "run_dir": "r1"},
+        {"seed": 0, "hyperparams": a, "tag": config_tag(a), "eval_return": 1.0, "run_dir": "r0"},
+        {"seed": 0, "hyperparams": b, "tag": config_tag(b), "eval_return": 5.0, "run_dir": "s0"},
+        {"seed": 1, "hyperparams": b, "tag": None, "eval_return": None, "run_dir": None},
+    ]
+    doc = aggregate(trials)
+    assert doc["incomplete"] == 1 and doc["best"] == config_tag(b)
+    ca = doc["configs"][config_tag(a)]
+    assert ca["seeds"] == [0, 1] and ca["returns"] == [1.0, 2.0] and ca["mean"] == 1.5
+    assert ca["ci95"] == pytest.approx(stats.t.ppf(0.975, 1) * np.std([1, 2], ddof=1) / 2**0.5)
+    assert doc["configs"][config_tag(b)]["ci95"] is None  # one seed: no interval
+    assert config_tag({}) == "yaml" and config_tag(a) != config_tag(b)
