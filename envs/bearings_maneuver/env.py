@@ -84,7 +84,11 @@ class BearingsManeuverEnv(CoreEnv):
 
     * v0: initial version. Issue 10 changed its episodes in place: the tracker's prior now
       matches the scenario generator (it assumed a course towards the platform), and the bound
-      is carried in square-root covariance form (finite rewards at every scale).
+      is carried in square-root covariance form (finite rewards at every scale). Issue 11
+      compiled its reset and step; a reset's first bearings now come from the compiled bearing
+      primitive (libm's ``atan2`` where numpy's SIMD one ran before), which can move one by a
+      unit in the last place (rewards then differ by up to ~1e-12 relative); the recorded
+      seeded episodes are unchanged.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

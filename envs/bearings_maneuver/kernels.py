@@ -1,11 +1,22 @@
-"""The BearingsManeuver step and observation fused into one compiled pass over the batch.
+"""The BearingsManeuver reset, step and observation as compiled passes over the batch's rows.
 
-:func:`step_kernel` is :func:`.simulation.step` for every scenario in turn, built from the
-primitives written once in :mod:`sensorgym.trackers.bearings.kernels` (bank, bound, accuracy)
-and :mod:`sensorgym.envs.worlds.platform_kernels` (flight); :func:`observe_kernel` is
-:func:`.simulation.observe_agents`. The random draws are made by the caller with numpy's
-Generator, in the order and shapes of the numpy form, and passed in: seeded episodes do not
-depend on the kernel. Arrays of the new state are written in place (the caller passes copies).
+:func:`step_kernel` is :func:`.simulation.step` for the scenarios ``lo ≤ b < hi`` (so that
+:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads);
+:func:`prior_kernel` and :func:`start_kernel` are the two halves of :func:`.simulation.reset`
+either side of the bound's square root. All are built from the primitives written once in
+:mod:`sensorgym.trackers.bearings.kernels` (prior, bank, bound, accuracy) and
+:mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings). The random draws
+are made by the caller with numpy's Generator, in the order and shapes of the numpy form, and
+passed in: seeded episodes do not depend on the kernel or on the split of the rows.
+
+The step reads the old state's arrays and writes freshly allocated ones (states are values).
+Every kernel that writes a state also writes its derived fields — the observation
+(:func:`derive`, the table of :func:`.simulation.observe_agents`), the nearest range and the
+estimate's position error — from one moment-matched bank estimate, so that
+:func:`.simulation.observe` and :func:`.simulation.info` only read them.
+
+Scalar settings come packed in one float64 array ``c`` (:attr:`.simulation.ManeuverParams.
+kernel_constants`), indexed by the constants below.
 """
 
 from __future__ import annotations
@@ -15,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from sensorgym.envs.worlds.platform_kernels import fly_platform
+from sensorgym.envs.worlds.platform_kernels import fly_platform, noisy_bearing, propagate_target
 from sensorgym.trackers.bearings.kernels import (
     STATE_DIM,
     accuracy,
@@ -24,14 +35,23 @@ from sensorgym.trackers.bearings.kernels import (
     bank_update,
     bound_predict,
     bound_update,
+    range_bank_prior,
 )
-from sensorgym.trackers.geometry import wrap_angle_scalar as wrap
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+# indices into the packed settings ``c``
+DT, Q_TILDE, SIGMA, MAX_TURN, MAX_DV, MIN_SPEED, MAX_SPEED = 0, 1, 2, 3, 4, 5, 6
+FLOOR, MIN_RANGE, PENALTY, RELATIVE_RANGE = 7, 8, 9, 10
+RANGE_SCALE, SPEED_SCALE, CLIP, SPEED_MEAN, SPEED_SIGMA = 11, 12, 13, 14, 15
+N_CONSTANTS = 16
 
 
 @njit(**_JIT)
 def step_kernel(
+    lo,
+    hi,
+    c,
     pos,
     heading,
     speed,
@@ -41,91 +61,172 @@ def step_kernel(
     P,
     L,
     acc,
-    bearing,
     action,
     target_noise,
-    target_noise_factor,
+    noise_factor,
     bearing_noise,
-    dt,
-    bank_dt,
-    q_tilde,
-    sigma,
-    max_turn,
-    max_dv,
-    min_speed,
-    max_speed,
-    relative_range,
-    floor,
-    min_range,
-    close_penalty,
+    pos2,
+    heading2,
+    speed2,
+    target2,
+    lw2,
+    X2,
+    P2,
+    L2,
+    acc2,
+    z2,
+    obs,
+    nearest,
+    error,
     reward,
     terminated,
 ):
-    """One step of every scenario, in place on the state arrays (``pos (B, K, 2)``, ``heading``,
-    ``speed``, ``bearing`` ``(B, K)``, ``target (B, 4)``, bank ``lw (B, N)``, ``X (B, N, 4)``,
-    ``P (B, N, 4, 4)``, bound ``L (B, 4, 4)``, ``acc (B,)``); ``action (B, K, 2)`` in
-    ``[−1, 1]``-clipped units; ``target_noise (B, 4)`` standard normals (used when
-    ``q̃ > 0``) and ``bearing_noise (B, K)``. Writes ``reward`` and ``terminated`` ``(B,)``."""
-    B, K = heading.shape
+    """One step of scenarios ``lo ≤ b < hi``: reads the state ``pos (B, K, 2)``, ``heading``,
+    ``speed`` ``(B, K)``, ``target (B, 4)``, bank ``lw (B, N)``, ``X (B, N, 4)``,
+    ``P (B, N, 4, 4)``, bound ``L (B, 4, 4)``, ``acc (B,)``, and writes the new one into the
+    arrays suffixed 2, with the bearings ``z2 (B, K)``, the derived fields ``obs``,
+    ``nearest``, ``error`` and ``reward``, ``terminated`` ``(B,)``. ``action (B, K, 2)`` is
+    clipped to ``[−1, 1]``; ``target_noise (B, 4)`` standard normals (used when ``q̃ > 0``,
+    with ``noise_factor`` ``G``, ``G Gᵀ = Q``), ``bearing_noise (B, K)``. Returns the number of
+    non-finite action entries (the caller raises: the kernel trusts everything else)."""
+    K = heading.shape[1]
+    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
     L_pred = np.empty((STATE_DIM, STATE_DIM))
-    x_new = np.empty(STATE_DIM)
-    for b in range(B):
+    x = np.empty(STATE_DIM)
+    Pe = np.empty((STATE_DIM, STATE_DIM))
+    bad = 0
+    for b in range(lo, hi):
         # 1. platforms fly the commanded arcs: (a₀ ω_max, a₁ Δv_max), a clipped to [−1, 1]
         for k in range(K):
-            a0 = min(max(action[b, k, 0], -1.0), 1.0)
-            a1 = min(max(action[b, k, 1], -1.0), 1.0)
-            pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k] = fly_platform(
+            a0, a1 = action[b, k, 0], action[b, k, 1]
+            if not (np.isfinite(a0) and np.isfinite(a1)):
+                bad += 1
+            a0 = min(max(a0, -1.0), 1.0)
+            a1 = min(max(a1, -1.0), 1.0)
+            pos2[b, k, 0], pos2[b, k, 1], heading2[b, k], speed2[b, k] = fly_platform(
                 pos[b, k, 0],
                 pos[b, k, 1],
                 heading[b, k],
                 speed[b, k],
-                a0 * max_turn,
-                a1 * max_dv,
+                a0 * c[MAX_TURN],
+                a1 * c[MAX_DV],
                 dt,
-                max_turn,
-                max_dv,
-                min_speed,
-                max_speed,
+                c[MAX_TURN],
+                c[MAX_DV],
+                c[MIN_SPEED],
+                c[MAX_SPEED],
             )
-        # the target moves on: x' = F x + w, w = G_chol ε ~ N(0, Q)
-        for i in range(2):
-            x_new[i] = target[b, i] + dt * target[b, i + 2]
-            x_new[i + 2] = target[b, i + 2]
-        if q_tilde > 0.0:
-            for i in range(STATE_DIM):
-                w = 0.0
-                for j in range(STATE_DIM):
-                    w += target_noise[b, j] * target_noise_factor[i, j]
-                x_new[i] += w
-        for i in range(STATE_DIM):
-            target[b, i] = x_new[i]
-        # 2. noisy bearings z = wrap(β + σ ε); the bank predicts, then fuses them in turn
+        # the target moves on
+        propagate_target(
+            target[b],
+            target_noise[b] if q_tilde > 0.0 else x,
+            noise_factor,
+            dt,
+            q_tilde,
+            target2[b],
+        )
+        # 2. noisy bearings; the bank predicts, then fuses them in turn
         for k in range(K):
-            beta = math.atan2(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1])
-            bearing[b, k] = wrap(beta + sigma * bearing_noise[b, k])
-        bank_predict(X[b], P[b], bank_dt, q_tilde)
+            z2[b, k] = noisy_bearing(
+                target2[b, 0],
+                target2[b, 1],
+                pos2[b, k, 0],
+                pos2[b, k, 1],
+                sigma,
+                bearing_noise[b, k],
+            )
+        lw2[b] = lw[b]
+        X2[b] = X[b]
+        P2[b] = P[b]
+        bank_predict(X2[b], P2[b], dt, q_tilde)
         for k in range(K):
-            bank_update(lw[b], X[b], P[b], bearing[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
+            bank_update(lw2[b], X2[b], P2[b], z2[b, k], pos2[b, k, 0], pos2[b, k, 1], sigma)
         # 3. the bound: P̄ = F P Fᵀ + Q, then each platform's bearing information, square root
         bound_predict(L[b], dt, q_tilde, L_pred)
         for k in range(K):
             bound_update(
-                L_pred, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b]
+                L_pred, target2[b, 0], target2[b, 1], pos2[b, k, 0], pos2[b, k, 1], sigma, L2[b]
             )
             if k + 1 < K:
-                L_pred[:, :] = L[b]
+                L_pred[:, :] = L2[b]
         m = accuracy(
-            relative_range, L[b], target[b, 0], target[b, 1], pos[b, 0, 0], pos[b, 0, 1], floor
+            c[RELATIVE_RANGE] > 0.0,
+            L2[b],
+            target2[b, 0],
+            target2[b, 1],
+            pos2[b, 0, 0],
+            pos2[b, 0, 1],
+            c[FLOOR],
         )
         # reward_k = ln m_k − ln m_{k+1}; − close_penalty when a platform comes within min_range
         r = math.log(acc[b]) - math.log(m)
-        acc[b] = m
+        acc2[b] = m
         end = False
         for k in range(K):
-            if math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]) < min_range:
+            if (
+                math.hypot(target2[b, 0] - pos2[b, k, 0], target2[b, 1] - pos2[b, k, 1])
+                < c[MIN_RANGE]
+            ):
                 end = True
         terminated[b] = end
-        reward[b] = r - close_penalty * (1.0 if end else 0.0)
+        reward[b] = r - c[PENALTY] * (1.0 if end else 0.0)
+        derive(b, c, pos2, heading2, speed2, z2, target2, lw2, X2, P2, x, Pe, obs, nearest, error)
+    return bad
+
+
+@njit(**_JIT)
+def prior_kernel(c, r, sr, lw0, pos_f, vel_f, z, pos, lw, X, P, P_est):
+    """The first half of a reset, every row: the prior bank from platform 1's first bearing
+    ``z[:, 0]`` (range cells ``r``, ``sr``, ``lw0`` ``(N,)``, spread factors ``pos_f``,
+    ``vel_f`` ``(3,)``; course mean = the bearing), its moment-matched covariance ``P_est``
+    ``(B, 4, 4)`` (whose square root is the bound's), then the other platforms' first bearings
+    fused into the bank."""
+    x = np.empty(STATE_DIM)
+    for b in range(z.shape[0]):
+        range_bank_prior(
+            z[b, 0],
+            pos[b, 0, 0],
+            pos[b, 0, 1],
+            r,
+            sr,
+            lw0,
+            pos_f,
+            c[SPEED_MEAN],
+            c[SPEED_SIGMA],
+            z[b, 0],
+            vel_f,
+            lw[b],
+            X[b],
+            P[b],
+        )
+        bank_estimate(lw[b], X[b], P[b], x, P_est[b])
+        for k in range(1, z.shape[1]):
+            bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], c[SIGMA])
+
+
+@njit(**_JIT)
+def start_kernel(c, heading, speed, z, pos, target, lw, X, P, L, acc, obs, nearest, error):
+    """The second half of a reset, every row: the other platforms' first bearings fused into the
+    bound's square root ``L`` (in place), the accuracy ``acc`` and the derived fields."""
+    L_in = np.empty((STATE_DIM, STATE_DIM))
+    x = np.empty(STATE_DIM)
+    Pe = np.empty((STATE_DIM, STATE_DIM))
+    for b in range(z.shape[0]):
+        for k in range(1, z.shape[1]):
+            L_in[:, :] = L[b]
+            bound_update(
+                L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], c[SIGMA], L[b]
+            )
+        acc[b] = accuracy(
+            c[RELATIVE_RANGE] > 0.0,
+            L[b],
+            target[b, 0],
+            target[b, 1],
+            pos[b, 0, 0],
+            pos[b, 0, 1],
+            c[FLOOR],
+        )
+        derive(b, c, pos, heading, speed, z, target, lw, X, P, x, Pe, obs, nearest, error)
 
 
 # a world vector v in the platform frame (starboard, ahead): (c v₀ − s v₁, s v₀ + c v₁)
@@ -141,63 +242,55 @@ def _put(out, b, k, i, value, clip):
 
 
 @njit(**_JIT)
-def observe_kernel(
-    pos, heading, speed, bearing, lw, X, P, max_speed, range_scale, speed_scale, clip, out
-):
-    """Each platform's observation ``out (B, K, obs_dim)`` float32 (the table of
-    :func:`.simulation.observe_agents`), from the bank's moment-matched estimate."""
-    B, K = heading.shape
-    x = np.empty(STATE_DIM)
-    Pe = np.empty((STATE_DIM, STATE_DIM))
-    for b in range(B):
-        bank_estimate(lw[b], X[b], P[b], x, Pe)
-        for k in range(K):
-            psi = heading[b, k]
-            s, c = math.sin(psi), math.cos(psi)
-            rel = bearing[b, k] - psi
-            _put(out, b, k, 0, math.sin(rel), clip)
-            _put(out, b, k, 1, math.cos(rel), clip)
-            _put(out, b, k, 2, speed[b, k] / max(max_speed, 1e-12), clip)
-            r0, r1 = body_frame(s, c, x[0] - pos[b, k, 0], x[1] - pos[b, k, 1])
-            _put(out, b, k, 3, r0 / range_scale, clip)
-            _put(out, b, k, 4, r1 / range_scale, clip)
-            v0, v1 = body_frame(s, c, x[2] - speed[b, k] * s, x[3] - speed[b, k] * c)
-            _put(out, b, k, 5, v0 / speed_scale, clip)
-            _put(out, b, k, 6, v1 / speed_scale, clip)
-            # position covariance in the platform frame: R P Rᵀ, R = [[c, −s], [s, c]]
-            rp00 = c * Pe[0, 0] + -s * Pe[1, 0]
-            rp01 = c * Pe[0, 1] + -s * Pe[1, 1]
-            rp10 = s * Pe[0, 0] + c * Pe[1, 0]
-            rp11 = s * Pe[0, 1] + c * Pe[1, 1]
-            pb00 = rp00 * c + rp01 * -s
-            pb01 = rp00 * s + rp01 * c
-            pb11 = rp10 * s + rp11 * c
-            sd0 = math.sqrt(max(pb00, 1e-12))
-            sd1 = math.sqrt(max(pb11, 1e-12))
-            _put(out, b, k, 7, math.log(sd0 / range_scale), clip)
-            _put(out, b, k, 8, math.log(sd1 / range_scale), clip)
-            _put(out, b, k, 9, pb01 / (sd0 * sd1), clip)
-            # each other platform's position relative to this one, in platform order
-            i = 10
-            for j in range(K):
-                if j != k:
-                    o0, o1 = body_frame(
-                        s, c, pos[b, j, 0] - pos[b, k, 0], pos[b, j, 1] - pos[b, k, 1]
-                    )
-                    _put(out, b, k, i, o0 / range_scale, clip)
-                    _put(out, b, k, i + 1, o1 / range_scale, clip)
-                    i += 2
-
-
-# nearest platform's range min_k ‖x_t − p_k‖ and the estimate's position error ‖x̂ − x_t‖
-@njit(**_JIT)
-def info_kernel(pos, target, lw, X, P, nearest, error):
-    x = np.empty(STATE_DIM)
-    Pe = np.empty((STATE_DIM, STATE_DIM))
-    for b in range(pos.shape[0]):
-        r = np.inf
-        for k in range(pos.shape[1]):
-            r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
-        nearest[b] = r
-        bank_estimate(lw[b], X[b], P[b], x, Pe)
-        error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])
+def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, obs, nearest, error):
+    """Row ``b``'s derived fields from the bank's moment-matched estimate ``x``, ``Pe``
+    (scratch): each platform's observation ``obs[b] (K, obs_dim)`` float32 (the table of
+    :func:`.simulation.observe_agents`), the nearest platform's range
+    ``min_k ‖x_t − p_k‖`` and the estimate's position error ``‖x̂ − x_t‖``."""
+    K = heading.shape[1]
+    max_speed, range_scale, speed_scale, clip = (
+        c[MAX_SPEED],
+        c[RANGE_SCALE],
+        c[SPEED_SCALE],
+        c[CLIP],
+    )
+    bank_estimate(lw[b], X[b], P[b], x, Pe)
+    for k in range(K):
+        psi = heading[b, k]
+        s, co = math.sin(psi), math.cos(psi)
+        rel = bearing[b, k] - psi
+        _put(obs, b, k, 0, math.sin(rel), clip)
+        _put(obs, b, k, 1, math.cos(rel), clip)
+        _put(obs, b, k, 2, speed[b, k] / max(max_speed, 1e-12), clip)
+        r0, r1 = body_frame(s, co, x[0] - pos[b, k, 0], x[1] - pos[b, k, 1])
+        _put(obs, b, k, 3, r0 / range_scale, clip)
+        _put(obs, b, k, 4, r1 / range_scale, clip)
+        v0, v1 = body_frame(s, co, x[2] - speed[b, k] * s, x[3] - speed[b, k] * co)
+        _put(obs, b, k, 5, v0 / speed_scale, clip)
+        _put(obs, b, k, 6, v1 / speed_scale, clip)
+        # position covariance in the platform frame: R P Rᵀ, R = [[c, −s], [s, c]]
+        rp00 = co * Pe[0, 0] + -s * Pe[1, 0]
+        rp01 = co * Pe[0, 1] + -s * Pe[1, 1]
+        rp10 = s * Pe[0, 0] + co * Pe[1, 0]
+        rp11 = s * Pe[0, 1] + co * Pe[1, 1]
+        pb00 = rp00 * co + rp01 * -s
+        pb01 = rp00 * s + rp01 * co
+        pb11 = rp10 * s + rp11 * co
+        sd0 = math.sqrt(max(pb00, 1e-12))
+        sd1 = math.sqrt(max(pb11, 1e-12))
+        _put(obs, b, k, 7, math.log(sd0 / range_scale), clip)
+        _put(obs, b, k, 8, math.log(sd1 / range_scale), clip)
+        _put(obs, b, k, 9, pb01 / (sd0 * sd1), clip)
+        # each other platform's position relative to this one, in platform order
+        i = 10
+        for j in range(K):
+            if j != k:
+                o0, o1 = body_frame(s, co, pos[b, j, 0] - pos[b, k, 0], pos[b, j, 1] - pos[b, k, 1])
+                _put(obs, b, k, i, o0 / range_scale, clip)
+                _put(obs, b, k, i + 1, o1 / range_scale, clip)
+                i += 2
+    r = np.inf
+    for k in range(K):
+        r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
+    nearest[b] = r
+    error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])

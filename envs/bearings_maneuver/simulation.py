@@ -32,12 +32,15 @@ bearing: range uniform over ``bank_ranges`` (default the generator's ``initial_r
 course uniform over the full circle, speed with the mean and standard deviation of the
 uniform ``target_speed`` draw (unless ``prior_speed`` says otherwise), moment-matched.
 
-The step and the observation run as compiled kernels over the whole batch
-(:mod:`.kernels`: :func:`~.kernels.step_kernel`, :func:`~.kernels.observe_kernel`), built from
-the tracker primitives the public functions of :mod:`sensorgym.trackers.bearings` also call
-(:mod:`sensorgym.trackers.bearings.kernels`) and the platform flight
+The reset and the step run as compiled kernels over the batch's rows (:mod:`.kernels`:
+:func:`~.kernels.prior_kernel`, :func:`~.kernels.start_kernel`, :func:`~.kernels.step_kernel`,
+the step split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), built from the
+tracker primitives the public functions of :mod:`sensorgym.trackers.bearings` also call
+(:mod:`sensorgym.trackers.bearings.kernels`) and the world's
 (:mod:`sensorgym.envs.worlds.platform_kernels`); the random draws are made here with the
-Generator, in the order of the numpy form, and passed in.
+Generator, in the order of the numpy form, and passed in. The kernels also write the state's
+derived fields (observation, nearest range, position error) from one bank estimate, so
+:func:`observe` and :func:`info` only read them.
 
 Without a manoeuvre range is unobservable (theory §7.6, §10.5 OC-5): a platform that keeps a
 straight course collects almost no reward after the first bearings.
@@ -50,16 +53,19 @@ platform quantities carry an axis ``K`` after the batch axis; ``K = 1`` is the G
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.bearings_maneuver.kernels import info_kernel, observe_kernel, step_kernel
+from sensorgym.envs.bearings_maneuver import kernels
 from sensorgym.envs.shells.contract import OBS_CLIP, EnvSpaces
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
+    cwna_noise_factor,
     noisy_bearings,
 )
 from sensorgym.trackers.bearings.crlb import (
@@ -69,12 +75,12 @@ from sensorgym.trackers.bearings.crlb import (
 )
 from sensorgym.trackers.bearings.filters import (
     RangeBankState,
-    range_bank_prior,
-    range_bank_update,
+    angle_spread_moments,
+    range_bank_cells,
 )
-from sensorgym.trackers.bearings.kernels import accuracy_batch
-from sensorgym.trackers.bearings.models import BearingsGaussian, cwna_covariance
-from sensorgym.trackers.validation import count, finite_array
+from sensorgym.trackers.bearings.kernels import STATE_DIM, accuracy_batch
+from sensorgym.trackers.bearings.models import BearingsGaussian
+from sensorgym.trackers.validation import count
 
 #: accuracies are kept inside ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that every reward
 #: ``ln m_k − ln m_{k+1}`` is finite (a documented fallback: physical scales never reach it)
@@ -193,6 +199,43 @@ class ManeuverParams:
         """Speed (m/s) that normalises observed velocities: platform plus target top speed."""
         return self.world.max_speed + self.target_speed[1]
 
+    @functools.cached_property
+    def kernel_constants(self) -> FloatArray:
+        """The scalar settings the compiled kernels read, packed in one read-only float64
+        array (indices in :mod:`.kernels`); computed once per params."""
+        w = self.world
+        c = np.empty(kernels.N_CONSTANTS)
+        c[kernels.DT], c[kernels.Q_TILDE], c[kernels.SIGMA] = w.dt, w.q_tilde, w.sigma_bearing
+        c[kernels.MAX_TURN], c[kernels.MAX_DV] = w.max_turn_rate, w.max_speed_change
+        c[kernels.MIN_SPEED], c[kernels.MAX_SPEED] = w.min_speed, w.max_speed
+        c[kernels.FLOOR], c[kernels.MIN_RANGE] = ACCURACY_FLOOR, self.min_range
+        c[kernels.PENALTY] = self.close_penalty
+        c[kernels.RELATIVE_RANGE] = 1.0 if self.metric == "relative_range" else 0.0
+        c[kernels.RANGE_SCALE], c[kernels.SPEED_SCALE] = self.range_scale, self.speed_scale
+        c[kernels.CLIP] = OBS_CLIP
+        c[kernels.SPEED_MEAN], c[kernels.SPEED_SIGMA] = self.prior_speed_moments
+        c.flags.writeable = False
+        return c
+
+    @functools.cached_property
+    def prior_cells(self) -> tuple[FloatArray, ...]:
+        """What the tracker's prior shares over all scenarios, computed once per params: the
+        bank's range cells ``r``, ``σ_r``, log weights ``(N,)`` (uniform range density over
+        :attr:`prior_ranges`) and the spread factors of the first bearing (Gaussian, σ) and of
+        the course (uniform over the full circle, ``σ = π/√3``)."""
+        range_min, range_max = self.prior_ranges
+        cells = range_bank_cells(
+            np.asarray(range_min), np.asarray(range_max), self.bank_members, None, None, "uniform"
+        )
+        spreads = (
+            angle_spread_moments(self.world.sigma_bearing),
+            angle_spread_moments(np.pi / np.sqrt(3.0), "uniform"),
+        )
+        out = tuple(np.ascontiguousarray(a, dtype=np.float64) for a in (*cells, *spreads))
+        for a in out:
+            a.flags.writeable = False
+        return out
+
 
 def _number(params: ManeuverParams, name: str) -> float:
     """A finite real field, or ``TypeError`` / ``ValueError`` naming it."""
@@ -242,6 +285,23 @@ class ManeuverState:
     """``m(P)`` ``(B,)``: the bound the reward measures (m, or dimensionless)."""
     bearing: FloatArray
     """Last measured absolute bearings ``(B, K)`` (rad, from North clockwise)."""
+    observation: NDArray[np.float32]
+    """Derived: every platform's observation ``(B, K, obs_dim)`` of this state (the table of
+    :func:`observe_agents`). Written by the reset and step kernels with the rest of the state,
+    from the same bank estimate as :attr:`position_error`; :func:`observe` only reads it."""
+    nearest_range: FloatArray
+    """Derived: the nearest platform's range to the target ``(B,)`` (m), for :func:`info`."""
+    position_error: FloatArray
+    """Derived: the bank estimate's position error ``‖x̂ − x_t‖`` ``(B,)`` (m), for
+    :func:`info`."""
+
+    @classmethod
+    def trusted(cls, **fields: Any) -> ManeuverState:
+        """A state from arrays the kernels have just written, without the dataclass
+        constructor (hot paths only: every field must be given, consistent)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
 
     @property
     def batch_size(self) -> int:
@@ -318,15 +378,6 @@ def advance_bound(
     return fuse_bound(L, target, positions, w.sigma_bearing)
 
 
-def _fuse(
-    bank: RangeBankState, z: FloatArray, positions: FloatArray, sigma: float, first: int = 0
-) -> RangeBankState:
-    """Sequential bank updates with the bearings ``z (B, K)`` of platforms ``first..K−1``."""
-    for k in range(first, z.shape[1]):
-        bank = range_bank_update(bank, z[:, k], positions[:, k], sigma)
-    return bank
-
-
 def spaces(params: ManeuverParams) -> EnvSpaces:
     """Agents ``platform_0 … platform_{K−1}``; each acts with ``(turn, speed change)`` and sees
     ``params.obs_dim`` entries; the joint view is every platform's observation in turn."""
@@ -373,41 +424,37 @@ def reset(
     z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
     # prior from platform 1's first bearing (Ristic §6.3.1), matched to the draws above: range
     # uniform over the prior's span, course uniform over the full circle (half-width π, so the
-    # mean velocity is zero), speed moments of the target-speed draw; the other platforms'
-    # first bearings update it
-    speed_mean, speed_sigma = params.prior_speed_moments
-    range_min, range_max = params.prior_ranges
-    bank = range_bank_prior(
-        z[:, 0],
-        w.sigma_bearing,
-        positions[:, 0],
-        t,
-        range_min=range_min,
-        range_max=range_max,
-        n_members=params.bank_members,
-        speed_mean=speed_mean,
-        speed_sigma=speed_sigma,
-        course_mean=z[:, 0],
-        course_sigma=np.pi / np.sqrt(3.0),
-        course_distribution="uniform",
-        range_density="uniform",
-    )
+    # mean velocity is zero), speed moments of the target-speed draw (params.prior_cells,
+    # kernel_constants); the other platforms' first bearings update it
+    c = params.kernel_constants
+    N = params.bank_members
+    lw, X = np.empty((batch, N)), np.empty((batch, N, STATE_DIM))
+    P = np.empty((batch, N, STATE_DIM, STATE_DIM))
+    P_prior = np.empty((batch, STATE_DIM, STATE_DIM))
+    kernels.prior_kernel(c, *params.prior_cells, z, positions, lw, X, P, P_prior)
     # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already conditions on platform 1's
     # first bearing (its position covariance carries the bearing spread σ)
-    L = covariance_square_root(bank.estimate().P)
-    if K > 1:
-        bank = _fuse(bank, z, positions, w.sigma_bearing, first=1)
-        L = fuse_bound(L, target, positions[:, 1:], w.sigma_bearing)
-    return ManeuverState(
+    L = covariance_square_root(P_prior)
+    speed = np.full((batch, K), params.initial_platform_speed)
+    accuracy, nearest, error = np.empty(batch), np.empty(batch), np.empty(batch)
+    obs = np.empty((batch, K, params.obs_dim), dtype=np.float32)
+    kernels.start_kernel(
+        c, heading, speed, z, positions, target, lw, X, P, L, accuracy, obs, nearest, error
+    )
+    bank = RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t))
+    return ManeuverState.trusted(
         t=np.zeros(batch),
         platform_position=positions,
         heading=heading,
-        speed=np.full((batch, K), params.initial_platform_speed),
+        speed=speed,
         target=target,
         bank=bank,
         bound_factor=L,
-        accuracy=accuracy_of(params, L, target, positions[:, 0]),
+        accuracy=accuracy,
         bearing=z,
+        observation=obs,
+        nearest_range=nearest,
+        position_error=error,
     )
 
 
@@ -422,40 +469,41 @@ def step(
     shell's business. An episode terminates when any platform comes within ``min_range``.
     """
     B, K = state.heading.shape
-    a = finite_array(action, "action", tail=(2,))
-    if a.ndim == 2 and K == 1:
-        a = a[:, None]
-    a = np.ascontiguousarray(np.broadcast_to(a, (B, K, 2)))
+    a = _joint_action(action, B, K)
     w = params.world
     # the draws of the numpy form, in its order: target noise (q̃ > 0), then the bearing noise
-    if w.q_tilde > 0.0:
-        target_noise = rng.standard_normal((B, 4))
-        noise_factor = np.linalg.cholesky(cwna_covariance(w.dt, w.q_tilde))
-    else:
-        target_noise = noise_factor = np.zeros((0, 0))
+    target_noise = rng.standard_normal((B, 4)) if w.q_tilde > 0.0 else _NO_TARGET_NOISE
     bearing_noise = rng.standard_normal((B, K))
     t_bank = state.bank.t + w.dt
-    new_arrays = [
-        np.array(v, dtype=np.float64)
-        for v in (
-            state.platform_position,
-            state.heading,
-            state.speed,
-            state.target,
-            state.bank.log_weights,
-            state.bank.members.x,
-            state.bank.members.P,
-            state.bound_factor,
-            state.accuracy,
-        )
-    ]
-    pos, heading, speed, target, lw, X, P, L, accuracy = new_arrays
-    z = np.empty((B, K))
-    reward = np.empty(B)
-    terminated = np.empty(B, dtype=bool)
+    old, bank = state, state.bank
+    N = bank.log_weights.shape[1]
+    pos, heading, speed = np.empty((B, K, 2)), np.empty((B, K)), np.empty((B, K))
+    target, lw = np.empty((B, STATE_DIM)), np.empty((B, N))
+    X, P = np.empty((B, N, STATE_DIM)), np.empty((B, N, STATE_DIM, STATE_DIM))
+    L, accuracy = np.empty((B, STATE_DIM, STATE_DIM)), np.empty(B)
+    z, reward, terminated = np.empty((B, K)), np.empty(B), np.empty(B, dtype=bool)
+    obs = np.empty((B, K, params.obs_dim), dtype=np.float32)
+    nearest, error = np.empty(B), np.empty(B)
+    c = params.kernel_constants
+    noise_factor = cwna_noise_factor(w.dt, w.q_tilde)
+    bad: list[int] = []
     # fly, move the target, bearings, bank predict + update, P̄ = F P Fᵀ + Q,
     # P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹ in square-root form, reward_k = ln m_k − ln m_{k+1}
-    step_kernel(
+    arrays = (
+        c,
+        old.platform_position,
+        old.heading,
+        old.speed,
+        old.target,
+        bank.log_weights,
+        bank.members.x,
+        bank.members.P,
+        old.bound_factor,
+        old.accuracy,
+        a,
+        target_noise,
+        noise_factor,
+        bearing_noise,
         pos,
         heading,
         speed,
@@ -466,66 +514,81 @@ def step(
         L,
         accuracy,
         z,
-        a,
-        target_noise,
-        noise_factor,
-        bearing_noise,
-        float(w.dt),
-        float(t_bank - state.bank.t),
-        float(w.q_tilde),
-        float(w.sigma_bearing),
-        float(w.max_turn_rate),
-        float(w.max_speed_change),
-        float(w.min_speed),
-        float(w.max_speed),
-        params.metric == "relative_range",
-        ACCURACY_FLOOR,
-        float(params.min_range),
-        float(params.close_penalty),
+        obs,
+        nearest,
+        error,
         reward,
         terminated,
     )
-    bank = RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t_bank))
-    new = ManeuverState(state.t + w.dt, pos, heading, speed, target, bank, L, accuracy, z)
+    if B < 2 * MIN_ROWS_PER_THREAD:  # run_rows would not split it: skip its bookkeeping
+        bad.append(kernels.step_kernel(0, B, *arrays))
+    else:
+        run_rows(B, lambda lo, hi: bad.append(kernels.step_kernel(lo, hi, *arrays)))
+    if any(bad):
+        raise ValueError("action: contains NaN or infinite values")
+    new = ManeuverState.trusted(
+        t=state.t + w.dt,
+        platform_position=pos,
+        heading=heading,
+        speed=speed,
+        target=target,
+        # kernel outputs: the constructors' checks are skipped (see the trusted doc)
+        bank=RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t_bank)),
+        bound_factor=L,
+        accuracy=accuracy,
+        bearing=z,
+        observation=obs,
+        nearest_range=nearest,
+        position_error=error,
+    )
     return new, reward, terminated
+
+
+_NO_TARGET_NOISE = np.zeros((0, STATE_DIM))
+
+
+def _joint_action(action: ArrayLike, B: int, K: int) -> FloatArray:
+    """The action as a contiguous float64 ``(B, K, 2)`` (``(B, 2)`` for one platform, or
+    anything that broadcasts); bad shapes raise ``ValueError`` naming ``action``. Finiteness is
+    checked by the step kernel."""
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action: cannot be read as floats ({exc})") from None
+    if a.shape == (B, K, 2):
+        return a if a.flags.c_contiguous else np.ascontiguousarray(a)
+    if a.ndim == 2 and K == 1:
+        a = a[:, None]
+    try:
+        return np.ascontiguousarray(np.broadcast_to(a, (B, K, 2)))
+    except ValueError:
+        raise ValueError(f"action: expected shape ({B}, {K}, 2), got {np.shape(action)}") from None
 
 
 def body_frame(heading: ArrayLike, v: ArrayLike) -> FloatArray:
     """World vectors ``(..., 2)`` (East, North) in the platform frame (starboard, ahead)."""
-    h = np.asarray(heading, dtype=np.float64)[..., None]
+    h = np.asarray(heading, dtype=np.float64)
     v = np.asarray(v, dtype=np.float64)
-    s, c = np.sin(h[..., 0]), np.cos(h[..., 0])
-    # ahead = (sin ψ, cos ψ), starboard = (cos ψ, −sin ψ)
-    return np.stack([c * v[..., 0] - s * v[..., 1], s * v[..., 0] + c * v[..., 1]], axis=-1)
+    # ahead = (sin ψ, cos ψ), starboard = (cos ψ, −sin ψ)  (compiled: kernels.body_frame)
+    return np.stack(kernels.body_frame(np.sin(h), np.cos(h), v[..., 0], v[..., 1]), axis=-1)
 
 
 def observe(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]:
     """The joint view ``(B, K · obs_dim)``: every platform's :func:`observe_agents` row in turn
     (for ``K = 1``, the lone platform's observation)."""
-    obs = observe_agents(params, state)
-    return obs.reshape(obs.shape[0], -1)
+    obs = state.observation
+    return obs.reshape(obs.shape[0], -1).copy()
 
 
 def info(params: ManeuverParams, state: ManeuverState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the nearest
     platform's range, the bound the reward measures, the estimate's position error, the
-    tracker clock."""
-    B = state.batch_size
-    nearest, error = np.empty(B), np.empty(B)
-    info_kernel(
-        np.ascontiguousarray(state.platform_position, dtype=np.float64),
-        np.ascontiguousarray(state.target, dtype=np.float64),
-        np.ascontiguousarray(state.bank.log_weights),
-        np.ascontiguousarray(state.bank.members.x),
-        np.ascontiguousarray(state.bank.members.P),
-        nearest,
-        error,
-    )
+    tracker clock (read off the state's derived fields)."""
     return {
-        "range": nearest,
+        "range": state.nearest_range,
         "bound": state.accuracy,
-        "position_error": error,
-        "tracker_t": np.full(B, state.bank.t),
+        "position_error": state.position_error,
+        "tracker_t": np.full(state.accuracy.shape[0], state.bank.t),
     }
 
 
@@ -547,23 +610,7 @@ def observe_agents(params: ManeuverParams, state: ManeuverState) -> NDArray[np.f
     | 10, 11 | (K > 1) each other platform's position relative to it, own frame /   |
     | …      | ``range_scale``, in platform order                                   |
 
-    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``. Computed by the kernels with the
+    state (:func:`.kernels.derive`), from the bank's moment-matched estimate.
     """
-    B, K = state.heading.shape
-    bank = state.bank
-    out = np.empty((B, K, params.obs_dim), dtype=np.float32)
-    observe_kernel(
-        np.ascontiguousarray(state.platform_position, dtype=np.float64),
-        np.ascontiguousarray(state.heading, dtype=np.float64),
-        np.ascontiguousarray(state.speed, dtype=np.float64),
-        np.ascontiguousarray(state.bearing, dtype=np.float64),
-        np.ascontiguousarray(bank.log_weights),
-        np.ascontiguousarray(bank.members.x),
-        np.ascontiguousarray(bank.members.P),
-        float(params.world.max_speed),
-        float(params.range_scale),
-        float(params.speed_scale),
-        OBS_CLIP,
-        out,
-    )
-    return out
+    return state.observation.copy()

@@ -42,16 +42,16 @@ whole step, and the platform flies the exact circular arc.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.worlds.platform_kernels import fly_batch
+from sensorgym.envs.worlds.platform_kernels import fly_batch, noisy_bearing_batch, propagate_batch
 from sensorgym.trackers.bearings.models import (
     STATE_DIM,
     bearing,
-    cv_transition,
     cwna_covariance,
 )
 from sensorgym.trackers.geometry import wrap_angle
@@ -181,14 +181,40 @@ def propagate_target(
     target: FloatArray, params: PlatformWorldParams, rng: np.random.Generator | None = None
 ) -> FloatArray:
     """Target states ``(B, 4)`` one step on: ``x' = F x + w``, ``w ~ N(0, Q)`` (CWNA)."""
-    T = params.dt
-    out = target @ cv_transition(T).T
+    x = finite_array(target, "target", tail=(STATE_DIM,))
+    lead = x.shape[:-1]
     if params.q_tilde > 0.0:
         if rng is None:
             raise ValueError("rng: a np.random.Generator is required when q_tilde > 0")
-        L = np.linalg.cholesky(cwna_covariance(T, params.q_tilde))
-        out = out + rng.standard_normal(target.shape) @ L.T
-    return out
+        eps = rng.standard_normal(x.shape)
+    else:
+        eps = _NO_NOISE
+    out = np.empty(x.shape)
+    # x' = F x + G ε  (compiled: platform_kernels.propagate_target)
+    propagate_batch(
+        np.ascontiguousarray(x).reshape(-1, STATE_DIM),
+        eps.reshape(-1, STATE_DIM),
+        cwna_noise_factor(params.dt, params.q_tilde),
+        float(params.dt),
+        float(params.q_tilde),
+        out.reshape(-1, STATE_DIM),
+    )
+    return out.reshape(*lead, STATE_DIM)
+
+
+_NO_NOISE = np.zeros((0, STATE_DIM))
+
+
+@functools.lru_cache(maxsize=16)
+def cwna_noise_factor(dt: float, q_tilde: float) -> FloatArray:
+    """The factor ``G = chol(Q(dt))`` ``(4, 4)`` that colours the target's process noise
+    ``w = G ε`` (zeros when ``q̃ = 0``); cached, read-only."""
+    if q_tilde > 0.0:
+        G = np.linalg.cholesky(cwna_covariance(dt, q_tilde))
+    else:
+        G = np.zeros((STATE_DIM, STATE_DIM))
+    G.flags.writeable = False
+    return G
 
 
 def step(
@@ -221,8 +247,18 @@ def noisy_bearings(
     rng: np.random.Generator,
 ) -> FloatArray:
     """``z = wrap(β + σ ε)`` for broadcasting positions ``(..., 2)`` → ``(...)`` (rad)."""
-    beta = bearing(target_position, platform_position)
-    return wrap_angle(beta + sigma * rng.standard_normal(beta.shape))
+    t = finite_array(target_position, "target_position", tail=(2,))
+    p = finite_array(platform_position, "platform_position", tail=(2,))
+    shape = np.broadcast_shapes(t.shape[:-1], p.shape[:-1])
+    t = np.ascontiguousarray(np.broadcast_to(t, (*shape, 2))).reshape(-1, 2)
+    p = np.ascontiguousarray(np.broadcast_to(p, (*shape, 2))).reshape(-1, 2)
+    if np.any((t[:, 0] == p[:, 0]) & (t[:, 1] == p[:, 1])):
+        raise ValueError("target_position: coincides with the platform, bearing undefined")
+    eps = rng.standard_normal(shape)
+    out = np.empty(shape)
+    # compiled: platform_kernels.noisy_bearing
+    noisy_bearing_batch(t, p, float(sigma), eps.reshape(-1), out.reshape(-1))
+    return out
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,9 @@
-"""Compiled platform flight of the bearings-only world, one platform per call.
+"""Compiled primitives of the bearings-only world, one platform or target per call.
 
-:func:`sensorgym.envs.worlds.platform.fly` loops :func:`fly_platform` over its batch and the
-BearingsManeuver step kernel calls it per platform: the flight is written here once.
+:func:`sensorgym.envs.worlds.platform.fly`, :func:`~sensorgym.envs.worlds.platform.
+propagate_target` and :func:`~sensorgym.envs.worlds.platform.noisy_bearings` loop
+:func:`fly_platform`, :func:`propagate_target` and :func:`noisy_bearing` over their batches, and
+the BearingsManeuver kernels and rules call them per row: each formula is written here once.
 """
 
 from __future__ import annotations
@@ -63,4 +65,40 @@ def fly_batch(pos, heading, speed, command, T, max_turn, max_dv, min_speed, max_
             max_dv,
             min_speed,
             max_speed,
+        )
+
+
+# x' = F x + w: position += T · velocity; w = G ε (G Gᵀ = Q, ε standard normal) when q̃ > 0
+@njit(**_JIT)
+def propagate_target(x, eps, G, T, q_tilde, out):
+    """Writes the target state ``out (4,)`` one step of ``T`` seconds on from ``x (4,)``;
+    ``eps (4,)`` and ``G (4, 4)`` are read only when ``q̃ > 0``."""
+    for i in range(2):
+        out[i] = x[i] + T * x[i + 2]
+        out[i + 2] = x[i + 2]
+    if q_tilde > 0.0:
+        for i in range(4):
+            w = 0.0
+            for j in range(4):
+                w += eps[j] * G[i, j]
+            out[i] += w
+
+
+# z = wrap(β + σ ε),  β = atan2(x_t − x_p, y_t − y_p)  (from North clockwise)
+@njit(**_JIT)
+def noisy_bearing(tx, ty, px, py, sigma, eps):
+    return wrap(math.atan2(tx - px, ty - py) + sigma * eps)
+
+
+@njit(**_JIT)
+def propagate_batch(x, eps, G, T, q_tilde, out):
+    for m in range(x.shape[0]):
+        propagate_target(x[m], eps[m] if q_tilde > 0.0 else x[m], G, T, q_tilde, out[m])
+
+
+@njit(**_JIT)
+def noisy_bearing_batch(target, platform, sigma, eps, out):
+    for m in range(out.shape[0]):
+        out[m] = noisy_bearing(
+            target[m, 0], target[m, 1], platform[m, 0], platform[m, 1], sigma, eps[m]
         )

@@ -90,6 +90,33 @@ def polar_moments(
     """
     m, sm = np.asarray(magnitude_mean, float), np.asarray(magnitude_sigma, float)
     a, sa = np.asarray(angle_mean, float), np.asarray(angle_sigma, float)
+    factors = angle_spread_moments(sa, angle_distribution)
+    shape = np.broadcast_shapes(m.shape, sm.shape, a.shape, factors.shape[:-1])
+    mean = np.empty((*shape, 2))
+    cov = np.empty((*shape, 2, 2))
+    # E and Cov from the spread factors (compiled: kernels.polar_moments)
+    kernels.polar_moments_batch(
+        *(_flat(v, shape) for v in (m, sm, a)),
+        _flat(factors, (*shape, 3)).reshape(-1, 3),
+        mean.reshape(-1, 2),
+        cov.reshape(-1, 2, 2),
+    )
+    return mean, cov
+
+
+def _flat(v: FloatArray, shape: tuple[int, ...]) -> FloatArray:
+    """``v`` broadcast to ``shape``, contiguous float64, flattened (to the last axis when
+    ``shape`` has trailing axes, else to one)."""
+    return np.ascontiguousarray(np.broadcast_to(v, shape), dtype=np.float64).reshape(-1)
+
+
+def angle_spread_moments(
+    angle_sigma: ArrayLike, angle_distribution: Literal["gaussian", "uniform"] = "gaussian"
+) -> FloatArray:
+    """The angle spread's moments ``(c₁, s₂, Var[cos δ])`` ``(..., 3)`` :func:`polar_moments`
+    needs, ``c₁ = E[cos δ]``, ``s₂ = E[sin²δ]``, for ``δ ~ N(0, σ²)`` or uniform on ``±√3 σ``
+    (formulas in :func:`polar_moments`, each without cancellation)."""
+    sa = np.asarray(angle_sigma, float)
     if angle_distribution == "gaussian":
         c1 = np.exp(-0.5 * sa**2)
         s2 = -0.5 * np.expm1(-2.0 * sa**2)  # E[sin²δ] = (1 − e^{−2σ²})/2
@@ -108,17 +135,7 @@ def polar_moments(
         var_cos = np.where(small, var_series, 1.0 - s2 - np.sinc(hb / np.pi) ** 2)
     else:
         raise ValueError(f"angle_distribution: 'gaussian' or 'uniform', got {angle_distribution!r}")
-    c2 = 1.0 - s2
-    u = np.stack([np.sin(a), np.cos(a)], -1)
-    t = np.stack([np.cos(a), -np.sin(a)], -1)
-    mean = (m * c1)[..., None] * u
-    var_u = m**2 * var_cos + sm**2 * c2
-    var_t = (m**2 + sm**2) * s2
-    cov = (
-        var_u[..., None, None] * u[..., :, None] * u[..., None, :]
-        + var_t[..., None, None] * t[..., :, None] * t[..., None, :]
-    )
-    return mean, cov
+    return np.stack(np.broadcast_arrays(c1, s2, var_cos), axis=-1)
 
 
 def bearing_prior(
@@ -156,12 +173,21 @@ def bearing_prior(
         raise ValueError("speed_mean, speed_sigma: must be >= 0; course_sigma: positive")
     shape = np.broadcast_shapes(z.shape, p.shape[:-1], r.shape, s.shape, c.shape)
     z, r, sr, s, ss, c, sc = (np.broadcast_to(a, shape) for a in (z, r, sr, s, ss, c, sc))
-    pos, Ppos = polar_moments(r, sr, z, np.full(shape, sigma))
-    vel, Pvel = polar_moments(s, ss, c, sc, course_distribution)
-    x = np.concatenate([p + pos, vel], axis=-1)
-    P = np.zeros((*shape, STATE_DIM, STATE_DIM))
-    P[..., :2, :2] = Ppos
-    P[..., 2:, 2:] = Pvel
+    pos_f = angle_spread_moments(np.full(shape, sigma))
+    vel_f = angle_spread_moments(np.broadcast_to(sc, shape), course_distribution)
+    x = np.empty((*shape, STATE_DIM))
+    P = np.empty((*shape, STATE_DIM, STATE_DIM))
+    # x = (p + E_pos, E_vel), P = diag(Cov_pos, Cov_vel)  (compiled: kernels.bearing_prior)
+    kernels.bearing_prior_batch(
+        _flat(z, shape),
+        _flat(p, (*shape, 2)).reshape(-1, 2),
+        *(_flat(v, shape) for v in (r, sr)),
+        pos_f.reshape(-1, 3),
+        *(_flat(v, shape) for v in (s, ss, c)),
+        vel_f.reshape(-1, 3),
+        x.reshape(-1, STATE_DIM),
+        P.reshape(-1, STATE_DIM, STATE_DIM),
+    )
     return BearingsGaussian(x, P, t)
 
 
@@ -277,10 +303,11 @@ class RangeBankState:
     @classmethod
     def trusted(cls, log_weights: FloatArray, members: BearingsGaussian) -> RangeBankState:
         """A bank from arrays a compiled kernel has just written, without the constructor's
-        checks (hot paths only)."""
+        checks (hot paths only). Nothing is checked: ``log_weights`` must be float64, of the
+        members' batch shape and free of NaN, which a kernel's outputs are by construction when
+        its inputs passed the public functions' checks."""
         obj = object.__new__(cls)
-        object.__setattr__(obj, "log_weights", log_weights)
-        object.__setattr__(obj, "members", members)
+        obj.__dict__.update(log_weights=log_weights, members=members)
         return obj
 
     @property
@@ -352,15 +379,11 @@ def range_bank_prior(
         raise ValueError(f"range_density: 'log-uniform' or 'uniform', got {range_density!r}")
     rm = rs = None
     if range_mean is not None and range_sigma is not None:
-        rm = finite_array(range_mean, "range_mean")[..., None]
-        rs = finite_array(range_sigma, "range_sigma")[..., None]
+        rm = finite_array(range_mean, "range_mean")
+        rs = finite_array(range_sigma, "range_sigma")
         if np.any(rs <= 0.0):
             raise ValueError(f"range_sigma: must be positive, got {range_sigma}")
-    rho = (rmax / rmin) ** (1.0 / n_members)
-    i = np.arange(n_members) + 0.5
-    r = rmin[..., None] * rho[..., None] ** i  # (..., N)
-    C = 2.0 * (rho - 1.0) / (np.sqrt(12.0) * (rho + 1.0))
-    sr = C[..., None] * r
+    r, sr, lw = range_bank_cells(rmin, rmax, n_members, rm, rs, range_density)
     ex = (..., None)
     members = bearing_prior(
         np.asarray(z, dtype=np.float64)[ex],
@@ -375,15 +398,37 @@ def range_bank_prior(
         course_sigma=np.asarray(course_sigma, dtype=np.float64)[ex],
         course_distribution=course_distribution,
     )
+    return RangeBankState(np.broadcast_to(lw, members.x.shape[:-1]).copy(), members)
+
+
+def range_bank_cells(
+    range_min: FloatArray,
+    range_max: FloatArray,
+    n_members: int,
+    range_mean: FloatArray | None = None,
+    range_sigma: FloatArray | None = None,
+    range_density: Literal["log-uniform", "uniform"] = "log-uniform",
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The bank's range cells (see :func:`range_bank_prior`, which checks the arguments): member
+    ranges ``r_i = r_min ρ^{i−½}``, their range σ ``C r_i`` and the normalised log weights,
+    each ``(..., N)`` over the leading axes of the (checked) range arguments."""
+    rmin, rmax = np.asarray(range_min, dtype=np.float64), np.asarray(range_max, dtype=np.float64)
+    rho = (rmax / rmin) ** (1.0 / n_members)
+    i = np.arange(n_members) + 0.5
+    r = rmin[..., None] * rho[..., None] ** i  # (..., N)
+    C = 2.0 * (rho - 1.0) / (np.sqrt(12.0) * (rho + 1.0))
+    sr = C[..., None] * r
     width = r * (rho[..., None] ** 0.5 - rho[..., None] ** -0.5)
-    if rm is not None and rs is not None:
-        lw = np.broadcast_to(-0.5 * ((r - rm) / rs) ** 2 + np.log(width), members.x.shape[:-1])
+    if range_mean is not None and range_sigma is not None:
+        rm = np.asarray(range_mean, dtype=np.float64)[..., None]
+        rs = np.asarray(range_sigma, dtype=np.float64)[..., None]
+        lw = -0.5 * ((r - rm) / rs) ** 2 + np.log(width)
     elif range_density == "uniform":
-        lw = np.broadcast_to(np.log(width), members.x.shape[:-1])
+        lw = np.log(width)
     else:
-        lw = np.zeros(members.x.shape[:-1])
+        lw = np.zeros(r.shape)
     lw = lw - _logsumexp(lw)[..., None]
-    return RangeBankState(lw, members)
+    return r, sr, lw
 
 
 def _logsumexp(a: FloatArray) -> FloatArray:

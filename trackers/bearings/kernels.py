@@ -361,3 +361,70 @@ def accuracy_batch(relative_range, L, target, origin, floor, out):
         out[b] = accuracy(
             relative_range, L[b], target[b, 0], target[b, 1], origin[b, 0], origin[b, 1], floor
         )
+
+
+# --- priors from a first bearing --------------------------------------------------------------
+
+
+# moments of m (sin a, cos a), m ~ N(m̄, σ_m²) independent of a, δ = a − ā, u = (sin ā, cos ā),
+# t = (cos ā, −sin ā), from the angle spread's c₁ = E[cos δ], s₂ = E[sin²δ], Var[cos δ]
+# (:func:`sensorgym.trackers.bearings.filters.angle_spread_moments`):
+#   E = m̄ c₁ u,   Cov = var_u u uᵀ + var_t t tᵀ,
+#   var_u = m̄² Var[cos δ] + σ_m² (1 − s₂),   var_t = (m̄² + σ_m²) s₂
+@njit(**_JIT)
+def polar_moments(m, sm, a, c1, s2, var_cos, mean, cov):
+    """Writes ``mean (2,)`` and ``cov (2, 2)``."""
+    c2 = 1.0 - s2
+    u0, u1 = math.sin(a), math.cos(a)
+    t0, t1 = math.cos(a), -math.sin(a)
+    mc = m * c1
+    mean[0] = mc * u0
+    mean[1] = mc * u1
+    var_u = m * m * var_cos + sm * sm * c2
+    var_t = (m * m + sm * sm) * s2
+    cov[0, 0] = var_u * u0 * u0 + var_t * t0 * t0
+    cov[0, 1] = var_u * u0 * u1 + var_t * t0 * t1
+    cov[1, 0] = var_u * u1 * u0 + var_t * t1 * t0
+    cov[1, 1] = var_u * u1 * u1 + var_t * t1 * t1
+
+
+# position p + r (sin β, cos β), r ~ N(r̄, σ_r²), β ~ N(z, σ²) (spread factors pos_f);
+# velocity s (sin c, cos c), s ~ N(s̄, σ_s²), c about c̄ (spread factors vel_f); x = (p + E_pos,
+# E_vel), P = diag(Cov_pos, Cov_vel)   (Ristic §6.3.1)
+@njit(**_JIT)
+def bearing_prior(z, px, py, r, sr, pos_f, s, ss, c, vel_f, x, P):
+    """Writes the prior ``x (4,)``, ``P (4, 4)``; ``pos_f``, ``vel_f`` = ``(c₁, s₂, Var[cos δ])``
+    of the bearing and the course spreads."""
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            P[i, j] = 0.0
+    polar_moments(r, sr, z, pos_f[0], pos_f[1], pos_f[2], x[0:2], P[0:2, 0:2])
+    x[0] = px + x[0]
+    x[1] = py + x[1]
+    polar_moments(s, ss, c, vel_f[0], vel_f[1], vel_f[2], x[2:4], P[2:4, 2:4])
+
+
+# the bank's members: member n at range r_n (σ_r = sr_n) with log weight lw0_n (the range cells
+# of :func:`sensorgym.trackers.bearings.filters.range_bank_cells`), same velocity prior
+@njit(**_JIT)
+def range_bank_prior(z, px, py, r, sr, lw0, pos_f, s, ss, c, vel_f, lw, X, P):
+    """Writes ``lw (N,)``, ``X (N, 4)``, ``P (N, 4, 4)``."""
+    for n in range(X.shape[0]):
+        lw[n] = lw0[n]
+        bearing_prior(z, px, py, r[n], sr[n], pos_f, s, ss, c, vel_f, X[n], P[n])
+
+
+@njit(**_JIT)
+def polar_moments_batch(m, sm, a, factors, mean, cov):
+    for b in range(m.shape[0]):
+        polar_moments(
+            m[b], sm[b], a[b], factors[b, 0], factors[b, 1], factors[b, 2], mean[b], cov[b]
+        )
+
+
+@njit(**_JIT)
+def bearing_prior_batch(z, p, r, sr, pos_f, s, ss, c, vel_f, x, P):
+    for b in range(z.shape[0]):
+        bearing_prior(
+            z[b], p[b, 0], p[b, 1], r[b], sr[b], pos_f[b], s[b], ss[b], c[b], vel_f[b], x[b], P[b]
+        )

@@ -63,12 +63,12 @@ class BearingsGaussian:
 
     @classmethod
     def trusted(cls, x: FloatArray, P: FloatArray, t: float) -> BearingsGaussian:
-        """An estimate from arrays a compiled kernel has just written (float64, matching
-        shapes), without the checks of the constructor (hot paths only)."""
+        """An estimate from arrays a compiled kernel has just written, without the checks of
+        the constructor (hot paths only). Nothing is checked: ``x``, ``P`` must be float64 of
+        matching shapes and finite, which a kernel's outputs are by construction when its
+        inputs passed the public functions' checks; anything else belongs to the constructor."""
         obj = object.__new__(cls)
-        object.__setattr__(obj, "x", x)
-        object.__setattr__(obj, "P", P)
-        object.__setattr__(obj, "t", float(t))
+        obj.__dict__.update(x=x, P=P, t=float(t))
         return obj
 
     @property
