@@ -19,15 +19,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
+from sensorgym.envs.bearings_maneuver.kernels import greedy_kernel, plan_kernel
 from sensorgym.envs.bearings_maneuver.simulation import (
     OBS_DIM,
     ManeuverParams,
     ManeuverState,
-    accuracy_of,
-    advance_bound,
 )
-from sensorgym.envs.worlds.platform import fly
-from sensorgym.trackers.bearings.models import cv_transition
+from sensorgym.envs.shells.rows import run_rows
 
 FloatArray = NDArray[np.float64]
 
@@ -112,34 +110,31 @@ class GreedyManeuver(MemorylessRule):
     safety: float = 2.0
     """Candidates predicted within ``safety · min_range`` of the target are not taken."""
 
-    def act(self, obs: FloatArray) -> FloatArray:
-        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
-        p, w = self.params, self.params.world
+    def candidates(self) -> NDArray[np.float64]:
+        """Candidate actions ``(C, 2)``."""
         a_turn, a_speed = np.meshgrid(np.linspace(-1.0, 1.0, self.turns), self.speeds)
-        cand = np.stack([a_turn.ravel(), a_speed.ravel()], -1)  # (C, 2)
-        # platform frame (starboard, ahead); own velocity is (0, v)
-        v = obs[:, 2] * w.max_speed
-        d = obs[:, 3:5] * p.range_scale  # estimated target − platform
-        v_rel = obs[:, 5:7] * p.speed_scale
-        v_target = v_rel + np.stack([np.zeros_like(v), v], -1)
-        # candidate platform displacement: exact arc with ω = a₀ω_max, speed v + a₁Δv (clipped)
-        omega = cand[:, 0] * w.max_turn_rate
-        speed = np.clip(
-            v[:, None] + cand[None, :, 1] * w.max_speed_change, w.min_speed, w.max_speed
-        )
-        half = 0.5 * omega * w.dt
-        chord = speed * w.dt * np.sinc(half / np.pi)  # (n, C)
-        dp = chord[..., None] * np.stack([np.sin(half), np.cos(half)], -1)
-        d_next = (d + v_target * w.dt)[:, None, :] - dp  # (n, C, 2)
-        r = np.hypot(d_next[..., 0], d_next[..., 1])
-        normal = np.stack([d_next[..., 1], -d_next[..., 0]], -1) / np.maximum(r, 1e-9)[..., None]
-        # P from log standard deviations and correlation (obs 7–9)
+        return np.stack([a_turn.ravel(), a_speed.ravel()], -1)
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``: the env's flight of
+        every candidate from the platform's frame, the estimate moved on by its velocity, the
+        gain ``hᵀ P h`` at the new relative position (compiled:
+        :func:`sensorgym.envs.bearings_maneuver.kernels.greedy_kernel`)."""
+        p, w = self.params, self.params.world
+        cand = self.candidates()
+        command = np.ascontiguousarray(cand * [w.max_turn_rate, w.max_speed_change])
+        # P from log standard deviations (obs 7, 8) and correlation (obs 9)
         sd = np.exp(obs[:, 7:9]) * p.range_scale
-        cov = sd[:, 0] * sd[:, 1] * obs[:, 9]
-        P = np.stack([np.stack([sd[:, 0] ** 2, cov], -1), np.stack([cov, sd[:, 1] ** 2], -1)], -2)
-        gain = np.einsum("nci,nij,ncj->nc", normal, P, normal) / np.maximum(r, 1e-9) ** 2
-        gain = np.where(r < self.safety * p.min_range, -np.inf, gain)
-        return cand[np.argmax(gain, axis=-1)]
+        choice = np.empty(obs.shape[0], dtype=np.int64)
+        greedy_kernel(
+            p.kernel_constants,
+            np.ascontiguousarray(obs, dtype=np.float64),
+            np.ascontiguousarray(sd),
+            command,
+            float(self.safety * p.min_range),
+            choice,
+        )
+        return cand[choice]
 
 
 @dataclass(frozen=True)
@@ -179,30 +174,28 @@ class OracleLookahead(MemorylessRule):
         return np.stack([turn.ravel(), speed.ravel()], -1)
 
     def plan_bounds(self, s: ManeuverState) -> NDArray[np.float64]:
-        """Bound after ``horizon`` steps of each candidate, ``(B, C)`` (``inf`` if too close)."""
+        """Bound after ``horizon`` steps of each candidate, ``(B, C)`` (``inf`` if too close):
+        the env's own flight and bound recursion, compiled
+        (:func:`sensorgym.envs.bearings_maneuver.kernels.plan_kernel`; what
+        :func:`~sensorgym.envs.bearings_maneuver.simulation.advance_bound` and
+        :func:`~sensorgym.envs.bearings_maneuver.simulation.accuracy_of` compute)."""
         p, w = self.params, self.params.world
-        cand = self.candidates()
-        C = cand.shape[0]
-        command = np.broadcast_to(
-            cand * [w.max_turn_rate, w.max_speed_change], (s.batch_size, C, 2)
+        command = np.ascontiguousarray(self.candidates() * [w.max_turn_rate, w.max_speed_change])
+        B = s.batch_size
+        out = np.empty((B, command.shape[0]))
+        arrays = (
+            p.kernel_constants,
+            *(
+                np.ascontiguousarray(a, dtype=np.float64)
+                for a in (s.platform_position, s.heading, s.speed, s.target, s.bound_factor)
+            ),
+            command,
+            int(self.horizon),
+            float(self.safety * p.min_range),
+            out,
         )
-        pos = np.repeat(s.platform_position[:, :1], C, axis=1)  # (B, C, 2)
-        heading = np.repeat(s.heading[:, :1], C, axis=1)
-        speed = np.repeat(s.speed[:, :1], C, axis=1)
-        target = s.target[:, None, :]
-        L = np.repeat(s.bound_factor[:, None], C, axis=1)
-        F = cv_transition(w.dt)
-        too_close = np.zeros((s.batch_size, C), dtype=bool)
-        for _ in range(self.horizon):
-            pos, heading, speed = fly(pos, heading, speed, command, w)
-            target = target @ F.T
-            # the env's own recursion: P̄ = F P Fᵀ + Q, then the bearing at the true state
-            L = advance_bound(
-                p, L, np.broadcast_to(target, (*pos.shape[:-1], 4)), pos[..., None, :]
-            )
-            d = target[..., :2] - pos
-            too_close |= np.hypot(d[..., 0], d[..., 1]) < self.safety * p.min_range
-        return np.where(too_close, np.inf, accuracy_of(p, L, target, pos))
+        run_rows(B, lambda lo, hi: plan_kernel(lo, hi, *arrays))
+        return out
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""

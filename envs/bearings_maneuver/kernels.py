@@ -294,3 +294,99 @@ def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, obs, nea
         r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
     nearest[b] = r
     error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])
+
+
+@njit(**_JIT)
+def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close, out):
+    """The oracle's plans (:class:`sensorgym.agents.bearings_maneuver.OracleLookahead`) for
+    scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``, ``heading``, ``speed``
+    ``(B, K)`` holds each command ``command (C, 2)`` (rad/s, m/s; clipped as the step does) for
+    ``horizon`` steps while the target follows its mean path ``F x`` from ``target (B, 4)`` and
+    the bound's square root ``L (B, 4, 4)`` runs the env's recursion (:func:`step_kernel`'s
+    predict and bearing update on the true state). Writes the accuracy the reward measures at
+    the end, ``out (B, C)``, or ``inf`` for a plan that comes within ``too_close`` (m)."""
+    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
+    x = np.empty(STATE_DIM)
+    x_next = np.empty(STATE_DIM)
+    G = np.zeros((STATE_DIM, STATE_DIM))
+    Lc = np.empty((STATE_DIM, STATE_DIM))
+    L_pred = np.empty((STATE_DIM, STATE_DIM))
+    for b in range(lo, hi):
+        for j in range(command.shape[0]):
+            px, py, h, v = pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0]
+            x[:] = target[b]
+            Lc[:, :] = L[b]
+            close = False
+            for _ in range(horizon):
+                px, py, h, v = fly_platform(
+                    px,
+                    py,
+                    h,
+                    v,
+                    command[j, 0],
+                    command[j, 1],
+                    dt,
+                    c[MAX_TURN],
+                    c[MAX_DV],
+                    c[MIN_SPEED],
+                    c[MAX_SPEED],
+                )
+                # the target's mean path: x' = F x (no noise draw)
+                propagate_target(x, x, G, dt, 0.0, x_next)
+                x[:] = x_next
+                bound_predict(Lc, dt, q_tilde, L_pred)
+                bound_update(L_pred, x[0], x[1], px, py, sigma, Lc)
+                if math.hypot(x[0] - px, x[1] - py) < too_close:
+                    close = True
+            if close:
+                out[b, j] = np.inf
+            else:
+                out[b, j] = accuracy(c[RELATIVE_RANGE] > 0.0, Lc, x[0], x[1], px, py, c[FLOOR])
+
+
+@njit(**_JIT)
+def greedy_kernel(c, obs, sd, command, too_close, choice):
+    """The greedy rule (:class:`sensorgym.agents.bearings_maneuver.GreedyManeuver`) on
+    observations ``obs (n, obs_dim)`` with the position standard deviations ``sd (n, 2)`` (m)
+    read off them: each command ``command (C, 2)`` (rad/s, m/s) flown from the platform's frame
+    (:func:`fly_platform` from the origin, heading 0 = ahead); the estimated target moves on by
+    its estimated velocity; the information gain ``n̂ᵀ P n̂ / r²`` of the next bearing at the new
+    relative position (``-inf`` within ``too_close``, m). Writes the first best command's index
+    into ``choice (n,)``."""
+    dt, max_speed = c[DT], c[MAX_SPEED]
+    range_scale, speed_scale = c[RANGE_SCALE], c[SPEED_SCALE]
+    for b in range(obs.shape[0]):
+        v = obs[b, 2] * max_speed
+        d0, d1 = obs[b, 3] * range_scale, obs[b, 4] * range_scale
+        # estimated target velocity in the platform frame: relative velocity + own (0, v)
+        vt0, vt1 = obs[b, 5] * speed_scale, obs[b, 6] * speed_scale + v
+        # estimated position covariance from the log standard deviations and the correlation
+        p00, p11 = sd[b, 0] * sd[b, 0], sd[b, 1] * sd[b, 1]
+        p01 = sd[b, 0] * sd[b, 1] * obs[b, 9]
+        best, best_gain = 0, -np.inf
+        for j in range(command.shape[0]):
+            e0, e1, _, _ = fly_platform(
+                0.0,
+                0.0,
+                0.0,
+                v,
+                command[j, 0],
+                command[j, 1],
+                dt,
+                c[MAX_TURN],
+                c[MAX_DV],
+                c[MIN_SPEED],
+                max_speed,
+            )
+            # relative position after the step, the bearing's normal n̂ and its gain
+            n0 = d0 + vt0 * dt - e0
+            n1 = d1 + vt1 * dt - e1
+            dist = math.hypot(n0, n1)
+            r = max(dist, 1e-9)
+            u0, u1 = n1 / r, -n0 / r
+            gain = (u0 * (p00 * u0 + p01 * u1) + u1 * (p01 * u0 + p11 * u1)) / (r * r)
+            if dist < too_close:
+                gain = -np.inf
+            if gain > best_gain:
+                best, best_gain = j, gain
+        choice[b] = best
