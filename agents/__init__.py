@@ -5,6 +5,7 @@
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | :class:`StraightCourse`, :class:`Paper002Maneuver`, :class:`GreedyManeuver`, :class:`OracleLookahead` (ceiling) |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | :class:`HoldStill`, :class:`TrackNearest`, :class:`OrthogonalPairs`, :class:`GreedyPointing` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement` |
+| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | :class:`FullSweep`, :class:`CueFollowing`, :class:`OrthogonalSectors`, :class:`GreedyInformation`, :class:`OracleSectors` (ceiling) |
 
 :mod:`.registry` maps env ids to rule factories (what ``sensorgym benchmark`` scores);
 :mod:`.protocol` is the ``predict`` interface they share with trained models.
@@ -25,10 +26,20 @@ from sensorgym.agents.stereo_pointing import (
     OrthogonalPairs,
     TrackNearest,
 )
+from sensorgym.agents.stereo_scanning import (
+    CueFollowing,
+    FullSweep,
+    GreedyInformation,
+    OracleSectors,
+    OrthogonalSectors,
+)
 
 __all__ = [
     "RULES",
     "CirclePlacement",
+    "CueFollowing",
+    "FullSweep",
+    "GreedyInformation",
     "GreedyManeuver",
     "GreedyPlacement",
     "GreedyPointing",
@@ -36,7 +47,9 @@ __all__ = [
     "HoldStill",
     "MemorylessRule",
     "OracleLookahead",
+    "OracleSectors",
     "OrthogonalPairs",
+    "OrthogonalSectors",
     "Paper002Maneuver",
     "PolicyPredictor",
     "StraightCourse",

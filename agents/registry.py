@@ -15,6 +15,7 @@ from typing import Any
 from sensorgym.agents import bearings_maneuver as maneuver
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
+from sensorgym.agents import stereo_scanning as scanning
 from sensorgym.agents.protocol import PolicyPredictor
 
 StateFn = Callable[[], Any]
@@ -37,6 +38,13 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "hold-position": lambda params, _: placement.HoldPosition(params),
         "circle-placement": lambda params, _: placement.CirclePlacement(params),
         "greedy-information": lambda params, _: placement.GreedyPlacement(params),
+    },
+    "sensorgym/StereoScanning-v0": {
+        "full-sweep": lambda params, _: scanning.FullSweep(params),
+        "cue-following": lambda params, _: scanning.CueFollowing(params),
+        "orthogonal-sectors": lambda params, _: scanning.OrthogonalSectors(params),
+        "greedy-information": lambda params, _: scanning.GreedyInformation(params),
+        "oracle-sectors": lambda params, state_fn: scanning.OracleSectors(state_fn, params),
     },
 }
 

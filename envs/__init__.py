@@ -9,6 +9,7 @@ length is set; the vector and PettingZoo doors read it from there.
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |
+| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning.parallel_env`` |
 
 :mod:`.shells` holds the contract every simulation follows and the shells over it;
 :mod:`.worlds` the simulated worlds and sensors that are not envs (reproductions, benchmarks).
@@ -35,6 +36,12 @@ _ENVS = [
         "vector_entry_point": "sensorgym.envs.stereo_placement.env:StereoPlacementVectorEnv",
         "max_episode_steps": 60,
     },
+    {
+        "id": "sensorgym/StereoScanning-v0",
+        "entry_point": "sensorgym.envs.stereo_scanning.env:StereoScanningEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_scanning.env:StereoScanningVectorEnv",
+        "max_episode_steps": 40,
+    },
 ]
 
 for _spec in _ENVS:
@@ -43,7 +50,12 @@ for _spec in _ENVS:
 
 ENV_IDS = [spec["id"] for spec in _ENVS]
 
-from sensorgym.envs import bearings_maneuver, stereo_placement, stereo_pointing  # noqa: E402
+from sensorgym.envs import (  # noqa: E402
+    bearings_maneuver,
+    stereo_placement,
+    stereo_pointing,
+    stereo_scanning,
+)
 from sensorgym.envs.bearings_maneuver import (  # noqa: E402  (registered first)
     BearingsManeuverEnv,
     BearingsManeuverParallelEnv,
@@ -62,6 +74,12 @@ from sensorgym.envs.stereo_pointing import (  # noqa: E402
     StereoPointingParallelEnv,
     StereoPointingVectorEnv,
 )
+from sensorgym.envs.stereo_scanning import (  # noqa: E402
+    ScanningParams,
+    StereoScanningEnv,
+    StereoScanningParallelEnv,
+    StereoScanningVectorEnv,
+)
 
 #: env id -> its PettingZoo factory (``parallel_env`` of the env's package; params fields and
 #: ``max_episode_steps`` as keywords)
@@ -69,6 +87,7 @@ PARALLEL_ENVS = {
     "sensorgym/BearingsManeuver-v0": bearings_maneuver.parallel_env,
     "sensorgym/StereoPointing-v0": stereo_pointing.parallel_env,
     "sensorgym/StereoPlacement-v0": stereo_placement.parallel_env,
+    "sensorgym/StereoScanning-v0": stereo_scanning.parallel_env,
 }
 
 __all__ = [
@@ -80,13 +99,18 @@ __all__ = [
     "ManeuverParams",
     "PlacementParams",
     "PointingParams",
+    "ScanningParams",
     "StereoPlacementEnv",
     "StereoPlacementParallelEnv",
     "StereoPlacementVectorEnv",
     "StereoPointingEnv",
     "StereoPointingParallelEnv",
     "StereoPointingVectorEnv",
+    "StereoScanningEnv",
+    "StereoScanningParallelEnv",
+    "StereoScanningVectorEnv",
     "bearings_maneuver",
     "stereo_placement",
     "stereo_pointing",
+    "stereo_scanning",
 ]

@@ -17,6 +17,7 @@ import sensorgym.envs as envs
 from sensorgym.envs.bearings_maneuver import parallel_env as maneuver_parallel
 from sensorgym.envs.stereo_placement import parallel_env as placement_parallel
 from sensorgym.envs.stereo_pointing import parallel_env as pointing_parallel
+from sensorgym.envs.stereo_scanning import parallel_env as scanning_parallel
 from tests.golden_record import (
     GOLDEN,
     REPRODUCTIONS,
@@ -31,6 +32,7 @@ PARALLEL_FACTORIES = {
     "sensorgym/BearingsManeuver-v0": functools.partial(maneuver_parallel, platforms=2),
     "sensorgym/StereoPointing-v0": pointing_parallel,
     "sensorgym/StereoPlacement-v0": placement_parallel,
+    "sensorgym/StereoScanning-v0": scanning_parallel,
 }
 
 

@@ -17,7 +17,10 @@ def _states(env_id: str, batch: int, seed: int):
     return env.unwrapped
 
 
-@pytest.mark.parametrize("env_id", ["sensorgym/StereoPointing-v0", "sensorgym/StereoPlacement-v0"])
+@pytest.mark.parametrize(
+    "env_id",
+    ["sensorgym/StereoPointing-v0", "sensorgym/StereoPlacement-v0", "sensorgym/StereoScanning-v0"],
+)
 def test_scatter_puts_the_fresh_scenarios_in_order(env_id):
     old = _states(env_id, 5, 1).simulator_state
     fresh = _states(env_id, 2, 2).simulator_state

@@ -1,0 +1,259 @@
+"""Heuristic sector rules for ``sensorgym/StereoScanning-v0`` (theory §10.1 OC-1, §10.4 OC-4).
+
+Each rule reads only the observation (the tracker's table of confirmed tracks and the last
+sectors, :func:`sensorgym.envs.stereo_scanning.simulation.observe`) plus the env's params
+(receiver layout, raster, noise per width), and implements SB3's ``predict``; the oracle also
+reads the simulator's true drones (a ceiling, not a fieldable policy).
+
+* :class:`FullSweep` — the papers' fixed sweep: every receiver scans its whole field of regard.
+* :class:`CueFollowing` — sectors centred on the predicted tracks, just wide enough for them
+  and their motion during the period; a full sweep every ``sweep_every`` periods (and whenever
+  there is no track) to find new drones.
+* :class:`OrthogonalSectors` — OC-1: the tracks ranked by the papers' range-only score
+  ``σ_e/√(Σ_k sin²γ_k)`` (lines of sight from receiver 1 against the others); each receiver's
+  sector covers the best-ranked tracks that fit a narrow sector, the others wait for the sweeps.
+* :class:`GreedyInformation` — per period, the common width (from a grid) and centres that
+  maximise the expected reward ``Σ_tracks [covered ? ln(σ_ref/σ̂_pos(w)) : −R]`` with
+  ``σ̂_pos = κ w r̄ √(σ[r̂_1]²/σ_e² + 2)`` (the env's covariance with the range-only closed form).
+* :class:`OracleSectors` — the greedy choice on the true drones of the scene (ceiling).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.agents.protocol import MemorylessRule, as_batch
+from sensorgym.envs.stereo_scanning.simulation import (
+    ScanningParams,
+    local_angles,
+    sector_action,
+    split_observation,
+)
+from sensorgym.trackers.stereo.accuracy import range_sigma_general
+
+FloatArray = NDArray[np.float64]
+
+#: angular margin added around the covered tracks on each side, rad
+MARGIN = float(np.deg2rad(1.5))
+
+
+def _full(params: ScanningParams, N: int) -> FloatArray:
+    sectors = np.zeros((N, params.n_receivers, 3))
+    sectors[..., 2] = params.sector_width[1]
+    return sectors
+
+
+def _cover(params: ScanningParams, angles: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
+    """Sectors ``(n, 3)`` just covering the local angles ``(S, n, 3)`` of the masked points
+    (plus :data:`MARGIN`); a full sweep where none is masked."""
+    n = params.n_receivers
+    if not mask.any():
+        return _full(params, 1)[0]
+    a = angles[mask]  # (S', n, 3)
+    lo, hi = a[..., :2].min(axis=0), a[..., :2].max(axis=0)  # (n, 2)
+    centre = 0.5 * (lo + hi)
+    width = np.max(hi - lo, axis=-1) + 2 * MARGIN
+    width = np.clip(width, *params.sector_width)
+    out = np.empty((n, 3))
+    out[:, :2] = centre
+    out[:, 2] = width
+    return out
+
+
+def _motion_margin(params: ScanningParams, velocity: FloatArray, rng: FloatArray) -> FloatArray:
+    """Angle (rad) a track may move during one period at its estimated speed, per receiver."""
+    speed = np.linalg.norm(velocity, axis=-1)  # (S,)
+    return speed[:, None] * params.period / np.maximum(rng, 1.0)
+
+
+def _track_angles(params: ScanningParams, o: dict, i: int) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Local angles ``(S, n, 3)`` of scenario ``i``'s tracks predicted to mid-period."""
+    mid = o["position"][i] + o["velocity"][i] * (0.5 * params.period)
+    return local_angles(params, mid), o["valid"][i]
+
+
+class FullSweep(MemorylessRule):
+    """The papers' fixed sweep: every receiver scans the widest sector about its boresight."""
+
+    def __init__(self, params: ScanningParams):
+        self.params = params
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        N = obs.shape[0]
+        return sector_action(self.params, _full(self.params, N)).reshape(N, -1)
+
+
+class _Periodic:
+    """A rule with a period counter per env (SB3's ``state``): a full sweep every
+    ``sweep_every`` periods and whenever it has no track."""
+
+    params: ScanningParams
+    sweep_every: int
+
+    def sectors(self, o: dict, i: int) -> FloatArray:
+        raise NotImplementedError
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: Any = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        obs, single = as_batch(observation, self.params.obs_dim)
+        N = obs.shape[0]
+        count = np.zeros(N, np.int64) if state is None else np.asarray(state, np.int64).copy()
+        if count.shape != (N,):
+            count = np.zeros(N, np.int64)
+        if episode_start is not None:
+            count[np.asarray(episode_start, bool).reshape(-1)[:N]] = 0
+        o = split_observation(self.params, obs)
+        sectors = _full(self.params, N)
+        for i in range(N):
+            if o["valid"][i].any() and count[i] % self.sweep_every != 0:
+                sectors[i] = self.sectors(o, i)
+        count += 1
+        action = sector_action(self.params, sectors).reshape(N, -1).astype(np.float32)
+        return (action[0] if single else action), count
+
+
+class CueFollowing(_Periodic):
+    """Sectors centred on the predicted tracks, covering them and their motion in a period."""
+
+    def __init__(self, params: ScanningParams, sweep_every: int = 5):
+        self.params = params
+        self.sweep_every = sweep_every
+
+    def sectors(self, o: dict, i: int) -> FloatArray:
+        ang, valid = _track_angles(self.params, o, i)
+        pad = _motion_margin(self.params, o["velocity"][i], ang[..., 2])
+        wide = ang.copy()
+        out = _cover(self.params, wide, valid)
+        # widen by the largest motion of a covered track
+        out[:, 2] = np.clip(out[:, 2] + 2 * pad[valid].max(axis=0), *self.params.sector_width)
+        return out
+
+
+def oc1_score(params: ScanningParams, points: FloatArray) -> FloatArray:
+    """The papers' range-only OC-1 score ``1/√(Σ_k sin²γ_k)`` (``σ[r̂_1]/σ_e``, theory §3.4) of
+    points ``(S, 3)``: lines of sight from receiver 1 against the others (lower is better)."""
+    d = points[:, None, :] - params.receivers[None]
+    u = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-9)
+    return range_sigma_general(u[:, 0], u[:, 1:])
+
+
+class OrthogonalSectors(_Periodic):
+    """OC-1: narrow sectors on the tracks whose lines of sight are nearest orthogonal."""
+
+    def __init__(self, params: ScanningParams, max_width: float = float(np.deg2rad(20.0)),
+                 sweep_every: int = 5):  # fmt: skip
+        self.params = params
+        self.max_width = max_width
+        self.sweep_every = sweep_every
+
+    def sectors(self, o: dict, i: int) -> FloatArray:
+        ang, valid = _track_angles(self.params, o, i)
+        idx = np.flatnonzero(valid)
+        score = oc1_score(self.params, o["position"][i][idx])
+        chosen = np.zeros_like(valid)
+        for q in idx[np.argsort(score)]:
+            trial = chosen.copy()
+            trial[q] = True
+            if np.all(_cover(self.params, ang, trial)[:, 2] <= self.max_width) or not chosen.any():
+                chosen = trial
+        out = _cover(self.params, ang, chosen)
+        pad = _motion_margin(self.params, o["velocity"][i], ang[..., 2])
+        out[:, 2] = np.clip(out[:, 2] + 2 * pad[chosen].max(axis=0), *self.params.sector_width)
+        return out
+
+
+def greedy_sectors(
+    params: ScanningParams, points: FloatArray, velocity: FloatArray, widths: FloatArray
+) -> FloatArray:
+    """Sectors ``(n, 3)`` maximising ``Σ_points [covered ? ln(σ_ref/σ̂(w)) : −R]`` over a grid of
+    common maximum widths: for each, the points are taken greedily by OC-1 score while every
+    receiver's covering sector fits the width (module docstring)."""
+    if points.shape[0] == 0:
+        return _full(params, 1)[0]
+    mid = points + velocity * (0.5 * params.period)
+    ang = local_angles(params, mid)
+    pad = _motion_margin(params, velocity, ang[..., 2])
+    rel = oc1_score(params, points)
+    order = np.argsort(rel)
+    best, best_value = _full(params, 1)[0], -np.inf
+    for w in widths:
+        chosen = np.zeros(points.shape[0], bool)
+        for q in order:
+            trial = chosen.copy()
+            trial[q] = True
+            cov = _cover(params, ang, trial)
+            if np.all(cov[:, 2] + 2 * pad[trial].max(axis=0) <= w + 1e-12):
+                chosen = trial
+        if not chosen.any():
+            continue
+        sec = _cover(params, ang, chosen)
+        sec[:, 2] = np.clip(sec[:, 2] + 2 * pad[chosen].max(axis=0), *params.sector_width)
+        sig = np.maximum(params.noise_per_width * sec[:, 2], params.sigma_ang_min)  # (n,)
+        r = ang[..., 2]  # (S, n)
+        sigma_e = np.sqrt(params.position_sigma**2 + np.mean((sig * r) ** 2, axis=-1))
+        sigma_pos = sigma_e * np.sqrt(rel**2 + 2.0)
+        with np.errstate(divide="ignore"):
+            gain = np.clip(np.log(params.sigma_ref / sigma_pos), -params.reward_clip,
+                           params.reward_clip)  # fmt: skip
+        value = np.sum(np.where(chosen, gain, -params.reward_clip))
+        if value > best_value:
+            best, best_value = sec, value
+    return best
+
+
+class GreedyInformation(_Periodic):
+    """Per period, the sector width and centres with the best expected covariance reward."""
+
+    def __init__(self, params: ScanningParams, n_widths: int = 8, sweep_every: int = 5):
+        self.params = params
+        self.widths = np.geomspace(*params.sector_width, n_widths)
+        self.sweep_every = sweep_every
+
+    def sectors(self, o: dict, i: int) -> FloatArray:
+        valid = o["valid"][i]
+        return greedy_sectors(
+            self.params, o["position"][i][valid], o["velocity"][i][valid], self.widths
+        )
+
+
+class OracleSectors(MemorylessRule):
+    """The greedy choice on the true drones present (reads ``simulator_state``): a ceiling."""
+
+    def __init__(self, state_fn: Callable[[], Any], params: ScanningParams, n_widths: int = 8):
+        self.state_fn = state_fn
+        self.params = params
+        self.widths = np.geomspace(*params.sector_width, n_widths)
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        s = self.state_fn()
+        N = obs.shape[0]
+        if s.batch_size != N:
+            raise ValueError(f"observation: {N} envs, but the simulator holds {s.batch_size}")
+        out = np.empty((N, self.params.n_receivers, 3))
+        for i in range(N):
+            present = (s.enter[i] <= s.t[i] + 1e-9) & ~s.exited[i]
+            out[i] = greedy_sectors(
+                self.params, s.drone_position[i][present], s.drone_velocity[i][present],
+                self.widths,
+            )  # fmt: skip
+        return sector_action(self.params, out).reshape(N, -1)
+
+
+__all__ = [
+    "CueFollowing",
+    "FullSweep",
+    "GreedyInformation",
+    "OracleSectors",
+    "OrthogonalSectors",
+    "greedy_sectors",
+    "oc1_score",
+]

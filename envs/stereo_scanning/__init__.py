@@ -1,0 +1,24 @@
+"""``sensorgym/StereoScanning-v0``: steer scanning receivers' sectors so that paper 000's tracker
+finds and locates close, moving, unlabelled drones.
+
+:mod:`.simulation` (params, state and the contract's functions), :mod:`.kernels` (the compiled
+period: rasters, fixes, candidates, association, reward), :mod:`.env` (Gymnasium, native vector
+and PettingZoo envs) and :mod:`.render`.
+"""
+
+from sensorgym.envs.stereo_scanning.env import (
+    StereoScanningEnv,
+    StereoScanningParallelEnv,
+    StereoScanningVectorEnv,
+    parallel_env,
+)
+from sensorgym.envs.stereo_scanning.simulation import ScanningParams, ScanningState
+
+__all__ = [
+    "ScanningParams",
+    "ScanningState",
+    "StereoScanningEnv",
+    "StereoScanningParallelEnv",
+    "StereoScanningVectorEnv",
+    "parallel_env",
+]

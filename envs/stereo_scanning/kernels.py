@@ -1,0 +1,688 @@
+"""The compiled step of the scanning-receiver environments: one loop over the scenarios.
+
+The maths is that of :mod:`.simulation` (theory §3, §5.2–5.3, §6); each formula is a primitive
+of the module that owns it — :mod:`sensorgym.trackers.geometry_kernels` (look-at rotation,
+relative poses, angular noise), :mod:`sensorgym.trackers.stereo.conjugation_kernels` (the
+``n = 2`` pair and the ``n = 3`` velocity-aware closed forms, ``σ_e² (AᵀA)⁻¹``) and
+:mod:`sensorgym.trackers.stereo.kernels` (the clipped log-ratio reward) — and these kernels
+chain them per scenario:
+
+* :func:`raster_fix` — the pixel-visit rule of one object in one receiver's sector raster
+  (theory §6.3): the fix time ``t = T_raster(φ(t), θ(t))`` by fixed-point iteration;
+* :func:`step_rows` — one scan period of scenarios ``lo..hi``: sectors from the action, fixes
+  (drones and false detections), the candidates of the selected algorithm, association over
+  periods, track initiation and confirmation, the reward; drones then move on;
+* :func:`observe_rows` — the observation (track table and sectors).
+
+Random draws stay with numpy's Generator (drawn before the kernels, in a fixed order).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, unit_from_angles3
+from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
+from sensorgym.trackers.stereo.kernels import log_ratio_reward
+
+_JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+#: track status codes of the table
+EMPTY, TENTATIVE, CONFIRMED = 0, 1, 2
+#: tracker codes
+PROPOSED, ALTERNATIVE = 0, 1
+
+
+@njit(inline="always")
+def _wrap(a):
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+@njit(inline="always")
+def _local(R, i, k, d):
+    """``R_kᵀ d`` for ``R (B, n, 3, 3)`` (``R[i, k, j, c]`` = component ``j`` of column ``c``)."""
+    return (
+        R[i, k, 0, 0] * d[0] + R[i, k, 1, 0] * d[1] + R[i, k, 2, 0] * d[2],
+        R[i, k, 0, 1] * d[0] + R[i, k, 1, 1] * d[1] + R[i, k, 2, 1] * d[2],
+        R[i, k, 0, 2] * d[0] + R[i, k, 1, 2] * d[1] + R[i, k, 2, 2] * d[2],
+    )
+
+
+@njit(inline="always")
+def _world(R, i, k, v):
+    """``R_k v`` (receiver ``k``'s frame → world)."""
+    return (
+        R[i, k, 0, 0] * v[0] + R[i, k, 0, 1] * v[1] + R[i, k, 0, 2] * v[2],
+        R[i, k, 1, 0] * v[0] + R[i, k, 1, 1] * v[1] + R[i, k, 1, 2] * v[2],
+        R[i, k, 2, 0] * v[0] + R[i, k, 2, 1] * v[1] + R[i, k, 2, 2] * v[2],
+    )
+
+
+@njit(inline="always")
+def sector_of(action, lo_w, hi_w, half_regard):
+    """``(φ_c, θ_c, w)`` of a receiver's normalised action ``(3,)`` (clipped to ``[−1, 1]``):
+    centre ``a · regard/2`` in azimuth and elevation about the boresight, width
+    ``w_min + (a + 1)/2 (w_max − w_min)``, rad."""
+    a0 = min(max(action[0], -1.0), 1.0)
+    a1 = min(max(action[1], -1.0), 1.0)
+    a2 = min(max(action[2], -1.0), 1.0)
+    return a0 * half_regard, a1 * half_regard, lo_w + 0.5 * (a2 + 1.0) * (hi_w - lo_w)
+
+
+@njit(inline="always")
+def sector_sigma(width, kappa, sigma_min):
+    """Angular noise of a fix from a sector of ``width``: ``max(κ w, σ_min)`` rad — the raster
+    has a fixed pixel count, so a wider sector has coarser pixels (the sector trade-off)."""
+    return max(kappa * width, sigma_min)
+
+
+@njit(inline="always")
+def raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep):
+    """Time after the period start at which the raster reaches the pixel holding local angles
+    ``(φ, θ)``: ``offset + (row · L + col + ½) · dwell``, ``dwell = sweep / L²``, rows from the
+    top elevation down, columns by increasing azimuth (theory §6.1, §6.3)."""
+    pix = width / lines
+    row = np.floor((centre_el + 0.5 * width - theta) / pix)
+    col = np.floor((_wrap(phi - centre_az) + 0.5 * width) / pix)
+    row = min(max(row, 0.0), lines - 1.0)
+    col = min(max(col, 0.0), lines - 1.0)
+    return offset + (row * lines + col + 0.5) * (sweep / (lines * lines))
+
+
+@njit(inline="always")
+def _angles(d):
+    """Local azimuth ``atan2(x, z)`` and elevation ``atan2(y, ‖(x, z)‖)`` of ``d`` (theory §2.2)."""
+    return np.arctan2(d[0], d[2]), np.arctan2(d[1], np.hypot(d[0], d[2]))
+
+
+@njit(inline="always")
+def _inside(phi, theta, d, centre_az, centre_el, width):
+    return (
+        d[2] > 0.0
+        and abs(_wrap(phi - centre_az)) <= 0.5 * width
+        and abs(theta - centre_el) <= 0.5 * width
+    )
+
+
+@njit(inline="always")
+def _at(p, v, a, s):
+    """``p + v s + ½ a s²``."""
+    h = 0.5 * s * s
+    return (p[0] + v[0] * s + a[0] * h, p[1] + v[1] * s + a[1] * h, p[2] + v[2] * s + a[2] * h)
+
+
+@njit(inline="always")
+def raster_fix(R, i, k, o, p, v, a, centre_az, centre_el, width, lines, offset, sweep, iters):
+    """Pixel-visit rule (theory §6.3) for an object ``p + v s + ½ a s²`` (``s`` from the period
+    start) seen from receiver ``k`` at ``o``: iterates ``s ← T_raster(φ(s), θ(s))`` from the
+    middle of the sweep. Returns ``(seen, s, local offset d)``; not seen outside the sector or
+    behind the receiver."""
+    s = offset + 0.5 * sweep
+    d = (0.0, 0.0, 1.0)
+    seen = False
+    for _ in range(iters):
+        q = _at(p, v, a, s)
+        d = _local(R, i, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
+        phi, theta = _angles(d)
+        seen = _inside(phi, theta, d, centre_az, centre_el, width)
+        if not seen:
+            return False, s, d
+        s = raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep)
+    q = _at(p, v, a, s)
+    d = _local(R, i, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
+    phi, theta = _angles(d)
+    seen = _inside(phi, theta, d, centre_az, centre_el, width) and norm3(d) > 0.0
+    return seen, s, d
+
+
+@njit(inline="always")
+def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
+    """``(σ_e, σ_pos, σ_vel)`` of a candidate from its ``Q = (AᵀA)⁻¹`` (``σ_e = 1``).
+
+    ``σ_e² = σ_x² + (1/n) Σ_k (σ_k r̂_k)²`` maps the direction noise to the papers' i.i.d.
+    conjugation error (theory §13.4) plus the apparent-position error ``σ_x``;
+    ``σ_pos = σ_e √([(AᵀA)⁻¹]_11 + 2)``: the range error along receiver 1's line of sight and
+    ``σ_e`` on each axis across it; ``σ_vel = σ_e √tr Q_VV`` (order-1 systems; else 0).
+    """
+    s2 = position_sigma * position_sigma
+    acc = 0.0
+    for k in range(n_used):
+        x = sigmas[k] * abs(ranges[k])
+        acc += x * x
+    s2 += acc / n_used
+    sigma_e = np.sqrt(s2)
+    sp = sigma_e * np.sqrt(max(Q[0, 0], 0.0) + 2.0)
+    sv = 0.0
+    if Q.shape[0] == 6:
+        sv = sigma_e * np.sqrt(max(Q[3, 3] + Q[4, 4] + Q[5, 5], 0.0))
+    return sigma_e, sp, sv
+
+
+@njit(**_JIT)
+def step_rows(
+    lo, hi, tracker, action, O, R, P, b, t, drone_p, drone_v, drone_a, enter, exited,
+    scene_half, scene_height, dir_normals, pos_noise, clutter_count, clutter_uv,
+    offsets, sweep, lines, period, iters, lo_w, hi_w, half_regard, kappa, sigma_min,
+    position_sigma, max_speed, max_accel, gate_q, cond_max, confirm_hits, max_misses,
+    sigma_ref, reward_clip, false_penalty, truth_gate,
+    sectors, fix_world, fix_time, fix_count, fix_drone,
+    tx, tt, tsig, tscore, thits, tmiss, tstatus, tsums, tid, next_id,
+    assigned, drone_sigma, reward, parts,
+):  # fmt: skip
+    """One scan period of scenarios ``lo..hi`` (module docstring); arrays are updated in place.
+
+    ``parts (B, 4)``: drones present, drones with a confirmed track, false confirmed tracks,
+    mean per-drone reward.
+    """
+    n = O.shape[1]
+    m = drone_p.shape[1]
+    F = fix_world.shape[2]
+    T = tx.shape[1]
+    cm = clutter_uv.shape[2]
+    used_n = 3 if tracker == PROPOSED else 2
+    C = F**used_n
+    # scratch, allocated once per call
+    la = np.zeros((n, F, 3))
+    sig = np.zeros(n)
+    a1 = np.zeros((C, 3))
+    ak = np.zeros((C, used_n - 1, 3))
+    Pc = np.zeros((C, used_n - 1, 3, 3))
+    bc = np.zeros((C, used_n - 1, 3))
+    dt = np.zeros((C, 2))
+    ones = np.ones(C)
+    X = np.zeros((C, used_n + (3 if used_n == 3 else 0)))
+    J = np.zeros(C)
+    Q = np.zeros((C, X.shape[1], X.shape[1]))
+    kap = np.zeros(C)
+    M1 = np.zeros((C, 3))
+    cmem = np.zeros((C, 3), np.int64)
+    cpos = np.zeros((C, 3))
+    cvel = np.zeros((C, 3))
+    ctime = np.zeros(C)
+    csig = np.zeros((C, 2))
+    cdt = np.zeros(C)
+    cok = np.zeros(C, np.bool_)
+    ctaken = np.zeros(C, np.bool_)
+    fused = np.zeros((n, F), np.bool_)
+    pairs_t = np.zeros(T * C, np.int64)
+    pairs_c = np.zeros(T * C, np.int64)
+    pairs_s = np.zeros(T * C)
+    child_t = np.zeros(T * C, np.int64)
+    child_c = np.zeros(T * C, np.int64)
+    child_s = np.zeros(T * C)
+    old = np.zeros((T, 20))
+    old_slot = np.zeros(T, np.int64)
+    t_took = np.zeros(T, np.bool_)
+    rng_idx = np.zeros(C, np.int64)
+    d_dist = np.zeros((T, m))
+    t_end_pos = np.zeros((T, 3))
+    t_cmp = np.zeros(T)
+    for i in range(lo, hi):
+        t0 = t[i]
+        # ---- 1. sectors and fixes -------------------------------------------------------
+        for k in range(n):
+            az, el, w = sector_of(action[i, k], lo_w, hi_w, half_regard)
+            sectors[i, k, 0], sectors[i, k, 1], sectors[i, k, 2] = az, el, w
+            sig[k] = sector_sigma(w, kappa, sigma_min)
+            o = (O[i, k, 0], O[i, k, 1], O[i, k, 2])
+            c = 0
+            for j in range(m):
+                if exited[i, j] or enter[i, j] > t0 + 1e-9:
+                    continue
+                # the apparent position carries one shared error per object and period
+                p = (
+                    drone_p[i, j, 0] + pos_noise[i, j, 0],
+                    drone_p[i, j, 1] + pos_noise[i, j, 1],
+                    drone_p[i, j, 2] + pos_noise[i, j, 2],
+                )
+                v = (drone_v[i, j, 0], drone_v[i, j, 1], drone_v[i, j, 2])
+                acc = (drone_a[i, j, 0], drone_a[i, j, 1], drone_a[i, j, 2])
+                seen, s, d = raster_fix(
+                    R, i, k, o, p, v, acc, az, el, w, lines, offsets[k], sweep, iters
+                )
+                if not seen:
+                    continue
+                r = norm3(d)
+                u = (d[0] / r, d[1] / r, d[2] / r)
+                if sig[k] > 0.0:
+                    z = (dir_normals[i, k, j, 0], dir_normals[i, k, j, 1], dir_normals[i, k, j, 2])
+                    u = perturbed_direction3(u, z, sig[k])
+                la[k, c, 0], la[k, c, 1], la[k, c, 2] = u
+                uw = _world(R, i, k, u)
+                fix_world[i, k, c, 0], fix_world[i, k, c, 1], fix_world[i, k, c, 2] = uw
+                fix_time[i, k, c] = t0 + s
+                fix_drone[i, k, c] = j
+                c += 1
+            for q in range(min(clutter_count[i, k], cm)):
+                phi = az + (clutter_uv[i, k, q, 0] - 0.5) * w
+                theta = el + (clutter_uv[i, k, q, 1] - 0.5) * w
+                u = unit_from_angles3(phi, theta)
+                la[k, c, 0], la[k, c, 1], la[k, c, 2] = u
+                uw = _world(R, i, k, u)
+                fix_world[i, k, c, 0], fix_world[i, k, c, 1], fix_world[i, k, c, 2] = uw
+                fix_time[i, k, c] = t0 + raster_time(
+                    phi, theta, az, el, w, lines, offsets[k], sweep
+                )
+                fix_drone[i, k, c] = -1
+                c += 1
+            fix_count[i, k] = c
+        # ---- 2. candidates: every pair / triple of fixes, one per receiver ----------------
+        nc = 0
+        c1 = fix_count[i, 0]
+        c2 = fix_count[i, 1]
+        c3 = fix_count[i, 2] if used_n == 3 else 1
+        for j1 in range(c1):
+            for j2 in range(c2):
+                for j3 in range(c3):
+                    for x in range(3):
+                        a1[nc, x] = la[0, j1, x]
+                        ak[nc, 0, x] = la[1, j2, x]
+                        bc[nc, 0, x] = b[i, 0, x]
+                        for y in range(3):
+                            Pc[nc, 0, x, y] = P[i, 0, x, y]
+                    dt[nc, 0] = fix_time[i, 1, j2] - fix_time[i, 0, j1]
+                    cmem[nc, 0], cmem[nc, 1], cmem[nc, 2] = j1, j2, -1
+                    if used_n == 3:
+                        for x in range(3):
+                            ak[nc, 1, x] = la[2, j3, x]
+                            bc[nc, 1, x] = b[i, 1, x]
+                            for y in range(3):
+                                Pc[nc, 1, x, y] = P[i, 1, x, y]
+                        dt[nc, 1] = fix_time[i, 2, j3] - fix_time[i, 0, j1]
+                        cmem[nc, 2] = j3
+                    ctime[nc] = fix_time[i, 0, j1]
+                    nc += 1
+        if used_n == 3:
+            triple_velocity_kernel(a1, ak, Pc, bc, dt, 1.0, False, 0, nc, X, J, Q, kap, M1)
+        else:
+            pair_kernel(a1, ak, Pc, bc, ones, 1.0, False, 0, nc, X, J, Q, kap, M1)
+        for c in range(nc):
+            ok = kap[c] <= cond_max
+            for k in range(used_n):
+                ok = ok and X[c, k] > 0.0
+            cok[c] = False
+            ctaken[c] = False
+            if not ok:
+                continue
+            sigma_e, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma)
+            # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
+            mw = _world(R, i, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
+            for x in range(3):
+                cpos[c, x] = O[i, 0, x] + mw[x]
+            if used_n == 3:
+                vw = _world(R, i, 0, (X[c, 3], X[c, 4], X[c, 5]))
+                speed = norm3(vw)
+                if not speed <= max_speed:
+                    continue
+                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
+            else:
+                # J ≤ ε_J = (q(√2 σ_e) + v_max |Δt|)²: noise plus the unmodelled motion's miss
+                eps = gate_q * np.sqrt(2.0) * sigma_e + max_speed * abs(dt[c, 0])
+                if not J[c] <= eps * eps:
+                    continue
+                cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
+            cdt[c] = abs(dt[c, 0])
+            csig[c, 0], csig[c, 1] = sp, sv
+            cok[c] = True
+        # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
+        for k in range(n):
+            for j in range(F):
+                fused[k, j] = False
+        for q in range(T):
+            t_took[q] = False
+        npair = 0
+        for q in range(T):
+            if tstatus[i, q] == EMPTY:
+                continue
+            for c in range(nc):
+                if not cok[c]:
+                    continue
+                cost = _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, ctime, csig, cdt,
+                                  gate_q, max_speed, max_accel)  # fmt: skip
+                if cost < np.inf:
+                    pairs_t[npair], pairs_c[npair], pairs_s[npair] = q, c, cost
+                    npair += 1
+        order = np.argsort(pairs_s[:npair])
+        # confirmed tracks: greedy by ΔJ
+        for e in order:
+            q, c = pairs_t[e], pairs_c[e]
+            if tstatus[i, q] != CONFIRMED or t_took[q] or _shares(cmem, c, fused, used_n):
+                continue
+            t_took[q] = True
+            _mark(cmem, c, fused, used_n)
+            ctaken[c] = True
+            _update(tracker, i, q, c, pairs_s[e], cpos, cvel, ctime, csig, tx, tt, tsig, tscore,
+                    thits, tmiss, tsums, max_speed)  # fmt: skip
+        # tentative tracks: every passing continuation is a child (000's groups), in ascending
+        # cumulative index; a child reaching ``confirm_hits`` is confirmed if it shares no vector
+        n_child = 0
+        for e in order:
+            q, c = pairs_t[e], pairs_c[e]
+            if tstatus[i, q] != TENTATIVE or _shares(cmem, c, fused, used_n):
+                continue
+            child_t[n_child], child_c[n_child] = q, c
+            child_s[n_child] = tscore[i, q] + pairs_s[e]
+            n_child += 1
+        child_order = np.argsort(child_s[:n_child])
+        # old tentative tracks are replaced by their children (copied into a scratch first)
+        r_ = 0
+        for q in range(T):
+            if tstatus[i, q] == TENTATIVE:
+                _save(old, r_, i, q, tx, tt, tsig, tscore, thits, tsums)
+                old_slot[q] = r_
+                r_ += 1
+                tstatus[i, q] = EMPTY
+        for e in child_order:
+            q, c = child_t[e], child_c[e]
+            if _shares(cmem, c, fused, used_n):
+                continue
+            slot = _free(tstatus, i, T)
+            if slot < 0:
+                break
+            _load(old, old_slot[q], i, slot, tx, tt, tsig, tscore, thits, tsums)
+            tmiss[i, slot] = 0
+            _update(tracker, i, slot, c, child_s[e] - tscore[i, slot], cpos, cvel, ctime, csig,
+                    tx, tt, tsig, tscore, thits, tmiss, tsums, max_speed)  # fmt: skip
+            ctaken[c] = True
+            if thits[i, slot] >= confirm_hits:
+                tstatus[i, slot] = CONFIRMED
+                tid[i, slot] = next_id[i]
+                next_id[i] += 1
+                t_took[slot] = True
+                _mark(cmem, c, fused, used_n)
+            else:
+                tstatus[i, slot] = TENTATIVE
+                t_took[slot] = True
+        # confirmed tracks without a continuation coast; dropped after ``max_misses``
+        for q in range(T):
+            if tstatus[i, q] == CONFIRMED and not t_took[q]:
+                tmiss[i, q] += 1
+                if tmiss[i, q] > max_misses:
+                    tstatus[i, q] = EMPTY
+        # births: candidates sharing no vector with a continued track open tentative tracks
+        nb = 0
+        for c in range(nc):
+            if cok[c] and not ctaken[c] and not _shares(cmem, c, fused, used_n):
+                rng_idx[nb] = c
+                nb += 1
+        for e in range(nb):
+            c = rng_idx[e]
+            slot = _free(tstatus, i, T)
+            if slot < 0:
+                break
+            thits[i, slot] = 0
+            tscore[i, slot] = 0.0
+            tmiss[i, slot] = 0
+            for x in range(9):
+                tsums[i, slot, x] = 0.0
+            _update(tracker, i, slot, c, 0.0, cpos, cvel, ctime, csig, tx, tt, tsig, tscore,
+                    thits, tmiss, tsums, max_speed)  # fmt: skip
+            if confirm_hits <= 1:
+                tstatus[i, slot] = CONFIRMED
+                tid[i, slot] = next_id[i]
+                next_id[i] += 1
+            else:
+                tstatus[i, slot] = TENTATIVE
+        # ---- 4. reward at the period end --------------------------------------------------
+        t_end = t0 + period
+        npresent = 0
+        for j in range(m):
+            assigned[i, j] = -1
+            drone_sigma[i, j] = np.inf
+        for q in range(T):
+            # compared at the track's own time if it was updated this period, else at the end
+            tc = tt[i, q] if tt[i, q] >= t0 else t_end
+            s = tc - tt[i, q]
+            t_cmp[q] = tc
+            for x in range(3):
+                t_end_pos[q, x] = tx[i, q, x] + tx[i, q, 3 + x] * s
+            for j in range(m):
+                d_dist[q, j] = np.inf
+                if tstatus[i, q] != CONFIRMED or exited[i, j] or enter[i, j] > t0 + 1e-9:
+                    continue
+                pe = _at(
+                    (drone_p[i, j, 0], drone_p[i, j, 1], drone_p[i, j, 2]),
+                    (drone_v[i, j, 0], drone_v[i, j, 1], drone_v[i, j, 2]),
+                    (drone_a[i, j, 0], drone_a[i, j, 1], drone_a[i, j, 2]),
+                    tc - t0,
+                )
+                dd = norm3((t_end_pos[q, 0] - pe[0], t_end_pos[q, 1] - pe[1],
+                            t_end_pos[q, 2] - pe[2]))  # fmt: skip
+                if dd <= truth_gate:
+                    d_dist[q, j] = dd
+        # greedy nearest (track, drone) pairs within the gate, one-to-one
+        while True:
+            best = np.inf
+            bq, bj = -1, -1
+            for q in range(T):
+                for j in range(m):
+                    if d_dist[q, j] < best:
+                        best, bq, bj = d_dist[q, j], q, j
+            if bq < 0:
+                break
+            assigned[i, bj] = bq
+            s = t_cmp[bq] - tt[i, bq]
+            drone_sigma[i, bj] = np.sqrt(tsig[i, bq, 0] ** 2 + (tsig[i, bq, 1] * s) ** 2)
+            for q in range(T):
+                d_dist[q, bj] = np.inf
+            for j in range(m):
+                d_dist[bq, j] = np.inf
+        total = 0.0
+        found = 0
+        for j in range(m):
+            if exited[i, j] or enter[i, j] > t0 + 1e-9:
+                continue
+            npresent += 1
+            if assigned[i, j] >= 0:
+                found += 1
+                total += log_ratio_reward(drone_sigma[i, j], sigma_ref, reward_clip)
+            else:
+                total -= reward_clip
+        n_false = 0
+        for q in range(T):
+            if tstatus[i, q] == CONFIRMED:
+                hit = False
+                for j in range(m):
+                    if assigned[i, j] == q:
+                        hit = True
+                if not hit:
+                    n_false += 1
+        mean = total / npresent if npresent > 0 else 0.0
+        reward[i] = mean - false_penalty * n_false
+        parts[i, 0], parts[i, 1], parts[i, 2], parts[i, 3] = npresent, found, n_false, mean
+        # ---- 5. the drones fly on; leaving the scene is for good ---------------------------
+        for j in range(m):
+            if exited[i, j]:
+                continue
+            if enter[i, j] <= t0 + 1e-9:
+                pe = _at(
+                    (drone_p[i, j, 0], drone_p[i, j, 1], drone_p[i, j, 2]),
+                    (drone_v[i, j, 0], drone_v[i, j, 1], drone_v[i, j, 2]),
+                    (drone_a[i, j, 0], drone_a[i, j, 1], drone_a[i, j, 2]),
+                    period,
+                )
+                for x in range(3):
+                    drone_v[i, j, x] += drone_a[i, j, x] * period
+                drone_p[i, j, 0], drone_p[i, j, 1], drone_p[i, j, 2] = pe
+                if (
+                    abs(pe[0]) > scene_half
+                    or abs(pe[2]) > scene_half
+                    or pe[1] < 1.0
+                    or pe[1] > scene_height
+                ):
+                    exited[i, j] = True
+        t[i] = t_end
+
+
+@njit(inline="always")
+def _predicted_sigma(i, q, s, tsig):
+    return np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
+
+
+@njit(inline="always")
+def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, ctime, csig, cdt, gate_q, max_speed,
+               max_accel):  # fmt: skip
+    """ΔJ = ‖M(i, j) − (M̂_s + V̂_s (t − t_s))‖ if it passes the gate δ, else inf (000 step 3-4).
+
+    ``δ = q · s + margin``, ``s² = (σ_pos,c² + σ_pos,pred²)/3`` per axis; margin ``½ a_max Δ²``
+    (proposed) or ``v_max |Δt|`` (the alternative's dynamic error may drift by its size). An
+    alternative track of one point has no velocity: any candidate within ``2 v_max Δ`` continues
+    it at zero cost (000 temporal step 1, theory §13.11)."""
+    s = ctime[c] - tt[i, q]
+    if not s > 0.0:
+        return np.inf
+    d = norm3(
+        (
+            cpos[c, 0] - (tx[i, q, 0] + tx[i, q, 3] * s),
+            cpos[c, 1] - (tx[i, q, 1] + tx[i, q, 4] * s),
+            cpos[c, 2] - (tx[i, q, 2] + tx[i, q, 5] * s),
+        )
+    )
+    if tracker == ALTERNATIVE and thits[i, q] < 2:
+        return 0.0 if d <= 2.0 * max_speed * s else np.inf
+    sp = _predicted_sigma(i, q, s, tsig)
+    spread = np.sqrt((csig[c, 0] ** 2 + sp**2) / 3.0)
+    if tracker == ALTERNATIVE:
+        margin = max_speed * cdt[c]
+    else:
+        margin = 0.5 * max_accel * s * s
+    return d if d <= gate_q * spread + margin else np.inf
+
+
+@njit(inline="always")
+def _shares(cmem, c, fused, used_n):
+    for k in range(used_n):
+        if fused[k, cmem[c, k]]:
+            return True
+    return False
+
+
+@njit(inline="always")
+def _mark(cmem, c, fused, used_n):
+    for k in range(used_n):
+        fused[k, cmem[c, k]] = True
+
+
+@njit(inline="always")
+def _free(tstatus, i, T):
+    for q in range(T):
+        if tstatus[i, q] == EMPTY:
+            return q
+    return -1
+
+
+@njit(inline="always")
+def _save(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
+    for x in range(6):
+        old[r, x] = tx[i, q, x]
+    old[r, 6] = tt[i, q]
+    old[r, 7], old[r, 8] = tsig[i, q, 0], tsig[i, q, 1]
+    old[r, 9] = tscore[i, q]
+    old[r, 10] = thits[i, q]
+    for x in range(9):
+        old[r, 11 + x] = tsums[i, q, x]
+
+
+@njit(inline="always")
+def _load(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
+    for x in range(6):
+        tx[i, q, x] = old[r, x]
+    tt[i, q] = old[r, 6]
+    tsig[i, q, 0], tsig[i, q, 1] = old[r, 7], old[r, 8]
+    tscore[i, q] = old[r, 9]
+    thits[i, q] = int(old[r, 10])
+    for x in range(9):
+        tsums[i, q, x] = old[r, 11 + x]
+
+
+@njit(inline="always")
+def _update(tracker, i, q, c, cost, cpos, cvel, ctime, csig, tx, tt, tsig, tscore, thits, tmiss,
+            tsums, max_speed):  # fmt: skip
+    """Extend track ``q`` by candidate ``c``: ``I ← I + ΔJ``. Proposed (000 step 3): the track
+    takes the latest spatial estimate ``(M, V)``. Alternative (theory §13.11): a least-squares
+    line ``M(t) = M̂ + V̂ (t − t_latest)`` over all members, kept as running sums."""
+    tscore[i, q] += cost
+    thits[i, q] += 1
+    tmiss[i, q] = 0
+    tc = ctime[c]
+    if tracker == PROPOSED:
+        for x in range(3):
+            tx[i, q, x] = cpos[c, x]
+            tx[i, q, 3 + x] = cvel[c, x]
+        tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], csig[c, 1]
+        tt[i, q] = tc
+        return
+    # sums of (1, t, t², M, t M) with t measured from the new member's time (well scaled)
+    s0 = tsums[i, q, 0]
+    st = 0.0
+    shift = tt[i, q] - tc
+    # re-centre the stored sums on tc: Σ(t − tc) = Σt' + S0 (t_old − tc) etc.
+    if s0 > 0:
+        st = tsums[i, q, 1] + s0 * shift
+        stt = tsums[i, q, 2] + 2.0 * shift * tsums[i, q, 1] + s0 * shift * shift
+        stm = np.empty(3)
+        for x in range(3):
+            stm[x] = tsums[i, q, 6 + x] + shift * tsums[i, q, 3 + x]
+    else:
+        stt = 0.0
+        stm = np.zeros(3)
+    s0 += 1.0
+    tsums[i, q, 0], tsums[i, q, 1], tsums[i, q, 2] = s0, st, stt
+    for x in range(3):
+        tsums[i, q, 3 + x] += cpos[c, x]
+        tsums[i, q, 6 + x] = stm[x]
+    tt[i, q] = tc
+    det = s0 * stt - st * st
+    if s0 >= 2.0 and det > 0.0:
+        for x in range(3):
+            # V̂ = (S0 ΣtM − Σt ΣM)/(S0 Σt² − (Σt)²) ;  M̂(tc) = (ΣM − V̂ Σt)/S0
+            v = (s0 * tsums[i, q, 6 + x] - st * tsums[i, q, 3 + x]) / det
+            tx[i, q, 3 + x] = v
+            tx[i, q, x] = (tsums[i, q, 3 + x] - v * st) / s0
+        tsig[i, q, 0] = csig[c, 0]
+        tsig[i, q, 1] = csig[c, 0] * np.sqrt(s0 / det)
+    else:
+        for x in range(3):
+            tx[i, q, x] = cpos[c, x]
+            tx[i, q, 3 + x] = 0.0
+        tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], max_speed
+
+
+@njit(**_JIT)
+def observe_rows(
+    lo, hi, t, tx, tt, tsig, tstatus, thits, sectors, fix_count, centre, length, speed,
+    sigma_ref, period, half_regard, lo_w, hi_w, max_fix, out,
+):  # fmt: skip
+    """The observation of :func:`.simulation.observe` (before clipping) into ``out``."""
+    T = tx.shape[1]
+    n = sectors.shape[1]
+    slots = (out.shape[1] - 4 * n) // 11
+    tiny = 1e-12
+    for i in range(lo, hi):
+        for x in range(out.shape[1]):
+            out[i, x] = 0.0
+        r = 0
+        for q in range(T):
+            if r >= slots:
+                break
+            if tstatus[i, q] != 2:
+                continue
+            c = 11 * r
+            s = t[i] - tt[i, q]
+            out[i, c] = 1.0
+            for x in range(3):
+                out[i, c + 1 + x] = (tx[i, q, x] + tx[i, q, 3 + x] * s - centre[x]) / length
+                out[i, c + 4 + x] = tx[i, q, 3 + x] / speed
+            sp = np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
+            out[i, c + 7] = np.log(max(sp, tiny) / sigma_ref)
+            out[i, c + 8] = np.log(max(tsig[i, q, 1] * period, tiny) / sigma_ref)
+            out[i, c + 9] = s / period
+            out[i, c + 10] = thits[i, q] / 10.0
+            r += 1
+        c = 11 * slots
+        for k in range(n):
+            out[i, c + 4 * k] = sectors[i, k, 0] / half_regard
+            out[i, c + 4 * k + 1] = sectors[i, k, 1] / half_regard
+            out[i, c + 4 * k + 2] = 2.0 * (sectors[i, k, 2] - lo_w) / max(hi_w - lo_w, tiny) - 1.0
+            out[i, c + 4 * k + 3] = fix_count[i, k] / max_fix

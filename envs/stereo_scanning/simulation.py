@@ -1,0 +1,635 @@
+"""Simulation core of the scanning-receiver environments (papers 000/003's scanning tracker).
+
+The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pure functions
+over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`,
+:func:`step`, :func:`observe` (the joint view), :func:`observe_agents` (one view per receiver)
+and :func:`info`. One step is one scan period ``τ``; the compiled pass is
+:func:`.kernels.step_rows` (split over threads by :func:`~sensorgym.envs.shells.rows.run_rows`).
+
+World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (theory §2.2). Three receivers stand on
+a circle (default radius 120 m at azimuths 0°, 90°, 270°: paper 000's arc with orthogonal lines
+of sight), each with a fixed frame looking at the scene centre ``(0, h_aim, 0)``. Per period:
+
+1. the action sets each receiver's *sector* — centre (azimuth, elevation) about its boresight
+   and a width ``w`` — and the receiver sweeps a ``L × L`` TV raster over it in ``sweep_time``,
+   starting ``scan_offsets[k]`` after the period start (theory §6.1);
+2. a drone inside the sector is fixed when the raster reaches it (pixel-visit rule, theory §6.3)
+   with angular noise ``σ_k = max(κ w, σ_min)`` — the raster has a fixed pixel count, so a wider
+   sector covers more but measures coarser (the sector trade-off) — plus, optionally, a shared
+   apparent-position error ``σ_x`` (paper 000's model) and false detections;
+3. the tracker (paper 000's proposed velocity-aware algorithm, theory §5.3, or its alternative
+   of §5.2) conjugates every triple (pair) of fixes, associates candidates to tracks over
+   periods, initiates and confirms tracks (:mod:`.kernels`);
+4. the reward: per present drone ``clip(ln(σ_ref/σ_pos), −R, R)`` for the confirmed track
+   assigned to it (nearest within ``truth_gate`` at the period end), ``σ_pos`` the track's own
+   ``σ_e √([(AᵀA)⁻¹]_11 + 2)`` predicted to the period end; ``−R`` without a track; averaged
+   over the present drones, less ``false_track_penalty`` per unassigned confirmed track.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
+from sensorgym.envs.shells.rows import run_rows
+from sensorgym.envs.stereo_scanning import kernels
+from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
+from sensorgym.trackers.stereo.association import norm_quantile
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
+from sensorgym.trackers.validation import finite_array
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+TRACKERS = {"proposed": kernels.PROPOSED, "alternative": kernels.ALTERNATIVE}
+
+#: observed values per track slot (:func:`observe`)
+TRACK_FEATURES = 11
+#: observed values per receiver (:func:`observe`)
+RECEIVER_FEATURES = 4
+
+
+@dataclass(frozen=True)
+class ScanningParams:
+    """Receivers, rasters, drones, noise, tracker and reward of the scanning environments."""
+
+    receiver_azimuths: tuple[float, ...] = (0.0, float(np.pi / 2), float(3 * np.pi / 2))
+    """Azimuths of the receivers on their circle, rad; their number is ``n`` (3: the proposed
+    algorithm's square system). The first is the conjugation's reference receiver."""
+    circle_radius: float = 120.0
+    """Radius of the receivers' circle around the origin, m (ground level)."""
+    aim_height: float = 40.0
+    """The receivers' fixed boresights look at ``(0, aim_height, 0)``, m."""
+    n_drones: int = 4
+    """Number of drones ``m`` (present or not at a time)."""
+    close_drones: int = 1
+    """Drones that start ``close_spacing`` from drone 0 on a close, near-parallel path."""
+    late_drones: int = 1
+    """Drones (the last ones) that enter the scene at a time drawn from ``enter_window``."""
+    enter_window: tuple[float, float] = (5.0, 20.0)
+    """Entry time of a late drone, s, drawn uniformly and rounded up to a period start."""
+    start_spread: float = 30.0
+    """Drones start uniformly within ``±start_spread`` of the origin in X and Z, m."""
+    start_altitude: tuple[float, float] = (20.0, 60.0)
+    """Height of a drone's start, drawn uniformly, m."""
+    drone_speed: tuple[float, float] = (2.0, 8.0)
+    """Horizontal speed, drawn uniformly, m/s; heading uniform."""
+    climb_rate: tuple[float, float] = (-0.5, 0.5)
+    """Vertical speed, drawn uniformly, m/s."""
+    max_acceleration: float = 0.2
+    """Each drone accelerates gently: constant horizontal acceleration of a uniform magnitude up
+    to this, uniform direction, m/s²."""
+    close_spacing: tuple[float, float] = (2.0, 4.0)
+    """Start distance of a close drone from drone 0, drawn uniformly, m."""
+    scene_half_width: float = 80.0
+    """A drone beyond ``±scene_half_width`` in X or Z (or below 1 m, above ``scene_height``)
+    has left the scene for good, m."""
+    scene_height: float = 120.0
+    """Ceiling of the scene, m."""
+    period: float = 1.0
+    """Scan period ``τ`` = one step, s."""
+    sweep_time: float = 0.5
+    """Duration of one raster sweep of the sector, s (fixed: a fixed pixel count and dwell)."""
+    scan_offsets: tuple[float, ...] = (0.0, 0.25, 0.5)
+    """Start of each receiver's sweep after the period start, s (one per receiver, each plus
+    ``sweep_time`` within ``τ``); distinct offsets give the distinct delays the velocity-aware
+    system needs (theory §3.5)."""
+    raster_lines: int = 100
+    """``L``: the raster has ``L × L`` pixels (theory §6.2: 100 × 100)."""
+    pixel_iterations: int = 4
+    """Fixed-point iterations of the pixel-visit rule (theory §6.3)."""
+    field_of_regard: float = float(np.deg2rad(90.0))
+    """Sector centres lie within ``±field_of_regard/2`` of the boresight in azimuth and
+    elevation, rad."""
+    sector_width: tuple[float, float] = (float(np.deg2rad(5.0)), float(np.deg2rad(90.0)))
+    """Smallest and largest sector width ``w`` (square, azimuth × elevation), rad."""
+    noise_per_width: float = 1e-3
+    """``κ``: a fix from a sector of width ``w`` has isotropic angular noise ``κ w`` rad (a
+    tenth of a pixel of a 100-line raster); 0 turns the width's noise off."""
+    sigma_ang_min: float = 0.0
+    """Floor of the angular noise, rad."""
+    position_sigma: float = 0.0
+    """``σ_x``: one apparent-position error per drone and period, ``N(0, σ_x² I)``, seen by
+    every receiver (paper 000's simulation, theory §4.1), m."""
+    clutter_rate: float = 0.0
+    """Mean number of false detections per receiver and period (Poisson), uniform in the
+    sector."""
+    max_clutter: int = 2
+    """Most false detections per receiver and period."""
+    tracker: str = "proposed"
+    """``"proposed"`` (paper 000's velocity-aware triples, theory §5.3) or ``"alternative"``
+    (receivers 1–2 only, delays ignored, line fits, theory §5.2)."""
+    max_speed: float = 50.0
+    """Candidates faster than this are implausible and dropped, m/s (theory §13.13)."""
+    gate_probability: float = 0.999
+    """Probability that a true continuation passes the gate ``δ`` (theory §13.6)."""
+    confirm_hits: int = 2
+    """A tentative track is confirmed once it holds this many periods' candidates."""
+    max_misses: int = 2
+    """A confirmed track is dropped after more than this many periods without a candidate."""
+    track_capacity: int = 32
+    """Rows of the tracker's table (tentative and confirmed tracks)."""
+    track_slots: int = 8
+    """Confirmed tracks shown in the observation (in table order)."""
+    cond_max: float = 1e7
+    """Candidates whose conjugation has ``κ_F`` above this are degenerate and dropped."""
+    sigma_ref: float = 1.0
+    """Position accuracy that earns zero reward, m."""
+    reward_clip: float = 5.0
+    """``R``: per-drone rewards are clipped to ``[−R, R]``; ``−R`` for a drone without a track."""
+    false_track_penalty: float = 0.5
+    """Reward subtracted per confirmed track that no present drone is assigned to."""
+    truth_gate: float = 4.0
+    """A confirmed track is assigned to the nearest present drone within this distance at the
+    period end (one-to-one, greedy), m."""
+
+    def __post_init__(self) -> None:
+        n = len(self.receiver_azimuths)
+        if n != 3:
+            raise ValueError(
+                f"receiver_azimuths: the velocity-aware tracker needs exactly 3 receivers, got {n}"
+            )
+        if not np.all(np.isfinite(self.receiver_azimuths)):
+            raise ValueError("receiver_azimuths: must be finite")
+        if len(set(np.round(np.mod(self.receiver_azimuths, 2 * np.pi), 9))) != n:
+            raise ValueError("receiver_azimuths: receivers may not share a place on the circle")
+        for name in ("circle_radius", "period", "sweep_time", "scene_half_width",
+                     "scene_height", "max_speed", "sigma_ref", "truth_gate", "field_of_regard",
+                     "cond_max", "start_spread"):  # fmt: skip
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: must be positive and finite, got {value}")
+        for name in ("aim_height",):
+            if not np.isfinite(getattr(self, name)):
+                raise ValueError(f"{name}: must be finite")
+        for name in ("max_acceleration", "noise_per_width", "sigma_ang_min", "position_sigma",
+                     "clutter_rate", "false_track_penalty"):  # fmt: skip
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value}")
+        for name in ("enter_window", "start_altitude", "drone_speed", "close_spacing",
+                     "sector_width"):  # fmt: skip
+            lo, hi = getattr(self, name)
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 <= lo <= hi):
+                raise ValueError(f"{name}: need finite 0 <= low <= high, got {(lo, hi)}")
+        lo, hi = self.climb_rate
+        if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+            raise ValueError(f"climb_rate: need finite low <= high, got {(lo, hi)}")
+        if self.sector_width[0] <= 0.0 or self.sector_width[1] > np.pi:
+            raise ValueError(f"sector_width: must lie in (0, π] rad, got {self.sector_width}")
+        if self.field_of_regard + self.sector_width[1] >= 2 * np.pi:
+            raise ValueError("field_of_regard: with the widest sector it must stay below 2π")
+        if not 0.0 < self.start_altitude[0] and self.start_altitude[1] < self.scene_height:
+            raise ValueError("start_altitude: must lie inside (0, scene_height)")
+        if self.start_spread >= self.scene_half_width:
+            raise ValueError("start_spread: must be smaller than scene_half_width")
+        if len(self.scan_offsets) != n:
+            raise ValueError(f"scan_offsets: need one per receiver ({n}), got {self.scan_offsets}")
+        off = np.asarray(self.scan_offsets, dtype=np.float64)
+        if not (np.all(np.isfinite(off)) and np.all(off >= 0.0)):
+            raise ValueError(f"scan_offsets: must be finite and >= 0, got {self.scan_offsets}")
+        if np.any(off + self.sweep_time > self.period + 1e-12):
+            raise ValueError("scan_offsets: every sweep must end within the period")
+        for name, low in (("n_drones", 1), ("raster_lines", 1), ("pixel_iterations", 1),
+                          ("confirm_hits", 1), ("track_capacity", 1), ("track_slots", 1)):  # fmt: skip
+            value = getattr(self, name)
+            if not (isinstance(value, int | np.integer) and value >= low):
+                raise ValueError(f"{name}: must be an integer >= {low}, got {value!r}")
+        for name in ("close_drones", "late_drones", "max_clutter", "max_misses"):
+            value = getattr(self, name)
+            if not (isinstance(value, int | np.integer) and value >= 0):
+                raise ValueError(f"{name}: must be an integer >= 0, got {value!r}")
+        if self.close_drones + 1 > self.n_drones and self.close_drones > 0:
+            raise ValueError("close_drones: must be smaller than n_drones")
+        if self.late_drones > self.n_drones:
+            raise ValueError("late_drones: must not exceed n_drones")
+        if self.tracker not in TRACKERS:
+            raise ValueError(f"tracker: one of {sorted(TRACKERS)}, got {self.tracker!r}")
+        if not 0.0 < self.gate_probability < 1.0:
+            raise ValueError(f"gate_probability: must lie in (0, 1), got {self.gate_probability}")
+        if not 0.0 < self.reward_clip <= MAX_REWARD_CLIP:
+            raise ValueError(
+                f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
+            )
+
+    @property
+    def n_receivers(self) -> int:
+        """Number of receivers ``n``."""
+        return len(self.receiver_azimuths)
+
+    @property
+    def max_fixes(self) -> int:
+        """Most fixes of one receiver in one period: every drone plus ``max_clutter``."""
+        return self.n_drones + self.max_clutter
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation length ``11 · track_slots + 4 n`` (100 by default, :func:`observe`)."""
+        return TRACK_FEATURES * self.track_slots + RECEIVER_FEATURES * self.n_receivers
+
+    @property
+    def centre(self) -> FloatArray:
+        """The scene centre ``(0, aim_height, 0)`` the boresights look at, m."""
+        return np.array([0.0, self.aim_height, 0.0])
+
+    @property
+    def length_scale(self) -> float:
+        """Length (m) that normalises observed positions: the scene's half width."""
+        return self.scene_half_width
+
+    @property
+    def speed_scale(self) -> float:
+        """Speed (m/s) that normalises observed velocities: the fastest drone."""
+        return max(self.drone_speed[1], 1.0)
+
+    @functools.cached_property
+    def gate_q(self) -> float:
+        """``q``: the ``gate_probability`` point of the norm of a unit 3-D Gaussian (4.03 at
+        99.9 %, theory §13.6)."""
+        return norm_quantile(1.0, self.gate_probability)
+
+    @functools.cached_property
+    def receivers(self) -> FloatArray:
+        """Receiver positions ``(n, 3)``, m."""
+        az = np.asarray(self.receiver_azimuths, dtype=np.float64)
+        rho = self.circle_radius
+        return np.stack([rho * np.sin(az), np.zeros_like(az), rho * np.cos(az)], -1)
+
+    @functools.cached_property
+    def rotations(self) -> FloatArray:
+        """Local→world rotations ``(n, 3, 3)`` of the receivers' fixed frames (columns = local
+        axes), looking at :attr:`centre`."""
+        n = self.n_receivers
+        out = np.empty((n, 3, 3))
+        target = np.broadcast_to(self.centre, (n, 3)).copy()
+        up = np.broadcast_to(np.array([0.0, 1.0, 0.0]), (n, 3)).copy()
+        look_at_batch(self.receivers, target, up, out)
+        return out
+
+    @functools.cached_property
+    def relative(self) -> tuple[FloatArray, FloatArray]:
+        """``P_k = R_1ᵀ R_k`` ``(n−1, 3, 3)`` and ``b_k = R_1ᵀ (O_k − O_1)`` ``(n−1, 3)``
+        (theory §2.1)."""
+        n = self.n_receivers
+        R, O = self.rotations, self.receivers
+        P, b = np.empty((n - 1, 3, 3)), np.empty((n - 1, 3))
+        relative_pose_batch(
+            np.repeat(R[:1], n - 1, 0), np.repeat(O[:1], n - 1, 0), R[1:].copy(), O[1:].copy(), P, b
+        )
+        return P, b
+
+
+@dataclass(frozen=True)
+class ScanningState:
+    """``B`` scenarios at time ``t`` (the start of the next scan period)."""
+
+    t: FloatArray
+    """(B,) time since the episode start, s."""
+    drone_position: FloatArray = field(repr=False)
+    """(B, m, 3) true drone positions at ``t`` (ground truth), m."""
+    drone_velocity: FloatArray = field(repr=False)
+    """(B, m, 3) true velocities, m/s."""
+    drone_acceleration: FloatArray = field(repr=False)
+    """(B, m, 3) constant accelerations, m/s²."""
+    enter: FloatArray = field(repr=False)
+    """(B, m) entry times, s (a drone is in the scene from then until it leaves)."""
+    exited: BoolArray = field(repr=False)
+    """(B, m) True once a drone has left the scene."""
+    sectors: FloatArray = field(repr=False)
+    """(B, n, 3) the last period's sectors: centre azimuth, elevation and width, rad."""
+    fix_world: FloatArray = field(repr=False)
+    """(B, n, F, 3) the last period's measured directions, world frame (rows < fix_count)."""
+    fix_time: FloatArray = field(repr=False)
+    """(B, n, F) their fix times, s."""
+    fix_count: IntArray = field(repr=False)
+    """(B, n) number of fixes per receiver in the last period."""
+    fix_drone: IntArray = field(repr=False)
+    """(B, n, F) which drone each fix is of (−1: false detection; ground truth)."""
+    track_x: FloatArray = field(repr=False)
+    """(B, T, 6) track position (m) at ``track_t`` and velocity (m/s), world frame."""
+    track_t: FloatArray = field(repr=False)
+    """(B, T) time of each track's latest member, s."""
+    track_sigma: FloatArray = field(repr=False)
+    """(B, T, 2) the track's ``σ_pos`` (m) and ``σ_vel`` (m/s) from ``σ_e² (AᵀA)⁻¹``."""
+    track_score: FloatArray = field(repr=False)
+    """(B, T) cumulative index ``I = Σ ΔJ``, m."""
+    track_hits: IntArray = field(repr=False)
+    """(B, T) number of periods with a member."""
+    track_misses: IntArray = field(repr=False)
+    """(B, T) consecutive periods without one."""
+    track_status: IntArray = field(repr=False)
+    """(B, T) 0 empty, 1 tentative, 2 confirmed."""
+    track_sums: FloatArray = field(repr=False)
+    """(B, T, 9) the alternative's line-fit sums ``(S0, Σt, Σt², ΣM, ΣtM)`` (t from the latest)."""
+    track_id: IntArray = field(repr=False)
+    """(B, T) identity given at confirmation."""
+    next_id: IntArray = field(repr=False)
+    """(B,) the next identity."""
+    assigned: IntArray = field(repr=False)
+    """(B, m) track row assigned to each drone at the last period end (−1: none)."""
+    drone_sigma: FloatArray = field(repr=False)
+    """(B, m) ``σ_pos`` of the assigned track at the period end, m (inf: none)."""
+    parts: FloatArray = field(repr=False)
+    """(B, 4) drones present, drones tracked, false tracks, mean per-drone reward."""
+
+    @property
+    def batch_size(self) -> int:
+        """Number of scenarios ``B``."""
+        return int(self.t.shape[0])
+
+
+def spaces(params: ScanningParams) -> EnvSpaces:
+    """Agents ``receiver_0 … receiver_{n−1}``, each choosing its sector ``(φ_c, θ_c, w)``; the
+    joint view is :func:`observe`, each agent's that plus a one-hot of its index."""
+    n = params.n_receivers
+    return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 3)
+
+
+def _empty_tracks(params: ScanningParams, B: int) -> dict:
+    T, n, F, m = params.track_capacity, params.n_receivers, params.max_fixes, params.n_drones
+    return {
+        "sectors": np.zeros((B, n, 3)),
+        "fix_world": np.zeros((B, n, F, 3)),
+        "fix_time": np.zeros((B, n, F)),
+        "fix_count": np.zeros((B, n), np.int64),
+        "fix_drone": np.full((B, n, F), -1, np.int64),
+        "track_x": np.zeros((B, T, 6)),
+        "track_t": np.zeros((B, T)),
+        "track_sigma": np.zeros((B, T, 2)),
+        "track_score": np.zeros((B, T)),
+        "track_hits": np.zeros((B, T), np.int64),
+        "track_misses": np.zeros((B, T), np.int64),
+        "track_status": np.zeros((B, T), np.int64),
+        "track_sums": np.zeros((B, T, 9)),
+        "track_id": np.full((B, T), -1, np.int64),
+        "next_id": np.zeros(B, np.int64),
+        "assigned": np.full((B, m), -1, np.int64),
+        "drone_sigma": np.full((B, m), np.inf),
+        "parts": np.zeros((B, 4)),
+    }
+
+
+def start(
+    params: ScanningParams,
+    drone_position: FloatArray,
+    drone_velocity: FloatArray,
+    drone_acceleration: FloatArray,
+    enter: FloatArray,
+) -> ScanningState:
+    """Scenarios from given drones ``(B, m, 3)`` (positions at their entry times ``enter
+    (B, m)``, s) with an empty track table at ``t = 0``."""
+    m = params.n_drones
+    p = finite_array(drone_position, "drone_position", tail=(m, 3))
+    v = finite_array(drone_velocity, "drone_velocity", tail=(m, 3))
+    a = finite_array(drone_acceleration, "drone_acceleration", tail=(m, 3))
+    e = finite_array(enter, "enter", tail=(m,))
+    B = p.shape[0]
+    if p.ndim != 3 or v.shape != p.shape or a.shape != p.shape or e.shape != (B, m):
+        raise ValueError("drone_position/drone_velocity/drone_acceleration/enter: shapes differ")
+    return ScanningState(
+        t=np.zeros(B),
+        drone_position=np.ascontiguousarray(p),
+        drone_velocity=np.ascontiguousarray(v),
+        drone_acceleration=np.ascontiguousarray(a),
+        enter=np.ascontiguousarray(e),
+        exited=np.zeros((B, m), bool),
+        **_empty_tracks(params, B),
+    )
+
+
+def reset(
+    params: ScanningParams,
+    rng: np.random.Generator,
+    batch: int,
+    like: ScanningState | None = None,
+) -> ScanningState:
+    """``batch`` fresh scenarios: drones over the scene centre, one close group, late entries.
+    Scenarios share nothing: ``like`` is unused."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    m = params.n_drones
+    # scenario draws, in a fixed order so that a seed fixes every scenario
+    xz = rng.uniform(-params.start_spread, params.start_spread, (batch, m, 2))
+    height = rng.uniform(*params.start_altitude, (batch, m))
+    speed = rng.uniform(*params.drone_speed, (batch, m))
+    heading = rng.uniform(-np.pi, np.pi, (batch, m))
+    climb = rng.uniform(*params.climb_rate, (batch, m))
+    acc = rng.uniform(0.0, params.max_acceleration, (batch, m))
+    acc_dir = rng.uniform(-np.pi, np.pi, (batch, m))
+    spacing = rng.uniform(*params.close_spacing, (batch, m))
+    offset_dir = rng.normal(size=(batch, m, 3))
+    jitter = rng.uniform(-0.1, 0.1, (batch, m))
+    late = rng.uniform(*params.enter_window, (batch, m))
+    p = np.stack([xz[..., 0], height, xz[..., 1]], -1)
+    v = np.stack([speed * np.sin(heading), climb, speed * np.cos(heading)], -1)
+    a = np.stack([acc * np.sin(acc_dir), np.zeros_like(acc), acc * np.cos(acc_dir)], -1)
+    c = params.close_drones
+    if c > 0:
+        # close drones: a few metres from drone 0 on a near-parallel path (papers' "close
+        # trajectories"), speed within ±10 % of drone 0's
+        u = offset_dir[:, 1 : c + 1]
+        u = u / np.maximum(np.linalg.norm(u, axis=-1, keepdims=True), 1e-12)
+        p[:, 1 : c + 1] = p[:, :1] + spacing[:, 1 : c + 1, None] * u
+        v[:, 1 : c + 1] = v[:, :1] * (1.0 + jitter[:, 1 : c + 1, None])
+        a[:, 1 : c + 1] = a[:, :1]
+    enter = np.zeros((batch, m))
+    if params.late_drones > 0:
+        k = m - params.late_drones
+        enter[:, k:] = np.ceil(late[:, k:] / params.period - 1e-9) * params.period
+    p[..., 1] = np.clip(p[..., 1], 1.0, params.scene_height)
+    return start(params, p, v, a, enter)
+
+
+def step(
+    params: ScanningParams, state: ScanningState, action: FloatArray, rng: np.random.Generator
+) -> tuple[ScanningState, FloatArray, BoolArray]:
+    """Advance every scenario one scan period under the joint ``action`` ``(B, n, 3)`` (or
+    ``(B, 3n)``): per receiver the sector centre (azimuth, elevation) and width, each in
+    ``[−1, 1]``.
+
+    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError``. Returns
+    ``(state, reward (B,), terminated (B,))``: terminated once every drone has entered and left
+    the scene; the time limit is the shells' business.
+    """
+    B, n, m = state.batch_size, params.n_receivers, params.n_drones
+    a = finite_array(action, "action")
+    if a.size != B * 3 * n:
+        raise ValueError(f"action: expected {B * 3 * n} values (B, 3n), got shape {a.shape}")
+    a = np.ascontiguousarray(a.reshape(B, n, 3))
+    # noise draws, in a fixed order: directions, apparent positions, false detections
+    normals = rng.standard_normal((B, n, m, 3))
+    if params.position_sigma > 0.0:
+        pos_noise = params.position_sigma * rng.standard_normal((B, m, 3))
+    else:
+        pos_noise = np.zeros((B, m, 3))
+    if params.clutter_rate > 0.0 and params.max_clutter > 0:
+        clutter_count = rng.poisson(params.clutter_rate, (B, n)).astype(np.int64)
+        clutter_uv = rng.uniform(0.0, 1.0, (B, n, params.max_clutter, 2))
+    else:
+        clutter_count = np.zeros((B, n), np.int64)
+        clutter_uv = np.zeros((B, n, max(params.max_clutter, 1), 2))
+    t = state.t.copy()
+    dp, dv = state.drone_position.copy(), state.drone_velocity.copy()
+    exited = state.exited.copy()
+    fresh = _empty_tracks(params, B)
+    tracks = {
+        k: getattr(state, k).copy()
+        for k in ("track_x", "track_t", "track_sigma", "track_score", "track_hits",
+                  "track_misses", "track_status", "track_sums", "track_id", "next_id")
+    }  # fmt: skip
+    O = np.broadcast_to(params.receivers, (B, n, 3))
+    R = np.broadcast_to(params.rotations, (B, n, 3, 3))
+    P, b = params.relative
+    P = np.broadcast_to(P, (B, n - 1, 3, 3))
+    b = np.broadcast_to(b, (B, n - 1, 3))
+    reward = np.empty(B)
+    offsets = np.asarray(params.scan_offsets, dtype=np.float64)
+    lo_w, hi_w = params.sector_width
+
+    def kernel_on(lo: int, hi: int) -> None:
+        kernels.step_rows(
+            lo, hi, TRACKERS[params.tracker], a, O, R, P, b, t, dp, dv, state.drone_acceleration,
+            state.enter, exited, params.scene_half_width, params.scene_height, normals,
+            pos_noise, clutter_count, clutter_uv, offsets, params.sweep_time,
+            float(params.raster_lines), params.period, params.pixel_iterations, lo_w, hi_w,
+            0.5 * params.field_of_regard, params.noise_per_width, params.sigma_ang_min,
+            params.position_sigma, params.max_speed, params.max_acceleration, params.gate_q,
+            params.cond_max, params.confirm_hits, params.max_misses, params.sigma_ref,
+            params.reward_clip, params.false_track_penalty, params.truth_gate,
+            fresh["sectors"], fresh["fix_world"], fresh["fix_time"], fresh["fix_count"],
+            fresh["fix_drone"], tracks["track_x"], tracks["track_t"], tracks["track_sigma"],
+            tracks["track_score"], tracks["track_hits"], tracks["track_misses"],
+            tracks["track_status"], tracks["track_sums"], tracks["track_id"], tracks["next_id"],
+            fresh["assigned"], fresh["drone_sigma"], reward, fresh["parts"],
+        )  # fmt: skip
+
+    run_rows(B, kernel_on)
+    for k in tracks:
+        fresh[k] = tracks[k]
+    new = ScanningState(
+        t=t,
+        drone_position=dp,
+        drone_velocity=dv,
+        drone_acceleration=state.drone_acceleration,
+        enter=state.enter,
+        exited=exited,
+        **fresh,
+    )
+    terminated = np.all(exited, axis=1)
+    return new, reward, terminated
+
+
+def observe(params: ScanningParams, state: ScanningState) -> NDArray[np.float32]:
+    """The agent's observation ``(B, obs_dim)`` float32 — the tracker's table and the sectors,
+    no ground truth.
+
+    ``track_slots`` rows of 11 (the confirmed tracks in table order; empty rows all zero), then
+    4 per receiver (``L = length_scale``, ``S = speed_scale``, ``c`` the scene centre, ``p̂``,
+    ``v̂`` a track's position predicted to ``t`` and velocity, ``Δ`` the time since its latest
+    member):
+
+    | block       | entry                        | meaning                                        |
+    |-------------|------------------------------|------------------------------------------------|
+    | track row   | 0                            | 1.0 (valid row mask)                           |
+    |             | 1–3                          | ``(p̂ − c)/L``                                  |
+    |             | 4–6                          | ``v̂ / S``                                      |
+    |             | 7                            | ``ln(σ_pos(t)/σ_ref)``, ``σ_pos² + (σ_vel Δ)²`` |
+    |             | 8                            | ``ln(σ_vel τ/σ_ref)``                          |
+    |             | 9                            | ``Δ/τ`` (staleness)                            |
+    |             | 10                           | periods with a member / 10 (age)               |
+    | receiver k  | 0, 1                         | sector centre azimuth, elevation ``/(regard/2)`` |
+    |             | 2                            | width, ``w_min … w_max`` mapped to ``−1 … 1``   |
+    |             | 3                            | fixes last period / ``max_fixes``              |
+
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
+    """
+    out = np.empty((state.batch_size, params.obs_dim))
+    lo_w, hi_w = params.sector_width
+    kernels.observe_rows(
+        0, state.batch_size, state.t, state.track_x, state.track_t, state.track_sigma,
+        state.track_status, state.track_hits, state.sectors, state.fix_count, params.centre,
+        params.length_scale, params.speed_scale, params.sigma_ref, params.period,
+        0.5 * params.field_of_regard, lo_w, hi_w, float(params.max_fixes), out,
+    )  # fmt: skip
+    return clip_observation(out)
+
+
+def observe_agents(params: ScanningParams, state: ScanningState) -> NDArray[np.float32]:
+    """Per-receiver views ``(B, n, obs_dim + n)``: :func:`observe` and a one-hot of the
+    receiver's index."""
+    return with_agent_index(observe(params, state), params.n_receivers)
+
+
+def info(params: ScanningParams, state: ScanningState) -> dict[str, FloatArray]:
+    """Diagnostics (ground truth included: for evaluation, never for the policy)."""
+    parts = state.parts
+    confirmed = (state.track_status == kernels.CONFIRMED).sum(axis=1).astype(np.float64)
+    sigma = np.where(np.isfinite(state.drone_sigma), state.drone_sigma, np.nan)
+    tracked = np.isfinite(state.drone_sigma)
+    with np.errstate(invalid="ignore"):
+        mean_sigma = np.where(
+            tracked.any(axis=1), np.nansum(np.where(tracked, sigma, 0.0), axis=1), 0.0
+        ) / np.maximum(tracked.sum(axis=1), 1)
+    return {
+        "drones_present": parts[:, 0].copy(),
+        "drones_tracked": parts[:, 1].copy(),
+        "false_tracks": parts[:, 2].copy(),
+        "drone_reward": parts[:, 3].copy(),
+        "confirmed_tracks": confirmed,
+        "mean_sigma_pos": mean_sigma,
+    }
+
+
+def split_observation(params: ScanningParams, obs: FloatArray) -> dict[str, FloatArray]:
+    """Inverse of :func:`observe`'s layout for observations ``(N, obs_dim)``, in world units:
+    ``valid (N, S)``, ``position (N, S, 3)``, ``velocity (N, S, 3)``, ``sigma (N, S)`` (m),
+    ``sectors (N, n, 3)`` (rad)."""
+    o = np.asarray(obs, dtype=np.float64)
+    N, S, n = o.shape[0], params.track_slots, params.n_receivers
+    rows = o[:, : TRACK_FEATURES * S].reshape(N, S, TRACK_FEATURES)
+    rec = o[:, TRACK_FEATURES * S :].reshape(N, n, RECEIVER_FEATURES)
+    lo_w, hi_w = params.sector_width
+    half = 0.5 * params.field_of_regard
+    sectors = np.stack(
+        [rec[..., 0] * half, rec[..., 1] * half, lo_w + 0.5 * (rec[..., 2] + 1.0) * (hi_w - lo_w)],
+        -1,
+    )
+    return {
+        "valid": rows[..., 0] > 0.5,
+        "position": rows[..., 1:4] * params.length_scale + params.centre,
+        "velocity": rows[..., 4:7] * params.speed_scale,
+        "sigma": params.sigma_ref * np.exp(rows[..., 7]),
+        "sectors": sectors,
+    }
+
+
+def sector_action(params: ScanningParams, sectors: FloatArray) -> FloatArray:
+    """Normalised actions ``(..., n, 3)`` of sectors ``(..., n, 3)`` (centre azimuth,
+    elevation, width, rad) — the inverse of the action's scaling, clipped to ``[−1, 1]``."""
+    s = np.asarray(sectors, dtype=np.float64)
+    half = 0.5 * params.field_of_regard
+    lo_w, hi_w = params.sector_width
+    out = np.stack(
+        [
+            s[..., 0] / half,
+            s[..., 1] / half,
+            2.0 * (s[..., 2] - lo_w) / max(hi_w - lo_w, 1e-12) - 1,
+        ],
+        -1,
+    )
+    return np.clip(out, -1.0, 1.0)
+
+
+def local_angles(params: ScanningParams, points: FloatArray) -> FloatArray:
+    """Azimuth and elevation ``(..., n, 2)`` of world ``points (..., 3)`` in each receiver's
+    fixed frame, rad (theory §2.2), and the range as a third entry: ``(..., n, 3)``."""
+    p = np.asarray(points, dtype=np.float64)[..., None, :] - params.receivers
+    d = np.einsum("kjc,...kj->...kc", params.rotations, p)
+    az = np.arctan2(d[..., 0], d[..., 2])
+    el = np.arctan2(d[..., 1], np.hypot(d[..., 0], d[..., 2]))
+    return np.stack([az, el, np.linalg.norm(d, axis=-1)], -1)
