@@ -37,7 +37,7 @@ def main(argv: list[str] | None = None) -> float:
     # the PettingZoo door: every agent acts with the same weights on its own observation
     model = load_model(result.run_dir)
     env = parallel_env()
-    observations, infos = env.reset(seed=10_000 + args.seed)
+    observations, _ = env.reset(seed=10_000 + args.seed)
     team_return = 0.0
     while env.agents:
         actions = {a: model.predict(observations[a], deterministic=True)[0] for a in env.agents}

@@ -6,8 +6,6 @@ import math
 import runpy
 from pathlib import Path
 
-import pytest
-
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
