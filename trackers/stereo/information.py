@@ -27,10 +27,10 @@ where the receivers stand, and the information at that fix's own (tiny) ranges i
 these.
 
 Each formula is written once, as a compiled primitive of :mod:`.kernels`; the functions here
-broadcast their inputs, flatten the batch and loop over it in compiled code. Two keep a numpy
-form, each saying why: :func:`position_sigma` (LAPACK's inverse) and :func:`log_ratio_reward`
-(numpy's vectorised logarithm) — StereoPlacement's recorded episodes pass through them bit for
-bit, and the compiled twins round differently in the last bit.
+broadcast their inputs, flatten the batch and loop over it in compiled code. (The numpy forms
+:func:`position_sigma` and :func:`log_ratio_reward` kept until issue 11 rounded differently
+from the compiled ones in the last bits — LAPACK's inverse, numpy's SIMD logarithm — within
+1e-13 relative; no recorded episode passes through them any more.)
 """
 
 from __future__ import annotations
@@ -125,27 +125,30 @@ def position_sigma(information: ArrayLike, ok: ArrayLike, sigma: float = 1.0) ->
     """Position RMS bound ``σ √tr I⁻¹`` ``(...)`` (m) where ``ok``; ``+inf`` elsewhere (the
     documented value of an unobservable position). ``sigma`` scales a geometry part
     ``G = σ² I`` (pass the information itself with the default 1)."""
-    # numpy form kept on purpose (the compiled twin is kernels.position_sigma): LAPACK's inverse
-    # rounds differently from the compiled LU in the last bits, and StereoPlacement's recorded
-    # episodes are bit-exact through this function
     info = np.asarray(information, dtype=np.float64)
     good = np.asarray(ok, dtype=bool)
-    safe = np.where(good[..., None, None], info, np.eye(3))
-    tr = np.trace(np.linalg.inv(safe), axis1=-2, axis2=-1)
-    return np.where(good, sigma * np.sqrt(np.maximum(tr, 0.0)), np.inf)
+    batch = np.broadcast_shapes(info.shape[:-2], good.shape)
+    out = np.empty(batch)
+    # σ √tr I⁻¹ (kernels.position_sigma)
+    kernels.position_sigma_batch(
+        _flat(info, (*batch, 3, 3)).reshape(-1, 3, 3),
+        _flat(good, batch, bool).reshape(-1),
+        np.full(out.size, float(sigma)),
+        out.reshape(-1),
+    )
+    return out
 
 
 def log_ratio_reward(sigma_pos: ArrayLike, sigma_ref: float, clip: float) -> FloatArray:
     """``clip(ln(σ_ref / σ_pos), −R, R)`` elementwise (theory §11.1): ``+R`` for an exact fix
     (``σ_pos = 0``), ``−R`` where ``σ_pos`` is ``inf`` or NaN (no fix) — always finite."""
-    # numpy form kept on purpose (the compiled twin is kernels.log_ratio_reward): numpy's SIMD
-    # log differs from libm's in the last bit for about 1e-4 of arguments, and StereoPlacement's
-    # recorded episodes are bit-exact through this function
     s = np.asarray(sigma_pos, dtype=np.float64)
-    finite = np.isfinite(s)
-    positive = finite & (s > 0.0)
-    log_ratio = np.log(sigma_ref) - np.log(np.where(positive, s, 1.0))
-    return np.where(positive, np.clip(log_ratio, -clip, clip), np.where(finite, clip, -clip))
+    out = np.empty(s.shape)
+    # clip(ln σ_ref − ln σ_pos, −R, R)  (kernels.log_ratio_reward)
+    kernels.log_ratio_reward_batch(
+        np.ascontiguousarray(s).reshape(-1), float(sigma_ref), float(clip), out.reshape(-1)
+    )
+    return out
 
 
 def weighted_fix(

@@ -23,6 +23,9 @@ import math
 import numpy as np
 from numba import njit
 
+from sensorgym.trackers.geometry import wrap_angle_scalar
+from sensorgym.trackers.geometry_kernels import perturbed_direction3, unit_from_angles3
+
 #: the information is regular where ``det I > CONDITION · (tr I)³``
 CONDITION = 1e-12
 #: ranges are floored at this (m) so that a receiver on the point gives finite information
@@ -63,8 +66,9 @@ def floor_range(r):
 
 @njit(**INLINE)
 def wrap_angle(a):
-    """``(a + π) mod 2π − π``: the angle in ``[−π, π)`` (theory §2, ``geometry.wrap_angle``)."""
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    """``(a + π) mod 2π − π``: the angle in ``[−π, π)`` (theory §2,
+    :func:`sensorgym.trackers.geometry.wrap_angle_scalar`)."""
+    return wrap_angle_scalar(a)
 
 
 @njit(**INLINE)
@@ -167,9 +171,9 @@ def line_of_sight(o, p, u):
 
 @njit(**INLINE)
 def unit_from_angles(azimuth, elevation, u):
-    """``u = (cos ε sin α, sin ε, cos ε cos α)`` (000 eq. 2, theory §2.2) into ``u (3,)``."""
-    ce = math.cos(elevation)
-    u[0], u[1], u[2] = ce * math.sin(azimuth), math.sin(elevation), ce * math.cos(azimuth)
+    """``u = (cos ε sin α, sin ε, cos ε cos α)`` (000 eq. 2, theory §2.2) into ``u (3,)``
+    (:func:`sensorgym.trackers.geometry_kernels.unit_from_angles3`)."""
+    u[0], u[1], u[2] = unit_from_angles3(azimuth, elevation)
 
 
 @njit(**INLINE)
@@ -184,17 +188,12 @@ def angles_from_unit(u):
 @njit(**INLINE)
 def perturb_direction(a, z, sigma, out):
     """Isotropic angular noise (``stereo_scene.perturb_directions``) from the standard normal
-    draws ``z (3,)``: ``v = a + σ (I − a aᵀ) z``, ``out = v/‖v‖``; a zero ``a`` stays zero."""
+    draws ``z (3,)``: ``v = a + σ (I − a aᵀ) z``, ``out = v/‖v‖``
+    (:func:`sensorgym.trackers.geometry_kernels.perturbed_direction3`); a zero ``a`` stays zero."""
     if a[0] == 0.0 and a[1] == 0.0 and a[2] == 0.0:
         out[0], out[1], out[2] = 0.0, 0.0, 0.0
         return
-    za = z[0] * a[0] + z[1] * a[1] + z[2] * a[2]
-    # δ = (I − a aᵀ) z σ
-    v0 = a[0] + (z[0] - za * a[0]) * sigma
-    v1 = a[1] + (z[1] - za * a[1]) * sigma
-    v2 = a[2] + (z[2] - za * a[2]) * sigma
-    norm = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-    out[0], out[1], out[2] = v0 / norm, v1 / norm, v2 / norm
+    out[0], out[1], out[2] = perturbed_direction3(a, z, sigma)
 
 
 # ---------------------------------------------------------------- information and the fix
