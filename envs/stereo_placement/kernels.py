@@ -5,18 +5,21 @@ primitive of the module that owns it — :mod:`sensorgym.trackers.geometry_kerne
 rotation, relative poses, angular noise, angles between lines of sight),
 :mod:`sensorgym.trackers.stereo.conjugation_kernels` (the n = 3 order-1 conjugation, called per
 scenario) and :mod:`sensorgym.trackers.stereo.kernels` (information, bound, reward) — and
-these kernels only chain them per scenario:
+these kernels only chain them per scenario. Each stage is a row function (scenario ``i``):
 
 * :func:`drive` — the action's velocities and the receivers' new positions held in the disc;
-* :func:`period_systems` — one scan period's true geometry, the receivers' frames, the noisy and
-  the exact conjugation systems and (n = 3) their closed-form solves;
-* :func:`period_finish` — the covariance mapping, the fix in the world frame, the estimate (or the
-  coasted one), the Cramér–Rao bound and the reward;
-* :func:`observe_kernel`, :func:`info_kernel` — the observation blocks and the diagnostics.
+* :func:`systems_row` (:func:`period_systems`) — one scan period's true geometry, the receivers'
+  frames, the noisy and the exact conjugation systems and (n = 3) their closed-form solves;
+* :func:`finish_row` (:func:`period_finish`) — the covariance mapping, the fix in the world
+  frame, the estimate (or the coasted one), the Cramér–Rao bound and the reward;
+* :func:`observe_row`, :func:`info_row` — the observation blocks (clipped, float32) and the
+  diagnostics.
 
-Random draws stay with numpy's Generator (drawn before the kernels, in today's order); the rare
-systems whose ``κ_F`` exceeds ``cond_max`` are re-solved by the caller on the generic SVD path of
-:func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation`.
+:func:`period_rows` chains them all for a range of scenarios: one kernel call per step (run
+over threads by :func:`sensorgym.envs.shells.rows.run_rows`). Random draws stay with numpy's
+Generator (drawn before the kernels, in a fixed order); the rare systems whose ``κ_F`` exceeds
+``cond_max`` are left to the caller, which re-solves them on the generic SVD path of
+:func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation` with the batch kernels.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from sensorgym.envs.shells.contract import OBS_CLIP
 from sensorgym.trackers.geometry_kernels import (
     look_at3,
     los_angle3,
@@ -43,6 +47,10 @@ from sensorgym.trackers.stereo.kernels import (
 )
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+
+#: row functions are inlined into the kernels that loop over scenarios: a call per scenario
+#: would pass (and reference-count) some thirty arrays
+_ROW = {**_JIT, "inline": "always"}
 
 _UP = (0.0, 1.0, 0.0)
 
@@ -102,34 +110,119 @@ def any_true(flags):
     return False
 
 
+@njit(inline="always")
+def _drive_row(receivers, action, period, max_speed, radius, end, i):
+    """Row ``i`` of :func:`drive`."""
+    for k in range(receivers.shape[1]):
+        ax = min(max(action[i, k, 0], -1.0), 1.0)
+        az = min(max(action[i, k, 1], -1.0), 1.0)
+        s = max(np.sqrt(ax * ax + az * az), 1.0)
+        # v = max_speed (a_x, 0, a_z) / max(‖a‖, 1)
+        v = (max_speed * (ax / s), max_speed * 0.0, max_speed * (az / s))
+        p = (
+            receivers[i, k, 0] + period * v[0],
+            receivers[i, k, 1] + period * v[1],
+            receivers[i, k, 2] + period * v[2],
+        )
+        # radially back onto the disc where outside it
+        scale = min(1.0, radius / max(np.hypot(p[0], p[2]), 1e-12))
+        end[i, k, 0], end[i, k, 1], end[i, k, 2] = p[0] * scale, p[1] * scale, p[2] * scale
+
+
 @njit(**_JIT)
 def drive(receivers, action, period, max_speed, radius, end):
     """``end (B, n, 3)``: receivers driven for ``τ`` at the velocities of ``action (B, n, 2)``
     (components clipped to ``[−1, 1]``, speed capped at ``max_speed``), pulled back onto the disc
     of ``radius``."""
-    B, n = receivers.shape[0], receivers.shape[1]
-    for i in range(B):
-        for k in range(n):
-            ax = min(max(action[i, k, 0], -1.0), 1.0)
-            az = min(max(action[i, k, 1], -1.0), 1.0)
-            s = max(np.sqrt(ax * ax + az * az), 1.0)
-            # v = max_speed (a_x, 0, a_z) / max(‖a‖, 1)
-            v = (max_speed * (ax / s), max_speed * 0.0, max_speed * (az / s))
-            p = (
-                receivers[i, k, 0] + period * v[0],
-                receivers[i, k, 1] + period * v[1],
-                receivers[i, k, 2] + period * v[2],
-            )
-            # radially back onto the disc where outside it
-            scale = min(1.0, radius / max(np.hypot(p[0], p[2]), 1e-12))
-            end[i, k, 0], end[i, k, 1], end[i, k, 2] = p[0] * scale, p[1] * scale, p[2] * scale
+    for i in range(receivers.shape[0]):
+        _drive_row(receivers, action, period, max_speed, radius, end, i)
+
+
+@njit(**_ROW)
+def systems_row(
+    i, s, delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity,
+    previous, normals, truth, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position, Xe, Qe,
+    kappa_e,
+):  # fmt: skip
+    """Scenario ``i`` of :func:`period_systems`: its inputs and the true geometry ``truth =
+    (origins, los, ranges)`` at row ``i``, the frames, systems and solves at row ``s`` of their
+    (scratch) arrays (``J`` and ``position`` serve both solves). ``κ_F`` is left at ``inf``
+    where not solved here (n ≠ 3)."""
+    origins, los, ranges = truth
+    n = start.shape[1]
+    noisy = sigma_ang > 0.0
+    kappa[s] = np.inf
+    kappa_e[s] = np.inf
+    # the aim of the receivers' frames: the previous estimate coasted to mid-period
+    aim = (
+        previous[i, 0] + 0.5 * period * previous[i, 3],
+        previous[i, 1] + 0.5 * period * previous[i, 4],
+        previous[i, 2] + 0.5 * period * previous[i, 5],
+    )
+    for k in range(n):
+        f = delays[k] / period
+        # O_k(d_k): receivers drive straight from start to end during the period
+        o = (
+            start[i, k, 0] + (end[i, k, 0] - start[i, k, 0]) * f,
+            start[i, k, 1] + (end[i, k, 1] - start[i, k, 1]) * f,
+            start[i, k, 2] + (end[i, k, 2] - start[i, k, 2]) * f,
+        )
+        # M(d_k) = M(τ) − V (τ − d_k)
+        back = period - delays[k]
+        off = (
+            drone_end[i, 0] - drone_velocity[i, 0] * back - o[0],
+            drone_end[i, 1] - drone_velocity[i, 1] * back - o[1],
+            drone_end[i, 2] - drone_velocity[i, 2] * back - o[2],
+        )
+        r = norm3(off)
+        rr = max(r, 1e-9)
+        u = (off[0] / rr, off[1] / rr, off[2] / rr)
+        Rk = boresight3(o, aim, max_elevation)
+        ranges[i, k] = r
+        for j in range(3):
+            origins[i, k, j] = o[j]
+            los[i, k, j] = u[j]
+            for c in range(3):
+                R[s, k, j, c] = Rk[c][j]
+        # a_k = R_kᵀ z_k: each receiver reports the direction in its own frame
+        z = perturbed_direction3(u, _row3(normals, i, k), sigma_ang) if noisy else u
+        if r == 0.0:
+            z = (0.0, 0.0, 0.0)  # no direction to measure (the solve's check names it)
+        a = to_local3(Rk, z)
+        e = to_local3(Rk, u)
+        if k == 0:
+            for j in range(3):
+                a1[s, j], e1[s, j] = a[j], e[j]
+        else:
+            for j in range(3):
+                ak[s, k - 1, j], ek[s, k - 1, j] = a[j], e[j]
+            dt[s, k - 1] = delays[k] - delays[0]
+    # P_k = R_1ᵀ R_k,  b_k = R_1ᵀ (O_k − O_1)
+    R1, o1 = _columns(R, s, 0), _row3(origins, i, 0)
+    for k in range(1, n):
+        Pk, bk = relative_pose3(R1, o1, _columns(R, s, k), _row3(origins, i, k))
+        for j in range(3):
+            b[s, k - 1, j] = bk[j]
+            for c in range(3):
+                P[s, k - 1, j, c] = Pk[c][j]
+    if n == 3:
+        code = triple_velocity_kernel(a1, ak, P, b, dt, 1.0, True, s, s + 1, X, J, Q, kappa,
+                                      position)  # fmt: skip
+        if code != 0:
+            return code
+        if noisy:
+            code = triple_velocity_kernel(e1, ek, P, b, dt, 1.0, True, s, s + 1, Xe, J, Qe,
+                                          kappa_e, position)  # fmt: skip
+            if code != 0:
+                return code
+    return 0
 
 
 @njit(**_JIT)
 def period_systems(
     delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity, previous,
     normals, origins, los, ranges, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position,
-    Xe, Je, Qe, kappa_e, position_e,
+    Xe, Qe, kappa_e,
 ):  # fmt: skip
     """One scan period of every scenario: true geometry, frames, both conjugation systems.
 
@@ -138,75 +231,65 @@ def period_systems(
     point; ``normals (B, n, 3)`` are the noise draws (unused when ``sigma_ang = 0``). Fills the
     true ``origins``, ``los``, ``ranges``, rotations ``R (B, n, 3, 3)``, the noisy system
     ``(a1, ak, P, b, dt)`` and the exact one ``(e1, ek)``; for n = 3 also their solves
-    ``(X, J, Q, κ, M̂_1)`` and ``(Xe, …)`` (``κ_F`` > ``cond_max`` left to the caller). Returns 0
-    or the input-check code of :func:`triple_velocity_kernel` (a zero line of sight).
+    ``(X, J, Q, κ, M̂_1)`` and ``(Xe, Qe, κ_e)`` (``κ_F`` > ``cond_max``, and ``inf`` for n ≠ 3, left
+    to the caller). Returns 0 or the input-check code of :func:`triple_velocity_kernel` (a zero
+    line of sight).
     """
-    B, n = start.shape[0], start.shape[1]
-    noisy = sigma_ang > 0.0
-    for i in range(B):
-        # the aim of the receivers' frames: the previous estimate coasted to mid-period
-        aim = (
-            previous[i, 0] + 0.5 * period * previous[i, 3],
-            previous[i, 1] + 0.5 * period * previous[i, 4],
-            previous[i, 2] + 0.5 * period * previous[i, 5],
-        )
-        for k in range(n):
-            f = delays[k] / period
-            # O_k(d_k): receivers drive straight from start to end during the period
-            o = (
-                start[i, k, 0] + (end[i, k, 0] - start[i, k, 0]) * f,
-                start[i, k, 1] + (end[i, k, 1] - start[i, k, 1]) * f,
-                start[i, k, 2] + (end[i, k, 2] - start[i, k, 2]) * f,
-            )
-            # M(d_k) = M(τ) − V (τ − d_k)
-            back = period - delays[k]
-            off = (
-                drone_end[i, 0] - drone_velocity[i, 0] * back - o[0],
-                drone_end[i, 1] - drone_velocity[i, 1] * back - o[1],
-                drone_end[i, 2] - drone_velocity[i, 2] * back - o[2],
-            )
-            r = norm3(off)
-            rr = max(r, 1e-9)
-            u = (off[0] / rr, off[1] / rr, off[2] / rr)
-            Rk = boresight3(o, aim, max_elevation)
-            ranges[i, k] = r
-            for j in range(3):
-                origins[i, k, j] = o[j]
-                los[i, k, j] = u[j]
-                for c in range(3):
-                    R[i, k, j, c] = Rk[c][j]
-            # a_k = R_kᵀ z_k: each receiver reports the direction in its own frame
-            z = perturbed_direction3(u, _row3(normals, i, k), sigma_ang) if noisy else u
-            if r == 0.0:
-                z = (0.0, 0.0, 0.0)  # no direction to measure (the solve's check names it)
-            a = to_local3(Rk, z)
-            e = to_local3(Rk, u)
-            if k == 0:
-                for j in range(3):
-                    a1[i, j], e1[i, j] = a[j], e[j]
-            else:
-                for j in range(3):
-                    ak[i, k - 1, j], ek[i, k - 1, j] = a[j], e[j]
-                dt[i, k - 1] = delays[k] - delays[0]
-        # P_k = R_1ᵀ R_k,  b_k = R_1ᵀ (O_k − O_1)
-        R1, o1 = _columns(R, i, 0), _row3(origins, i, 0)
-        for k in range(1, n):
-            Pk, bk = relative_pose3(R1, o1, _columns(R, i, k), _row3(origins, i, k))
-            for j in range(3):
-                b[i, k - 1, j] = bk[j]
-                for c in range(3):
-                    P[i, k - 1, j, c] = Pk[c][j]
-        if n == 3:
-            code = triple_velocity_kernel(a1, ak, P, b, dt, 1.0, True, i, i + 1, X, J, Q, kappa,
-                                          position)  # fmt: skip
-            if code != 0:
-                return code
-            if noisy:
-                code = triple_velocity_kernel(e1, ek, P, b, dt, 1.0, True, i, i + 1, Xe, Je, Qe,
-                                              kappa_e, position_e)  # fmt: skip
-                if code != 0:
-                    return code
+    for i in range(start.shape[0]):
+        code = systems_row(
+            i, i, delays, period, sigma_ang, max_elevation, start, end, drone_end,
+            drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
+            ek, X, J, Q, kappa, position, Xe, Qe, kappa_e,
+        )  # fmt: skip
+        if code != 0:
+            return code
     return 0
+
+
+@njit(**_ROW)
+def finish_row(
+    i, s, delays, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1, X, Q,
+    degenerate, degenerate_true, previous, position, velocity, range_sigma, velocity_sigma,
+    estimate, bound, reward, G, LU, piv, inv, unit, every,
+):  # fmt: skip
+    """Scenario ``i`` of :func:`period_finish`, its solve (``R``, ``a1``, ``X``, ``Q``) at row
+    ``s``; ``G``, ``LU``, ``inv (3, 3)``, ``piv (3,)`` scratch, ``unit``, ``every (n,)`` ones."""
+    n = origins.shape[1]
+    to_end = period - delays[0]
+    # σ_e = σ_ang · mean_k |r̂_k|
+    total = 0.0
+    for k in range(n):
+        total += abs(X[s, k])
+    sigma_e = sigma_ang * (total / n)
+    s2 = sigma_e**2
+    for k in range(n):
+        range_sigma[i, k] = np.sqrt(max(s2 * Q[s, k, k], 0.0))
+    vv = 0.0
+    for j in range(n, n + 3):
+        vv += max(s2 * Q[s, j, j], 0.0)
+    velocity_sigma[i] = np.sqrt(vv)
+    # frame 1 → world: M = O_1(d_1) + R_1 M̂_1 (M̂_1 = r̂_1 a_1), V = R_1 V̂_1; then on to
+    # the period end
+    R1 = _columns(R, s, 0)
+    r1 = X[s, 0]
+    m = to_world3(R1, (r1 * a1[s, 0], r1 * a1[s, 1], r1 * a1[s, 2]))
+    v = to_world3(R1, (X[s, n], X[s, n + 1], X[s, n + 2]))
+    for j in range(3):
+        velocity[i, j] = v[j]
+        position[i, j] = (origins[i, 0, j] + m[j]) + v[j] * to_end
+        if degenerate[i]:  # not trusted: the previous estimate coasted by τ
+            estimate[i, j] = previous[i, j] + period * previous[i, 3 + j]
+            estimate[i, 3 + j] = previous[i, 3 + j]
+        else:
+            estimate[i, j] = position[i, j]
+            estimate[i, 3 + j] = v[j]
+    # σ_pos of the true geometry, G = Σ_k (I − u_k u_kᵀ)/r_k²
+    position_information(los[i], ranges[i], unit, every, G)
+    bound[i] = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
+    if degenerate[i] or degenerate_true[i]:
+        reward[i] = -reward_clip
+    else:
+        reward[i] = log_ratio_reward(bound[i], sigma_ref, reward_clip)
 
 
 @njit(**_JIT)
@@ -224,85 +307,77 @@ def period_finish(
     ``τ`` where the fix was degenerate; ``σ_pos = σ_ang √tr G⁻¹`` of the true geometry
     (``G = Σ_k Π_k/r_k²``); the reward ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate.
     """
-    B, n = origins.shape[0], origins.shape[1]
-    to_end = period - delays[0]
+    n = origins.shape[1]
     # scratch of the bound (the stereo tracker kernels' information, test and bound)
     G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     piv = np.empty(3, np.int64)
     unit = np.ones(n)
     every = np.ones(n, np.bool_)
-    for i in range(B):
-        # σ_e = σ_ang · mean_k |r̂_k|
-        total = 0.0
-        for k in range(n):
-            total += abs(X[i, k])
-        sigma_e = sigma_ang * (total / n)
-        s2 = sigma_e**2
-        for k in range(n):
-            range_sigma[i, k] = np.sqrt(max(s2 * Q[i, k, k], 0.0))
-        vv = 0.0
-        for j in range(n, n + 3):
-            vv += max(s2 * Q[i, j, j], 0.0)
-        velocity_sigma[i] = np.sqrt(vv)
-        # frame 1 → world: M = O_1(d_1) + R_1 M̂_1 (M̂_1 = r̂_1 a_1), V = R_1 V̂_1; then on to
-        # the period end
-        R1 = _columns(R, i, 0)
-        r1 = X[i, 0]
-        m = to_world3(R1, (r1 * a1[i, 0], r1 * a1[i, 1], r1 * a1[i, 2]))
-        v = to_world3(R1, (X[i, n], X[i, n + 1], X[i, n + 2]))
-        for j in range(3):
-            velocity[i, j] = v[j]
-            position[i, j] = (origins[i, 0, j] + m[j]) + v[j] * to_end
-            if degenerate[i]:  # not trusted: the previous estimate coasted by τ
-                estimate[i, j] = previous[i, j] + period * previous[i, 3 + j]
-                estimate[i, 3 + j] = previous[i, 3 + j]
-            else:
-                estimate[i, j] = position[i, j]
-                estimate[i, 3 + j] = v[j]
-        # σ_pos of the true geometry, G = Σ_k (I − u_k u_kᵀ)/r_k²
-        position_information(los[i], ranges[i], unit, every, G)
-        bound[i] = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
-        if degenerate[i] or degenerate_true[i]:
-            reward[i] = -reward_clip
-        else:
-            reward[i] = log_ratio_reward(bound[i], sigma_ref, reward_clip)
+    for i in range(origins.shape[0]):
+        finish_row(
+            i, i, delays, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1,
+            X, Q, degenerate, degenerate_true, previous, position, velocity, range_sigma,
+            velocity_sigma, estimate, bound, reward, G, LU, piv, inv, unit, every,
+        )  # fmt: skip
+
+
+@njit(inline="always")
+def _clip_obs(x):
+    """``np.clip(x, −OBS_CLIP, OBS_CLIP)`` of one value (NaN stays NaN)."""
+    if x > OBS_CLIP:
+        return OBS_CLIP
+    if x < -OBS_CLIP:
+        return -OBS_CLIP
+    return x
+
+
+@njit(**_ROW)
+def observe_row(
+    i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
+    sigma_ref, period, pairs, out,
+):  # fmt: skip
+    """Scenario ``i``'s observation blocks of :func:`.simulation.observe`, clipped to
+    ``±OBS_CLIP``, into ``out[i]`` (float32)."""
+    n = receivers.shape[1]
+    tiny = 1e-12
+    half_pi = np.pi / 2
+    p = _row(estimate, i)
+    c = 0
+    for k in range(n):
+        out[i, c] = _clip_obs(receivers[i, k, 0] / length)
+        out[i, c + 1] = _clip_obs(receivers[i, k, 2] / length)
+        c += 2
+    for k in range(n):
+        out[i, c] = _clip_obs((receivers[i, k, 0] - p[0]) / length)
+        out[i, c + 1] = _clip_obs((receivers[i, k, 2] - p[2]) / length)
+        c += 2
+    for j in range(3):
+        out[i, c + j] = _clip_obs(estimate[i, j] / length)
+        out[i, c + 3 + j] = _clip_obs(estimate[i, 3 + j] / speed)
+    c += 6
+    for k in range(n):
+        out[i, c + k] = _clip_obs(np.log(max(range_sigma[i, k], tiny) / sigma_ref))
+    c += n
+    out[i, c] = _clip_obs(np.log(max(velocity_sigma[i], tiny) * period / sigma_ref))
+    out[i, c + 1] = _clip_obs(np.log10(min(condition[i], 1e300)))
+    c += 2
+    for q in range(pairs.shape[0]):
+        out[i, c + q] = _clip_obs(_pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p) / half_pi)
+    c += pairs.shape[0]
+    out[i, c] = 1.0 if degenerate[i] else 0.0
 
 
 @njit(**_JIT)
 def observe_kernel(
-    receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
+    rows, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
     sigma_ref, period, pairs, out,
 ):  # fmt: skip
-    """The observation blocks of :func:`.simulation.observe` (before clipping) into
-    ``out (B, obs_dim)``."""
-    B, n = receivers.shape[0], receivers.shape[1]
-    tiny = 1e-12
-    half_pi = np.pi / 2
-    for i in range(B):
-        p = _row(estimate, i)
-        c = 0
-        for k in range(n):
-            out[i, c] = receivers[i, k, 0] / length
-            out[i, c + 1] = receivers[i, k, 2] / length
-            c += 2
-        for k in range(n):
-            out[i, c] = (receivers[i, k, 0] - p[0]) / length
-            out[i, c + 1] = (receivers[i, k, 2] - p[2]) / length
-            c += 2
-        for j in range(3):
-            out[i, c + j] = estimate[i, j] / length
-            out[i, c + 3 + j] = estimate[i, 3 + j] / speed
-        c += 6
-        for k in range(n):
-            out[i, c + k] = np.log(max(range_sigma[i, k], tiny) / sigma_ref)
-        c += n
-        out[i, c] = np.log(max(velocity_sigma[i], tiny) * period / sigma_ref)
-        out[i, c + 1] = np.log10(min(condition[i], 1e300))
-        c += 2
-        for q in range(pairs.shape[0]):
-            out[i, c + q] = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p) / half_pi
-        c += pairs.shape[0]
-        out[i, c] = 1.0 if degenerate[i] else 0.0
+    """:func:`observe_row` for the scenarios ``rows``."""
+    for i in rows:
+        observe_row(
+            i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length,
+            speed, sigma_ref, period, pairs, out,
+        )  # fmt: skip
 
 
 @njit(inline="always")
@@ -331,14 +406,109 @@ def los_angles_kernel(receivers, point, pairs, out):
             out[i, q] = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p)
 
 
+@njit(**_ROW)
+def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle):
+    """Scenario ``i``'s position error ``‖p̂ − p‖`` and the smallest angle between the lines of
+    sight to the drone."""
+    p = _row(drone_position, i)
+    error[i] = norm3((estimate[i, 0] - p[0], estimate[i, 1] - p[1], estimate[i, 2] - p[2]))
+    smallest = np.inf
+    for q in range(pairs.shape[0]):
+        smallest = min(smallest, _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p))
+    min_angle[i] = smallest
+
+
 @njit(**_JIT)
-def info_kernel(receivers, estimate, drone_position, pairs, error, min_angle):
-    """Position error ``‖p̂ − p‖`` and the smallest angle between the lines of sight to the
-    drone."""
-    for i in range(receivers.shape[0]):
-        p = _row(drone_position, i)
-        error[i] = norm3((estimate[i, 0] - p[0], estimate[i, 1] - p[1], estimate[i, 2] - p[2]))
-        smallest = np.inf
-        for q in range(pairs.shape[0]):
-            smallest = min(smallest, _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p))
-        min_angle[i] = smallest
+def info_kernel(rows, receivers, estimate, drone_position, pairs, error, min_angle):
+    """:func:`info_row` for the scenarios ``rows``."""
+    for i in rows:
+        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle)
+
+
+#: flags returned by :func:`period_rows` (or-ed over its scenarios)
+SLOW = 1
+"""some scenarios are left to the caller (``slow``): ``κ_F > cond_max``, n ≠ 3 or a zero line
+of sight."""
+BAD_ACTION = 2
+"""an action holds NaN or infinite values (the kernel stopped there)."""
+
+#: positions in the ``constants`` array of :func:`period_rows`
+C_PERIOD, C_SIGMA, C_ELEVATION, C_SPEED, C_RADIUS, C_REF, C_CLIP, C_COND, C_LENGTH, C_SCALE = range(
+    10
+)
+
+
+@njit(**_JIT)
+def period_rows(
+    lo, hi, moving, constants, delays, pairs, t, receivers, action, drone, drone_velocity,
+    previous, normals, t_out, end, drone_end, origins, los, ranges, position, velocity,
+    range_sigma, velocity_sigma, condition, degenerate, degenerate_true, estimate, bound, reward,
+    observation, error, min_angle, slow,
+):  # fmt: skip
+    """The whole step of scenarios ``lo..hi−1`` in one pass: drive, period, finish, observation
+    and diagnostics (:func:`drive`, :func:`period_systems`, :func:`period_finish`,
+    :func:`observe_row`, :func:`info_row`, row by row).
+
+    ``moving``: the receivers drive under ``action (B, n, 2)`` for ``τ`` and the drone flies
+    on from ``drone`` (a step); else ``end``, ``drone_end`` and ``t_out`` copy ``receivers``,
+    ``drone`` and ``t`` (the first fix of :func:`.simulation.start`). ``constants`` holds the
+    params' scalars (``C_*``). A scenario whose conjugation the closed form does not settle
+    (``κ_F > cond_max`` in either system, n ≠ 3, a zero line of sight) is marked in ``slow``
+    and left unfinished: the caller solves it on the generic path. Returns the or-ed flags
+    :data:`SLOW`, :data:`BAD_ACTION` (checked before anything of that scenario is written).
+    """
+    n = receivers.shape[1]
+    m, p = n - 1, n + 3
+    period, sigma_ang = constants[C_PERIOD], constants[C_SIGMA]
+    cond_max = constants[C_COND]
+    noisy = sigma_ang > 0.0
+    # one scenario's systems and solves (row 0), the bound's scratch
+    R, a1, ak = np.empty((1, n, 3, 3)), np.empty((1, 3)), np.empty((1, m, 3))
+    P, b, dt = np.empty((1, m, 3, 3)), np.empty((1, m, 3)), np.empty((1, m))
+    e1, ek = np.empty((1, 3)), np.empty((1, m, 3))
+    X, J, Q = np.empty((1, p)), np.empty(1), np.empty((1, p, p))
+    kappa, M1 = np.empty(1), np.empty((1, 3))
+    Xe, Qe, kappa_e = np.empty((1, p)), np.empty((1, p, p)), np.empty(1)
+    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    piv = np.empty(3, np.int64)
+    unit = np.ones(n)
+    every = np.ones(n, np.bool_)
+    flags = 0
+    for i in range(lo, hi):
+        if moving:
+            for k in range(n):
+                if not (np.isfinite(action[i, k, 0]) and np.isfinite(action[i, k, 1])):
+                    return flags | BAD_ACTION
+            _drive_row(receivers, action, period, constants[C_SPEED], constants[C_RADIUS], end, i)
+            t_out[i] = t[i] + period
+            for j in range(3):
+                drone_end[i, j] = drone[i, j] + period * drone_velocity[i, j]
+        else:
+            t_out[i] = t[i]
+            for j in range(3):
+                drone_end[i, j] = drone[i, j]
+                for k in range(n):
+                    end[i, k, j] = receivers[i, k, j]
+        code = systems_row(
+            i, 0, delays, period, sigma_ang, constants[C_ELEVATION], receivers, end, drone_end,
+            drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
+            ek, X, J, Q, kappa, M1, Xe, Qe, kappa_e,
+        )  # fmt: skip
+        condition[i] = kappa[0]
+        degenerate[i] = degenerate_true[i] = False
+        if code != 0 or not (kappa[0] <= cond_max) or (noisy and not (kappa_e[0] <= cond_max)):
+            slow[i] = True
+            flags |= SLOW
+            continue
+        slow[i] = False
+        finish_row(
+            i, 0, delays, period, sigma_ang, constants[C_REF], constants[C_CLIP], origins, los,
+            ranges, R, a1, X, Q, degenerate, degenerate_true, previous, position, velocity, range_sigma,
+            velocity_sigma, estimate, bound, reward, G, LU, piv, inv, unit, every,
+        )  # fmt: skip
+        observe_row(
+            i, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
+            constants[C_LENGTH], constants[C_SCALE], constants[C_REF], period, pairs, observation,
+        )  # fmt: skip
+        info_row(i, end, estimate, drone_end, pairs, error, min_angle)
+    return flags

@@ -92,6 +92,12 @@ def _resolve(sol_x, sol_q, kappa, a1, ak, P, b, dt, cond_max: float) -> BoolArra
     return used
 
 
+def draw_normals(rng: np.random.Generator, batch: int, n: int, sigma_ang: float) -> FloatArray:
+    """The period's noise draws ``(B, n, 3)``: those of ``perturb_directions``, in its order and
+    shape (zeros, and no draw, when ``sigma_ang = 0``)."""
+    return rng.standard_normal((batch, n, 3)) if sigma_ang > 0.0 else np.zeros((batch, n, 3))
+
+
 def scan_period(
     delays: FloatArray,
     period: float,
@@ -114,23 +120,44 @@ def scan_period(
     degenerate; ``bound`` the CRLB ``σ_pos`` of the true geometry and ``reward``
     ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate (:mod:`.simulation`).
     """
+    normals = draw_normals(rng, start.shape[0], len(delays), sigma_ang)
+    return solve_period(
+        delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity,
+        previous, normals, sigma_ref, reward_clip,
+    )  # fmt: skip
+
+
+def solve_period(
+    delays: FloatArray,
+    period: float,
+    sigma_ang: float,
+    max_elevation: float,
+    start: FloatArray,
+    end: FloatArray,
+    drone_end: FloatArray,
+    drone_velocity: FloatArray,
+    previous: FloatArray,
+    normals: FloatArray,
+    sigma_ref: float = 1.0,
+    reward_clip: float = 5.0,
+) -> tuple[ScanFix, ScanGeometry, FloatArray, FloatArray, FloatArray]:
+    """:func:`scan_period` with its noise draws ``normals (B, n, 3)`` given: the generic path
+    (any ``n``; systems the closed form leaves re-solved on the SVD path)."""
     d = np.ascontiguousarray(delays, dtype=np.float64)
     B, n = start.shape[0], d.shape[0]
     m, p = n - 1, n + 3
     noisy = sigma_ang > 0.0
-    # the draws of perturb_directions, in its order and shape
-    normals = rng.standard_normal((B, n, 3)) if noisy else np.zeros((B, n, 3))
     origins, los, R = np.empty((B, n, 3)), np.empty((B, n, 3)), np.empty((B, n, 3, 3))
     ranges = np.empty((B, n))
     a1, e1, ak, ek = np.empty((B, 3)), np.empty((B, 3)), np.empty((B, m, 3)), np.empty((B, m, 3))
     P, b, dt = np.empty((B, m, 3, 3)), np.empty((B, m, 3)), np.empty((B, m))
-    X, Q, kappa = np.empty((B, p)), np.empty((B, p, p)), np.full(B, np.inf)
-    Xe, Qe, kappa_e = np.empty((B, p)), np.empty((B, p, p)), np.full(B, np.inf)
-    J, Je, M1, M1e = np.empty(B), np.empty(B), np.empty((B, 3)), np.empty((B, 3))
+    X, Q, kappa = np.empty((B, p)), np.empty((B, p, p)), np.empty(B)
+    Xe, Qe, kappa_e = np.empty((B, p)), np.empty((B, p, p)), np.empty(B)
+    J, M1 = np.empty(B), np.empty((B, 3))
     code = kernels.period_systems(
         d, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity, previous,
         normals, origins, los, ranges, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, M1,
-        Xe, Je, Qe, kappa_e, M1e,
+        Xe, Qe, kappa_e,
     )  # fmt: skip
     if code:  # a zero line of sight: the checked solver raises naming the argument
         solve_conjugation(a1, ak, P, b, dt, order=1)

@@ -44,12 +44,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
+from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.stereo_placement import kernels
-from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, scan_period
-from sensorgym.trackers.stereo.information import (
-    MAX_REWARD_CLIP,
-)
+from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, draw_normals, solve_period
+from sensorgym.trackers.stereo.conjugation import DEFAULT_COND_MAX
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -152,6 +152,18 @@ class PlacementParams:
         return np.array(self.delays, dtype=np.float64)
 
     @functools.cached_property
+    def constants(self) -> FloatArray:
+        """The scalars the step kernel reads, in :mod:`.kernels`' ``C_*`` order."""
+        c = np.empty(10)
+        c[kernels.C_PERIOD], c[kernels.C_SIGMA] = self.period, self.sigma_ang
+        c[kernels.C_ELEVATION], c[kernels.C_SPEED] = self.max_boresight_elevation, self.max_speed
+        c[kernels.C_RADIUS], c[kernels.C_REF] = self.arena_radius, self.sigma_ref
+        c[kernels.C_CLIP], c[kernels.C_COND] = self.reward_clip, DEFAULT_COND_MAX
+        c[kernels.C_LENGTH], c[kernels.C_SCALE] = self.length_scale, self.speed_scale
+        c.flags.writeable = False
+        return c
+
+    @functools.cached_property
     def obs_dim(self) -> int:
         """Observation length ``5n + 9 + n(n−1)/2`` (27 for n = 3, see :func:`observe`)."""
         return 5 * self.n_receivers + 9 + len(self.pairs)
@@ -178,6 +190,14 @@ class PlacementState:
     """True geometry of the last period (reward, rendering)."""
     bound: FloatArray = field(repr=False)
     """(B,) CRLB position RMS ``σ_pos`` of the last period, m (inf: singular)."""
+    observation: NDArray[np.float32] = field(repr=False)
+    """(B, obs_dim) derived: :func:`observe` of this state, written with it by the step kernel
+    (a function of ``receivers``, ``estimate`` and ``fix`` only)."""
+    position_error: FloatArray = field(repr=False)
+    """(B,) derived diagnostic: ``‖p̂ − p‖``, the estimate's distance from the drone, m."""
+    min_los_angle: FloatArray = field(repr=False)
+    """(B,) derived diagnostic: the smallest angle between the receivers' lines of sight to the
+    drone, rad."""
 
     @property
     def batch_size(self) -> int:
@@ -192,26 +212,82 @@ def spaces(params: PlacementParams) -> EnvSpaces:
     return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 2)
 
 
-def _period(
+def _advance(
     params: PlacementParams,
-    start: FloatArray,
-    end: FloatArray,
-    drone_end: FloatArray,
+    t: FloatArray,
+    receivers: FloatArray,
+    action: FloatArray | None,
+    drone: FloatArray,
     drone_velocity: FloatArray,
     previous: FloatArray,
     rng: np.random.Generator,
-) -> tuple[ScanFix, FloatArray, ScanGeometry, FloatArray, FloatArray]:
-    """One scan period ending at the drone's ``drone_end``: fix, estimate (the fix, or the
-    previous estimate coasted by ``τ`` where degenerate), geometry, bound and reward, in one
-    compiled pass (:func:`.scan.scan_period`: ``σ_pos = σ_ang √tr G⁻¹`` of the true geometry,
-    ``G = Σ_k Π_k / r_k²``, and ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate, with
-    the stereo tracker kernels)."""
-    fix, geometry, estimate, bound, reward = scan_period(
-        params.delays_array, params.period, params.sigma_ang, params.max_boresight_elevation,
-        start, end, drone_end, drone_velocity, previous, rng, params.sigma_ref,
-        params.reward_clip,
+) -> tuple[PlacementState, FloatArray]:
+    """One scan period of every scenario, and the state after it with its observation and
+    diagnostics: one compiled pass (:func:`.kernels.period_rows`, rows split over threads).
+
+    With ``action`` ``(B, n, 2)`` the receivers drive for ``τ`` and the drone flies on (a step);
+    without, the period ends where they are (the first fix). The period's fix, estimate (the
+    fix, or ``previous`` coasted by ``τ`` where degenerate), bound ``σ_pos = σ_ang √tr G⁻¹`` of
+    the true geometry (``G = Σ_k Π_k / r_k²``) and reward ``clip(ln(σ_ref/σ_pos), −R, R)``
+    (``−R`` where degenerate) are those of :func:`.scan.scan_period`; the scenarios the closed
+    form leaves (``κ_F > cond_max``, n ≠ 3) go through its generic path. Returns
+    ``(state, reward)``.
+    """
+    B, n = receivers.shape[0], params.n_receivers
+    normals = draw_normals(rng, B, n, params.sigma_ang)
+    moving = action is not None
+    act = action if moving else _NO_ACTION
+    t_out, end, drone_end = np.empty(B), np.empty((B, n, 3)), np.empty((B, 3))
+    origins, los, ranges = np.empty((B, n, 3)), np.empty((B, n, 3)), np.empty((B, n))
+    position, velocity = np.empty((B, 3)), np.empty((B, 3))
+    range_sigma, velocity_sigma, condition = np.empty((B, n)), np.empty(B), np.empty(B)
+    degenerate, degenerate_true = np.empty(B, np.bool_), np.empty(B, np.bool_)
+    estimate, bound, reward = np.empty((B, 6)), np.empty(B), np.empty(B)
+    obs = np.empty((B, params.obs_dim), np.float32)
+    error, min_angle, slow = np.empty(B), np.empty(B), np.empty(B, np.bool_)
+    args = (
+        moving, params.constants, params.delays_array, params.pairs_array, t, receivers, act,
+        drone, drone_velocity, previous, normals, t_out, end, drone_end, origins, los, ranges,
+        position, velocity, range_sigma, velocity_sigma, condition, degenerate, degenerate_true,
+        estimate, bound, reward, obs, error, min_angle, slow,
     )  # fmt: skip
-    return fix, estimate, geometry, bound, reward
+    if B < 2 * MIN_ROWS_PER_THREAD:  # one chunk (run_rows would not split it)
+        code = kernels.period_rows(0, B, *args)
+    else:
+        flags = [0]
+        run_rows(B, lambda lo, hi: flags.append(kernels.period_rows(lo, hi, *args)))
+        code = functools.reduce(int.__or__, flags)
+    if code & kernels.BAD_ACTION:
+        raise ValueError("action: contains NaN or infinite values")
+    if code & kernels.SLOW:
+        rows = np.flatnonzero(slow)
+        fix, geometry, est, bnd, rew = solve_period(
+            params.delays_array, params.period, params.sigma_ang,
+            params.max_boresight_elevation, receivers[rows], end[rows], drone_end[rows],
+            drone_velocity[rows], previous[rows], normals[rows], params.sigma_ref,
+            params.reward_clip,
+        )  # fmt: skip
+        origins[rows], los[rows], ranges[rows] = geometry.origins, geometry.los, geometry.ranges
+        degenerate_true[rows], degenerate[rows] = geometry.degenerate, fix.degenerate
+        position[rows], velocity[rows], condition[rows] = fix.position, fix.velocity, fix.condition
+        range_sigma[rows], velocity_sigma[rows] = fix.range_sigma, fix.velocity_sigma
+        estimate[rows], bound[rows], reward[rows] = est, bnd, rew
+        kernels.observe_kernel(
+            rows, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
+            params.length_scale, params.speed_scale, params.sigma_ref, params.period,
+            params.pairs_array, obs,
+        )  # fmt: skip
+        kernels.info_kernel(rows, end, estimate, drone_end, params.pairs_array, error, min_angle)
+    fix = ScanFix(position, velocity, range_sigma, velocity_sigma, condition, degenerate)
+    geometry = ScanGeometry(origins, los, ranges, degenerate_true)
+    state = PlacementState(
+        t_out, end, drone_end, drone_velocity, fix, estimate, geometry, bound, obs, error, min_angle
+    )
+    return state, reward
+
+
+#: the action argument of a period without one (never read)
+_NO_ACTION = np.zeros((1, 1, 2))
 
 
 def start(
@@ -238,8 +314,8 @@ def start(
     # the cue at t = 0, carried back to the start of the first period (t = −τ)
     before = np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
     o, p, v = (np.ascontiguousarray(x) for x in (o, p, v))
-    fix, estimate, geometry, bound, _ = _period(params, o, o, p, v, before, rng)
-    return PlacementState(np.zeros(B), o, p, v, fix, estimate, geometry, bound)
+    state, _ = _advance(params, np.zeros(B), o, None, p, v, before, rng)
+    return state
 
 
 def reset(
@@ -276,45 +352,31 @@ def in_arena(params: PlacementParams, positions: FloatArray, margin: float = 0.0
     return positions * scale[..., None]
 
 
-def velocities(params: PlacementParams, action: ArrayLike, batch: int) -> FloatArray:
-    """World velocities ``(B, n, 3)`` of normalised actions ``(B, 2n)`` (``(x, z)`` per
-    receiver): components clipped to ``[−1, 1]``, times ``max_speed``, speed capped at it."""
-    n = params.n_receivers
-    a = finite_array(action, "action")
-    if a.size != batch * 2 * n:
-        raise ValueError(f"action: expected {batch * 2 * n} values (B, 2n), got shape {a.shape}")
-    a = np.clip(a.reshape(batch, n, 2), -1.0, 1.0)
-    norm = np.linalg.norm(a, axis=-1, keepdims=True)
-    a = a / np.maximum(norm, 1.0)
-    return params.max_speed * np.stack([a[..., 0], np.zeros((batch, n)), a[..., 1]], -1)
-
-
 def step(
     params: PlacementParams, state: PlacementState, action: ArrayLike, rng: np.random.Generator
 ) -> tuple[PlacementState, FloatArray, BoolArray]:
     """Advance every scenario one scan period under the joint ``action`` ``(B, n, 2)`` (or
     ``(B, 2n)``).
 
-    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError``. Returns
+    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError`` (checked in
+    the step kernel: the period's noise has then been drawn from ``rng``). Returns
     ``(state, reward (B,), terminated (B,))``: nothing ends an episode here (always False); the
-    time limit is the shells' business.
+    time limit is the shells' business. The new state carries its observation and diagnostics
+    (:func:`observe`, :func:`info` only read them).
     """
     B, n = state.batch_size, params.n_receivers
-    a = finite_array(action, "action")
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action: cannot be read as floats ({exc})") from None
     if a.size != B * 2 * n:
         raise ValueError(f"action: expected {B * 2 * n} values (B, 2n), got shape {a.shape}")
-    end = np.empty_like(state.receivers)
-    kernels.drive(
-        state.receivers, np.ascontiguousarray(a.reshape(B, n, 2)), params.period,
-        params.max_speed, params.arena_radius, end,
+    if a.shape != (B, n, 2) or not a.flags.c_contiguous:
+        a = np.ascontiguousarray(a.reshape(B, n, 2))
+    new, reward = _advance(
+        params, state.t, state.receivers, a, state.drone_position, state.drone_velocity,
+        state.estimate, rng,
     )  # fmt: skip
-    p = state.drone_position + params.period * state.drone_velocity
-    fix, estimate, geometry, bound, reward = _period(
-        params, state.receivers, end, p, state.drone_velocity, state.estimate, rng
-    )
-    new = PlacementState(
-        state.t + params.period, end, p, state.drone_velocity, fix, estimate, geometry, bound
-    )
     return new, reward, np.zeros(B, dtype=bool)
 
 
@@ -347,16 +409,10 @@ def observe(params: PlacementParams, state: PlacementState) -> NDArray[np.float3
     | angles     | ``(n(n−1)/2,)``| ``γ_kl / (π/2)`` between lines of sight to ``p̂``           |
     | degenerate | ``(1,)``       | 1.0 if the last fix was degenerate (the tracker coasted)  |
 
-    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``. The step kernel computes it with the
+    state (:attr:`PlacementState.observation`); this returns that array.
     """
-    fix = state.fix
-    out = np.empty((state.batch_size, params.obs_dim))
-    kernels.observe_kernel(
-        state.receivers, state.estimate, fix.range_sigma, fix.velocity_sigma, fix.condition,
-        fix.degenerate, params.length_scale, params.speed_scale, params.sigma_ref, params.period,
-        params.pairs_array, out,
-    )  # fmt: skip
-    return clip_observation(out)
+    return state.observation
 
 
 def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np.float32]:
@@ -366,18 +422,14 @@ def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np
 
 
 def info(params: PlacementParams, state: PlacementState) -> dict[str, FloatArray]:
-    """Diagnostics (ground truth included: for evaluation, never for the policy)."""
-    B = state.batch_size
-    error, angle = np.empty(B), np.empty(B)
-    kernels.info_kernel(
-        state.receivers, state.estimate, state.drone_position, params.pairs_array, error, angle
-    )
+    """Diagnostics (ground truth included: for evaluation, never for the policy), computed
+    with the state by the step kernel."""
     return {
-        "position_error": error,
+        "position_error": state.position_error,
         "bound": state.bound,
         "condition": state.fix.condition,
         "degenerate": state.fix.degenerate.astype(np.float64),
-        "min_los_angle": angle,
+        "min_los_angle": state.min_los_angle,
     }
 
 

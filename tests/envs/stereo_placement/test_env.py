@@ -17,8 +17,10 @@ from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_placement import CirclePlacement, GreedyPlacement, HoldPosition
 from sensorgym.envs import stereo_placement
 from sensorgym.envs.shells import tree_where
+from sensorgym.envs.stereo_placement import kernels
 from sensorgym.envs.stereo_placement import simulation as core
 from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
+from sensorgym.envs.stereo_placement.scan import scan_period
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
 from sensorgym.trackers.stereo.accuracy import position_crlb
 
@@ -210,13 +212,72 @@ def test_params_are_validated(kwargs, name):
         PlacementParams(**kwargs)
 
 
+def _observation_of(params: PlacementParams, state: core.PlacementState) -> np.ndarray:
+    """The observation recomputed from the receivers, the estimate and the fix (the observation
+    kernel takes nothing else: no ground truth)."""
+    out = np.empty((state.batch_size, params.obs_dim), np.float32)
+    fix = state.fix
+    kernels.observe_kernel(
+        np.arange(state.batch_size), state.receivers, state.estimate, fix.range_sigma,
+        fix.velocity_sigma, fix.condition, fix.degenerate, params.length_scale,
+        params.speed_scale, params.sigma_ref, params.period, params.pairs_array, out,
+    )  # fmt: skip
+    return out
+
+
 def test_observation_holds_no_ground_truth():
     params = PlacementParams()
-    state = core.reset(params, np.random.default_rng(6), 2)
-    moved = dataclasses.replace(
-        state, drone_position=state.drone_position + 7.0, drone_velocity=-state.drone_velocity
-    )
-    np.testing.assert_array_equal(core.observe(params, state), core.observe(params, moved))
+    rng = np.random.default_rng(6)
+    state = core.reset(params, rng, 2)
+    state, _, _ = core.step(params, state, rng.uniform(-1, 1, (2, 6)), rng)
+    np.testing.assert_array_equal(core.observe(params, state), _observation_of(params, state))
+
+
+def test_the_fused_step_equals_the_generic_path():
+    """The one-kernel step (closed form, observation and diagnostics) against the stages run
+    separately on the generic path (the SVD fallback for every scenario that needs it)."""
+    params = PlacementParams()
+    rng = np.random.default_rng(21)
+    B = 64
+    state = core.reset(params, rng, B)
+    # four scenarios whose receivers stand on one spot: degenerate, the generic path's
+    o = state.receivers.copy()
+    o[:4] = o[:4, :1]
+    state = core.start(params, o, state.drone_position, state.drone_velocity, rng)
+    for _ in range(5):
+        action = rng.uniform(-1.5, 1.5, (B, 3, 2))
+        action[:4] = 0.0
+        seed = int(rng.integers(1 << 30))
+        new, reward, _ = core.step(params, state, action, np.random.default_rng(seed))
+        end = np.empty_like(state.receivers)
+        kernels.drive(
+            state.receivers, action, params.period, params.max_speed, params.arena_radius, end
+        )
+        p = state.drone_position + params.period * state.drone_velocity
+        fix, geometry, estimate, bound, expected = scan_period(
+            params.delays_array, params.period, params.sigma_ang, params.max_boresight_elevation,
+            state.receivers, end, p, state.drone_velocity, state.estimate,
+            np.random.default_rng(seed),
+            params.sigma_ref, params.reward_clip,
+        )  # fmt: skip
+        np.testing.assert_array_equal(reward, expected)
+        np.testing.assert_array_equal(new.receivers, end)
+        np.testing.assert_array_equal(new.drone_position, p)
+        np.testing.assert_array_equal(new.estimate, estimate)
+        np.testing.assert_array_equal(new.bound, bound)
+        for name in ("position", "velocity", "range_sigma", "velocity_sigma", "condition"):
+            np.testing.assert_array_equal(getattr(new.fix, name), getattr(fix, name))
+        np.testing.assert_array_equal(new.fix.degenerate, fix.degenerate)
+        assert new.geometry.degenerate[:4].all() and not new.geometry.degenerate[4:].any()
+        np.testing.assert_array_equal(new.geometry.los, geometry.los)
+        np.testing.assert_array_equal(new.geometry.degenerate, geometry.degenerate)
+        np.testing.assert_array_equal(new.t, state.t + params.period)
+        np.testing.assert_array_equal(core.observe(params, new), _observation_of(params, new))
+        error = np.linalg.norm(new.estimate[:, :3] - p, axis=-1)
+        np.testing.assert_allclose(core.info(params, new)["position_error"], error, rtol=1e-12)
+        angles = core.los_angles(params, new.receivers, p).min(axis=-1)
+        np.testing.assert_array_equal(core.info(params, new)["min_los_angle"], angles)
+        state = new
 
 
 def test_observation_layout_round_trips_through_split_observation():
