@@ -8,6 +8,7 @@ permitted disc, noise), and implements SB3's ``predict``, so
 
 from __future__ import annotations
 
+import functools
 import itertools
 from dataclasses import dataclass, field
 from typing import Any
@@ -16,12 +17,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
-from sensorgym.envs.stereo_placement.simulation import (
-    PlacementParams,
-    in_arena,
-    split_observation,
-)
-from sensorgym.trackers.stereo.information import position_information
+from sensorgym.envs.stereo_placement import kernels
+from sensorgym.envs.stereo_placement.simulation import PlacementParams, split_observation
 
 FloatArray = NDArray[np.float64]
 
@@ -72,28 +69,23 @@ class CirclePlacement(MemorylessRule):
     radius_factor: float = float(np.sqrt(2.0))
     """``ρ / ĥ``; √2 gives mutually orthogonal lines of sight for n = 3."""
 
+    @functools.cached_property
+    def _perms(self) -> NDArray[np.int64]:
+        """Every assignment of receivers to slots ``(n!, n)``: the slot of receiver ``k``."""
+        return np.array(list(itertools.permutations(range(self.params.n_receivers))))
+
     def targets(self, observation: NDArray[Any]) -> FloatArray:
-        """The slot ``(N, n, 3)`` each receiver is driven to."""
+        """The slot ``(N, n, 3)`` each receiver is driven to (the search is compiled:
+        :func:`sensorgym.envs.stereo_placement.kernels.circle_search`)."""
         obs, _ = as_batch(observation, self.params.obs_dim)
         view = split_observation(self.params, obs)
         o, p, v = view["receivers"], view["position"], view["velocity"]
-        n = self.params.n_receivers
         centre = p + self.params.period * v
         centre[:, 1] = 0.0
         rho = self.radius_factor * np.maximum(p[:, 1], 1.0)  # (N,)
-        # candidate phases: the bearing of each receiver from the centre
-        rel = o - centre[:, None, :]
-        phase = np.arctan2(rel[..., 0], rel[..., 2])  # (N, n)
-        slot = phase[:, :, None] + 2.0 * np.pi * np.arange(n) / n  # (N, phase, slot)
-        pts = np.stack([np.sin(slot), np.zeros_like(slot), np.cos(slot)], -1)
-        pts = in_arena(self.params, centre[:, None, None, :] + rho[:, None, None, None] * pts, 1.0)
-        perms = np.array(list(itertools.permutations(range(n))))  # (P, n): slot of receiver k
-        goal = pts[:, :, perms]  # (N, phase, P, n, 3)
-        dist = np.linalg.norm(goal - o[:, None, None], axis=-1)  # (N, phase, P, n)
-        # longest drive first, total drive to break ties
-        cost = (dist.max(axis=-1) + 1e-3 * dist.sum(axis=-1)).reshape(obs.shape[0], -1)
-        best = np.argmin(cost, axis=-1)
-        return goal.reshape(obs.shape[0], -1, n, 3)[np.arange(obs.shape[0]), best]
+        goal = np.empty_like(o)
+        kernels.circle_search(o, centre, rho, self._perms, self.params.arena_radius, 1.0, goal)
+        return goal
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
@@ -125,22 +117,23 @@ class GreedyPlacement(MemorylessRule):
         angle = 2.0 * np.pi * np.arange(self.headings) / self.headings
         return np.concatenate([np.zeros((1, 2)), np.stack([np.sin(angle), np.cos(angle)], -1)])
 
+    @functools.cached_property
+    def _candidates(self) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
+        """``(shifts (M, 3), joint (C, n), actions (C, 2n))``: each move's displacement over one
+        period, the joint candidates as move indices, and their normalised actions."""
+        moves = self.moves
+        joint = np.array(list(itertools.product(range(len(moves)), repeat=self.params.n_receivers)))
+        step = self.params.max_speed * self.params.period * moves
+        shifts = np.stack([step[:, 0], np.zeros(len(moves)), step[:, 1]], -1)
+        return shifts, joint, moves[joint].reshape(len(joint), -1)
+
     def act(self, obs: FloatArray) -> FloatArray:
-        """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
+        """Actions ``(N, action size)`` for observations ``(N, obs_dim)`` (the search is
+        compiled: :func:`sensorgym.envs.stereo_placement.kernels.greedy_search`)."""
         view = split_observation(self.params, obs)
         o, p, v = view["receivers"], view["position"], view["velocity"]
-        n, N = self.params.n_receivers, obs.shape[0]
-        moves = self.moves
-        joint = np.array(list(itertools.product(range(len(moves)), repeat=n)))  # (C, n)
-        a = moves[joint]  # (C, n, 2)
-        step = self.params.max_speed * self.params.period * a
-        shift = np.stack([step[..., 0], np.zeros(step.shape[:-1]), step[..., 1]], -1)
-        cand = in_arena(self.params, o[:, None] + shift[None])  # (N, C, n, 3)
+        shifts, joint, actions = self._candidates
         target = p + self.params.period * v
-        d = target[:, None, None, :] - cand
-        r = np.maximum(np.linalg.norm(d, axis=-1), 1e-6)
-        info = position_information(d / r[..., None], r)  # σ_ang² I: the same ranking
-        sign, logdet = np.linalg.slogdet(info)
-        score = np.where(sign > 0.0, logdet, -np.inf)
-        best = np.argmax(score, axis=-1)
-        return a[best].reshape(N, -1)
+        best = np.empty(obs.shape[0], np.int64)
+        kernels.greedy_search(o, target, shifts, joint, self.params.arena_radius, best)
+        return actions[best]

@@ -40,6 +40,7 @@ from sensorgym.trackers.geometry_kernels import (
 )
 from sensorgym.trackers.stereo.conjugation_kernels import triple_velocity_kernel
 from sensorgym.trackers.stereo.kernels import (
+    det3,
     log_ratio_reward,
     observable,
     position_information,
@@ -512,3 +513,106 @@ def period_rows(
         )  # fmt: skip
         info_row(i, end, estimate, drone_end, pairs, error, min_angle)
     return flags
+
+
+# ---------------------------------------------------------------- the heuristic rules' searches
+
+
+@njit(inline="always")
+def _in_disc(x, y, z, radius):
+    """``(x, y, z)`` pulled radially back onto the disc of ``radius`` where outside it
+    (:func:`.simulation.in_arena`)."""
+    scale = min(1.0, radius / max(np.hypot(x, z), 1e-12))
+    return (x * scale, y * scale, z * scale)
+
+
+@njit(**_JIT)
+def greedy_search(receivers, target, shifts, joint, radius, best):
+    """:class:`~sensorgym.agents.stereo_placement.GreedyPlacement`'s choice for each row:
+    ``best[i]`` the joint candidate ``c`` (row of ``joint (C, n)``, indices into
+    ``shifts (M, 3)``) whose receivers ``receivers[i] + shifts[joint[c]]`` (held in the disc)
+    maximise ``ln det G`` at ``target[i]``, ``G = Σ_k (I − u_k u_kᵀ)/r_k²`` (the stereo tracker
+    kernels' position information; ``−∞`` where ``det G ≤ 0``); the first best on ties."""
+    n, M = receivers.shape[1], shifts.shape[0]
+    u, r = np.empty((n, 3)), np.empty(n)
+    U, Rm = np.empty((n, M, 3)), np.empty((n, M))  # each receiver's line of sight per move
+    unit, every = np.ones(n), np.ones(n, np.bool_)
+    G = np.empty((3, 3))
+    for i in range(receivers.shape[0]):
+        for k in range(n):
+            for m in range(M):
+                o = _in_disc(
+                    receivers[i, k, 0] + shifts[m, 0],
+                    receivers[i, k, 1] + shifts[m, 1],
+                    receivers[i, k, 2] + shifts[m, 2],
+                    radius,
+                )
+                d = (target[i, 0] - o[0], target[i, 1] - o[1], target[i, 2] - o[2])
+                Rm[k, m] = max(norm3(d), 1e-6)
+                for j in range(3):
+                    U[k, m, j] = d[j] / Rm[k, m]
+        top, pick = -np.inf, 0
+        for c in range(joint.shape[0]):
+            for k in range(n):
+                m = joint[c, k]
+                r[k] = Rm[k, m]
+                for j in range(3):
+                    u[k, j] = U[k, m, j]
+            position_information(u, r, unit, every, G)
+            det = det3(G)
+            score = np.log(det) if det > 0.0 else -np.inf
+            if score > top:
+                top, pick = score, c
+        best[i] = pick
+
+
+@njit(**_JIT)
+def circle_search(receivers, centre, rho, perms, radius, margin, goal):
+    """:class:`~sensorgym.agents.stereo_placement.CirclePlacement`'s slots for each row:
+    ``n`` points ``360°/n`` apart on the circle of radius ``rho[i]`` around ``centre[i]``
+    (held ``margin`` inside the disc), the circle's phase the bearing of one of the receivers
+    from the centre and the assignment a row of ``perms (P, n)`` (slot of receiver ``k``); the
+    phase and assignment minimising the longest drive (plus ``10⁻³`` × the total) win, the
+    first on ties. ``goal (N, n, 3)`` gets each receiver's slot."""
+    n = receivers.shape[1]
+    pts = np.empty((n, 3))
+    for i in range(receivers.shape[0]):
+        top, pick_phase, pick_perm = np.inf, 0, 0
+        for q in range(n):
+            phase = np.arctan2(receivers[i, q, 0] - centre[i, 0], receivers[i, q, 2] - centre[i, 2])
+            for j in range(n):
+                slot = phase + 2.0 * np.pi * j / n
+                pts[j, 0], pts[j, 1], pts[j, 2] = _in_disc(
+                    centre[i, 0] + rho[i] * np.sin(slot),
+                    centre[i, 1] + rho[i] * 0.0,
+                    centre[i, 2] + rho[i] * np.cos(slot),
+                    radius - margin,
+                )
+            for c in range(perms.shape[0]):
+                longest, total = 0.0, 0.0
+                for k in range(n):
+                    j = perms[c, k]
+                    dist = norm3(
+                        (
+                            pts[j, 0] - receivers[i, k, 0],
+                            pts[j, 1] - receivers[i, k, 1],
+                            pts[j, 2] - receivers[i, k, 2],
+                        )
+                    )
+                    longest = max(longest, dist)
+                    total += dist
+                cost = longest + 1e-3 * total
+                if cost < top:
+                    top, pick_phase, pick_perm = cost, q, c
+        # the winning slots, recomputed
+        phase = np.arctan2(
+            receivers[i, pick_phase, 0] - centre[i, 0], receivers[i, pick_phase, 2] - centre[i, 2]
+        )
+        for k in range(n):
+            slot = phase + 2.0 * np.pi * perms[pick_perm, k] / n
+            goal[i, k, 0], goal[i, k, 1], goal[i, k, 2] = _in_disc(
+                centre[i, 0] + rho[i] * np.sin(slot),
+                centre[i, 1] + rho[i] * 0.0,
+                centre[i, 2] + rho[i] * np.cos(slot),
+                radius - margin,
+            )

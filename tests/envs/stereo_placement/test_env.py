@@ -4,6 +4,7 @@ reward, degenerate geometry, actions, rules, PettingZoo."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import gymnasium as gym
 import numpy as np
@@ -23,6 +24,7 @@ from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
 from sensorgym.envs.stereo_placement.scan import scan_period
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
 from sensorgym.trackers.stereo.accuracy import position_crlb
+from sensorgym.trackers.stereo.information import position_information
 
 ENV_ID = "sensorgym/StereoPlacement-v0"
 
@@ -309,6 +311,64 @@ def test_rules_follow_the_sb3_predict_protocol():
         assert np.all(np.abs(batch) <= 1.0)
     with pytest.raises(ValueError, match="observation"):
         HoldPosition().predict(obs[:, :5])
+
+
+def _circle_targets_reference(params: PlacementParams, obs: np.ndarray) -> np.ndarray:
+    """CirclePlacement's slots searched with numpy over every phase and assignment at once."""
+    view = core.split_observation(params, obs)
+    o, p, v = view["receivers"], view["position"], view["velocity"]
+    n = params.n_receivers
+    centre = p + params.period * v
+    centre[:, 1] = 0.0
+    rho = np.sqrt(2.0) * np.maximum(p[:, 1], 1.0)
+    rel = o - centre[:, None, :]
+    phase = np.arctan2(rel[..., 0], rel[..., 2])
+    slot = phase[:, :, None] + 2.0 * np.pi * np.arange(n) / n
+    pts = np.stack([np.sin(slot), np.zeros_like(slot), np.cos(slot)], -1)
+    pts = core.in_arena(params, centre[:, None, None, :] + rho[:, None, None, None] * pts, 1.0)
+    perms = np.array(list(itertools.permutations(range(n))))
+    goal = pts[:, :, perms]
+    dist = np.linalg.norm(goal - o[:, None, None], axis=-1)
+    cost = (dist.max(axis=-1) + 1e-3 * dist.sum(axis=-1)).reshape(obs.shape[0], -1)
+    best = np.argmin(cost, axis=-1)
+    return goal.reshape(obs.shape[0], -1, n, 3)[np.arange(obs.shape[0]), best]
+
+
+def _greedy_actions_reference(rule: GreedyPlacement, obs: np.ndarray) -> np.ndarray:
+    """GreedyPlacement's choice scored with numpy for every joint candidate at once."""
+    params = rule.params
+    view = core.split_observation(params, obs)
+    o, p, v = view["receivers"], view["position"], view["velocity"]
+    n = params.n_receivers
+    joint = np.array(list(itertools.product(range(len(rule.moves)), repeat=n)))
+    a = rule.moves[joint]
+    step = params.max_speed * params.period * a
+    shift = np.stack([step[..., 0], np.zeros(step.shape[:-1]), step[..., 1]], -1)
+    cand = core.in_arena(params, o[:, None] + shift[None])
+    d = (p + params.period * v)[:, None, None, :] - cand
+    r = np.maximum(np.linalg.norm(d, axis=-1), 1e-6)
+    sign, logdet = np.linalg.slogdet(position_information(d / r[..., None], r))
+    best = np.argmax(np.where(sign > 0.0, logdet, -np.inf), axis=-1)
+    return a[best].reshape(obs.shape[0], -1)
+
+
+def test_compiled_rules_choose_what_the_numpy_search_chooses():
+    """The rules' compiled searches against the same search written with numpy over all
+    candidates at once, receivers near the disc's edge included: the same choices (the circle's
+    slots agree to rounding: numpy's vectorised sine and libm's may differ in the last bit)."""
+    params = PlacementParams(arena_radius=60.0, cluster_radius=15.0)
+    rng = np.random.default_rng(17)
+    state = core.reset(params, rng, 128)
+    observations = []
+    for _ in range(12):
+        observations.append(core.observe(params, state))
+        state, _, _ = core.step(params, state, rng.uniform(-1, 1, (128, 6)), rng)
+    obs = np.concatenate(observations).astype(np.float64)
+    circle, greedy = CirclePlacement(params), GreedyPlacement(params)
+    np.testing.assert_allclose(
+        circle.targets(obs), _circle_targets_reference(params, obs), rtol=0.0, atol=1e-9
+    )
+    np.testing.assert_array_equal(greedy.act(obs), _greedy_actions_reference(greedy, obs))
 
 
 @pytest.fixture(scope="module")
