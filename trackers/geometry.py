@@ -69,13 +69,14 @@ def unit_from_angles(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
     return np.stack(np.broadcast_arrays(ct * np.sin(phi), np.sin(theta), ct * np.cos(phi)), axis=-1)
 
 
-def angles_from_unit(a: ArrayLike) -> tuple[FloatArray, FloatArray]:
+def angles_from_unit(a: ArrayLike, *, check: bool = True) -> tuple[FloatArray, FloatArray]:
     """Azimuth ``φ = atan2(a_x, a_z)`` and elevation ``θ = arcsin(a_y)`` (000 eq. 3), radians.
 
     At the zenith/nadir (``a_x = a_z = 0``) the azimuth is undefined; ``atan2(0, 0) = 0`` is
-    returned, a finite documented fallback.
+    returned, a finite documented fallback. ``check=False`` skips the unit-length check (for
+    callers whose vectors are unit by construction; the shape is still checked).
     """
-    a = unit_vectors(a, "a")
+    a = unit_vectors(a, "a") if check else finite_array(a, "a", tail=(3,), check=False)
     return np.arctan2(a[..., 0], a[..., 2]), np.arcsin(np.clip(a[..., 1], -1.0, 1.0))
 
 

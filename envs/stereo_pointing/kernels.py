@@ -32,6 +32,7 @@ from sensorgym.trackers.stereo.kernels import (
     copy2,
     count_views,
     cv_predict,
+    cv_prior,
     cv_update,
     fix_in_front,
     inverse3,
@@ -255,3 +256,84 @@ def pointing_offsets_batch(receivers, azimuth, elevation, points, out):
                 out[b, k, j, 0], out[b, k, j, 1] = pointing_offset(
                     azimuth[b, k], elevation[b, k], u
                 )
+
+
+@njit(**JIT)
+def drones_kernel(distance, bearing, height, speed, heading, climb, position, velocity):
+    """Drone starts ``position``/``velocity (B, m, 3)`` from the reset's draws ``(B, m)``:
+    ``p = (d sin β, h, d cos β)``, ``v = (s sin ψ, climb, s cos ψ)``."""
+    for b in range(distance.shape[0]):
+        for j in range(distance.shape[1]):
+            position[b, j, 0] = distance[b, j] * math.sin(bearing[b, j])
+            position[b, j, 1] = height[b, j]
+            position[b, j, 2] = distance[b, j] * math.cos(bearing[b, j])
+            velocity[b, j, 0] = speed[b, j] * math.sin(heading[b, j])
+            velocity[b, j, 1] = climb[b, j]
+            velocity[b, j, 2] = speed[b, j] * math.cos(heading[b, j])
+
+
+@njit(**JIT)
+def start_kernel(
+    c,  # per-params constants (C_* layout)
+    sigma_p,  # cue standard deviations: position, m
+    sigma_v,  # velocity, m/s
+    position,  # (B, m, 3) drones
+    velocity,
+    noise_p,  # (B, m, 3) standard normal draws of the cue's position error
+    noise_v,  # (B, m, 3) and of its velocity error
+    azimuth,  # (B, n) given pointing
+    elevation,
+    # outputs
+    x,  # (B, m, 6) the tracker on its cue
+    P,  # (B, m, 6, 6)
+    az_out,  # (B, n) wrapped
+    el_out,  # (B, n) within ±max_elevation
+):
+    """The start of every scenario (``simulation.start``): the tracker on its cue (truth plus
+    ``σ``-scaled errors, covariance ``diag(σ_p², σ_v²)``: the primitive ``cv_prior`` of
+    :mod:`sensorgym.trackers.stereo.kernels`), the gimbals wrapped and held within their
+    elevation limit."""
+    B, m = position.shape[0], position.shape[1]
+    max_elevation = c[C_MAX_EL]
+    cue_p, cue_v = np.empty(3), np.empty(3)
+    for b in range(B):
+        for j in range(m):
+            for i in range(3):
+                cue_p[i] = position[b, j, i] + sigma_p * noise_p[b, j, i]
+                cue_v[i] = velocity[b, j, i] + sigma_v * noise_v[b, j, i]
+            cv_prior(cue_p, cue_v, sigma_p, sigma_v, x[b, j], P[b, j])
+        for k in range(azimuth.shape[1]):
+            az_out[b, k] = wrap_angle(azimuth[b, k])
+            el_out[b, k] = clip(elevation[b, k], -max_elevation, max_elevation)
+
+
+@njit(**JIT)
+def aim_lines_batch(receivers, points, u):
+    """Unit lines of sight ``u (B, n, 3)`` from receiver ``k`` to ``points[:, k] (B, n, 3)``
+    (:func:`~sensorgym.trackers.stereo.kernels.line_of_sight`: zero within ``MIN_RANGE``)."""
+    for b in range(points.shape[0]):
+        for k in range(receivers.shape[0]):
+            line_of_sight(receivers[k], points[b, k], u[b, k])
+
+
+@njit(**JIT)
+def cue_lines_batch(receivers, x, u):
+    """:func:`aim_lines_batch` to the tracks' positions: receiver ``k`` to drone ``k mod m``
+    of ``x (B, m, 6)`` (the cued start)."""
+    m = x.shape[1]
+    for b in range(x.shape[0]):
+        for k in range(receivers.shape[0]):
+            line_of_sight(receivers[k], x[b, k % m, :3], u[b, k])
+
+
+@njit(**JIT)
+def aim_merge(u, azimuth, elevation, max_elevation, az, el):
+    """Finish an aim in place: where the line of sight ``u (B, n, 3)`` is zero (the point on the
+    receiver, no direction) ``az``/``el`` keep the given ``azimuth``/``elevation``; ``el`` is
+    held within ``±max_elevation``."""
+    for b in range(u.shape[0]):
+        for k in range(u.shape[1]):
+            if u[b, k, 0] == 0.0 and u[b, k, 1] == 0.0 and u[b, k, 2] == 0.0:
+                az[b, k] = azimuth[b, k]
+                el[b, k] = elevation[b, k]
+            el[b, k] = clip(el[b, k], -max_elevation, max_elevation)

@@ -47,7 +47,6 @@ finite fallback:
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from dataclasses import dataclass, field
 
@@ -58,9 +57,9 @@ from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.stereo_pointing import kernels
 from sensorgym.envs.stereo_pointing.kernels import lines_of_sight_batch, pointing_offsets_batch
-from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles, wrap_angle
-from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP, MIN_RANGE
-from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior
+from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
+from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict
 from sensorgym.trackers.validation import count, finite_array
 
 FloatArray = NDArray[np.float64]
@@ -286,24 +285,6 @@ def lines_of_sight(params: PointingParams, points: FloatArray) -> tuple[FloatArr
     return u, r
 
 
-def _unit_or_zero(d: FloatArray, r: FloatArray) -> FloatArray:
-    """``d / r`` where ``r > MIN_RANGE``, the zero vector elsewhere."""
-    u = d / np.maximum(r, MIN_RANGE)[..., None]
-    if np.all(r > MIN_RANGE):
-        return u
-    return np.where((r > MIN_RANGE)[..., None], u, 0.0)
-
-
-def _angles(u: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """Azimuth and elevation of lines of sight ``u (..., 3)`` and where they exist: a zero
-    vector (no direction) gives ``(0, 0)`` and False."""
-    has = np.any(u != 0.0, axis=-1)
-    if np.all(has):
-        return (*angles_from_unit(u), has)
-    az, el = angles_from_unit(np.where(has[..., None], u, np.array([0.0, 0.0, 1.0])))
-    return np.where(has, az, 0.0), np.where(has, el, 0.0), has
-
-
 def start(
     params: PointingParams,
     drone_position: ArrayLike,
@@ -322,16 +303,40 @@ def start(
     B = p.shape[0]
     if p.ndim != 3 or v.shape != p.shape or az.shape != (B, n) or el.shape != (B, n):
         raise ValueError(f"drone_position/velocity, azimuth/elevation: batch {B} shapes differ")
+    return _start(params, _c(p), _c(v), _c(az), _c(el), rng, cued=False)
+
+
+def _start(
+    params: PointingParams,
+    p: FloatArray,
+    v: FloatArray,
+    azimuth: FloatArray,
+    elevation: FloatArray,
+    rng: np.random.Generator,
+    cued: bool,
+) -> PointingState:
+    """:func:`start` of checked, C-contiguous inputs; ``cued``: then receiver ``k`` aims at
+    drone ``k mod m``'s cued position (:func:`aim_at`)."""
+    n, m, B = params.n_receivers, params.n_drones, p.shape[0]
     sp, sv = params.cue_sigma
-    cue_p = p + sp * rng.standard_normal(p.shape)
-    cue_v = v + sv * rng.standard_normal(v.shape)
+    noise_p = rng.standard_normal(p.shape)
+    noise_v = rng.standard_normal(v.shape)
+    x, P = np.empty((B, m, 6)), np.empty((B, m, 6, 6))
+    az, el = np.empty((B, n)), np.empty((B, n))
+    kernels.start_kernel(
+        params._constants, sp, sv, p, v, noise_p, noise_v, azimuth, elevation, x, P, az, el
+    )
+    if cued:
+        u = np.empty((B, n, 3))
+        kernels.cue_lines_batch(params._receivers, x, u)
+        az, el = _aim(params, u, az, el)
     return PointingState(
         t=np.zeros(B),
-        azimuth=wrap_angle(az),
-        elevation=np.clip(el, -params.max_elevation, params.max_elevation),
+        azimuth=az,
+        elevation=el,
         drone_position=p,
         drone_velocity=v,
-        track=cv_prior(cue_p, cue_v, sp, sv),
+        track=CVTrack(x, P),
         seen=np.zeros((B, n, m), dtype=bool),
         fixed=np.zeros((B, m), dtype=bool),
         bound=np.full((B, m), np.inf),
@@ -358,16 +363,11 @@ def reset(
     climb = rng.uniform(*params.climb_rate, (batch, m))
     az = rng.uniform(-np.pi, np.pi, (batch, n))
     el = rng.uniform(*params.initial_elevation, (batch, n))
-    p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
-    v = np.stack([speed * np.sin(heading), climb, speed * np.cos(heading)], -1)
-    state = start(params, p, v, az, el, rng)
-    if not params.cued_start:
-        return state
-    # receiver k on drone k mod m's cued position
-    az, el = aim_at(
-        params, state.track.position[:, np.arange(n) % m], state.azimuth, state.elevation
-    )
-    return dataclasses.replace(state, azimuth=az, elevation=el)
+    # p = (d sin β, h, d cos β),  v = (s sin ψ, climb, s cos ψ)
+    p, v = np.empty((batch, m, 3)), np.empty((batch, m, 3))
+    kernels.drones_kernel(dist, bearing, height, speed, heading, climb, p, v)
+    # the tracker on its cue; receiver k on drone k mod m's cued position
+    return _start(params, p, v, az, el, rng, cued=params.cued_start)
 
 
 def aim_at(
@@ -376,11 +376,18 @@ def aim_at(
     """Azimuth and elevation ``(B, n)`` that put receiver ``k`` on ``points[:, k] (B, n, 3)``
     (elevation held within ``±max_elevation``); a receiver whose point lies on it (no
     direction) keeps its ``azimuth``/``elevation``."""
-    d = points - params.receiver_positions[None]
-    az, el, has = _angles(_unit_or_zero(d, np.linalg.norm(d, axis=-1)))
-    if not np.all(has):
-        az, el = np.where(has, az, azimuth), np.where(has, el, elevation)
-    return az, np.clip(el, -params.max_elevation, params.max_elevation)
+    u = np.empty((*np.shape(points)[:-1], 3))
+    kernels.aim_lines_batch(params._receivers, _c(points), u)
+    return _aim(params, u, _c(azimuth), _c(elevation))
+
+
+def _aim(
+    params: PointingParams, u: FloatArray, azimuth: FloatArray, elevation: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """:func:`aim_at` along the lines of sight ``u (B, n, 3)`` (zero: no direction)."""
+    az, el = angles_from_unit(u, check=False)
+    kernels.aim_merge(u, azimuth, elevation, params.max_elevation, az, el)
+    return az, el
 
 
 def _c(a: ArrayLike) -> FloatArray:
@@ -402,22 +409,25 @@ def step(
     """
     n, m, B = params.n_receivers, params.n_drones, state.t.shape[0]
     a = np.asarray(action, dtype=np.float64)
-    if a.size != B * n * 2:
-        raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
-    a = np.ascontiguousarray(a).reshape(B, n, 2)
+    if a.shape != (B, n, 2):
+        if a.size != B * n * 2:
+            raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
+        a = a.reshape(B, n, 2)
     # measure every pair (a fixed number of draws, perturb_directions' draws), use what is seen
     noise = rng.standard_normal((B, n, m, 3)) if params.sigma_ang > 0.0 else np.empty((B, n, m, 3))
     track = state.track
+    # the state's arrays go in as they are: step, start and the shells make them float64 and
+    # C-contiguous (the compiled kernel would take any other layout too, compiled anew)
     args = (
         params._receivers,
         params._constants,
-        _c(state.t),
-        _c(state.azimuth),
-        _c(state.elevation),
-        _c(state.drone_position),
-        _c(state.drone_velocity),
-        _c(track.x),
-        _c(track.P),
+        state.t,
+        state.azimuth,
+        state.elevation,
+        state.drone_position,
+        state.drone_velocity,
+        track.x,
+        track.P,
         a,
         noise,
     )

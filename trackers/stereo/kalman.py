@@ -100,8 +100,17 @@ def cv_prior(position: ArrayLike, velocity: ArrayLike, sigma_p: float, sigma_v: 
         raise ValueError(f"position/velocity: shapes differ, {p.shape} vs {v.shape}")
     if not (sigma_p > 0.0 and sigma_v > 0.0):
         raise ValueError(f"sigma_p/sigma_v: must be positive, got {sigma_p}, {sigma_v}")
-    P = np.diag([sigma_p**2] * 3 + [sigma_v**2] * 3)
-    return CVTrack(np.concatenate([p, v], -1), np.broadcast_to(P, (*p.shape[:-1], 6, 6)).copy())
+    x, P = np.empty((*p.shape[:-1], 6)), np.empty((*p.shape[:-1], 6, 6))
+    # x = (p, v),  P = diag(σ_p² I, σ_v² I)  (kernels.cv_prior)
+    kernels.cv_prior_batch(
+        np.ascontiguousarray(p).reshape(-1, 3),
+        np.ascontiguousarray(v).reshape(-1, 3),
+        float(sigma_p),
+        float(sigma_v),
+        x.reshape(-1, 6),
+        P.reshape(-1, 6, 6),
+    )
+    return CVTrack(x, P)
 
 
 def cv_predict(track: CVTrack, dt: float, q: float) -> CVTrack:

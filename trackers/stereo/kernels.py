@@ -370,6 +370,19 @@ def assignment_orthogonality_batch(u, cand, out):
 # ---------------------------------------------------------------- constant-velocity Kalman filter
 
 
+@njit(**INLINE)
+def cv_prior(position, velocity, sigma_p, sigma_v, x, P):
+    """Track started from a cue (:mod:`.kalman`): mean ``x = (p, v)``, covariance
+    ``P = diag(σ_p², σ_p², σ_p², σ_v², σ_v², σ_v²)``."""
+    for i in range(3):
+        x[i] = position[i]
+        x[i + 3] = velocity[i]
+    for i in range(6):
+        for j in range(6):
+            P[i, j] = 0.0
+        P[i, i] = sigma_p**2 if i < 3 else sigma_v**2
+
+
 @njit(**JIT)
 def cv_predict(x, P, dt, q, x_out, P_out):
     """``x⁻ = F x``, ``P⁻ = F P Fᵀ + Q`` (theory §4.2, :mod:`.kalman`), blockwise with
@@ -577,6 +590,13 @@ def fix_in_front_batch(M, o, u, mask, min_range, out):
     """:func:`fix_in_front` over ``M (N, 3)``, ``o``/``u (N, n, 3)``, ``mask (N, n)``."""
     for b in range(M.shape[0]):
         out[b] = fix_in_front(M[b], o[b], u[b], mask[b], min_range)
+
+
+@njit(**JIT)
+def cv_prior_batch(position, velocity, sigma_p, sigma_v, x, P):
+    """:func:`cv_prior` over ``position``/``velocity (N, 3)``."""
+    for b in range(position.shape[0]):
+        cv_prior(position[b], velocity[b], sigma_p, sigma_v, x[b], P[b])
 
 
 @njit(**JIT)
