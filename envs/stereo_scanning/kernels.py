@@ -40,22 +40,22 @@ def _wrap(a):
 
 
 @njit(inline="always")
-def _local(R, i, k, d):
-    """``R_kᵀ d`` for ``R (B, n, 3, 3)`` (``R[i, k, j, c]`` = component ``j`` of column ``c``)."""
+def _local(R, k, d):
+    """``R_kᵀ d`` for ``R (n, 3, 3)`` (``R[k, j, c]`` = component ``j`` of column ``c``)."""
     return (
-        R[i, k, 0, 0] * d[0] + R[i, k, 1, 0] * d[1] + R[i, k, 2, 0] * d[2],
-        R[i, k, 0, 1] * d[0] + R[i, k, 1, 1] * d[1] + R[i, k, 2, 1] * d[2],
-        R[i, k, 0, 2] * d[0] + R[i, k, 1, 2] * d[1] + R[i, k, 2, 2] * d[2],
+        R[k, 0, 0] * d[0] + R[k, 1, 0] * d[1] + R[k, 2, 0] * d[2],
+        R[k, 0, 1] * d[0] + R[k, 1, 1] * d[1] + R[k, 2, 1] * d[2],
+        R[k, 0, 2] * d[0] + R[k, 1, 2] * d[1] + R[k, 2, 2] * d[2],
     )
 
 
 @njit(inline="always")
-def _world(R, i, k, v):
+def _world(R, k, v):
     """``R_k v`` (receiver ``k``'s frame → world)."""
     return (
-        R[i, k, 0, 0] * v[0] + R[i, k, 0, 1] * v[1] + R[i, k, 0, 2] * v[2],
-        R[i, k, 1, 0] * v[0] + R[i, k, 1, 1] * v[1] + R[i, k, 1, 2] * v[2],
-        R[i, k, 2, 0] * v[0] + R[i, k, 2, 1] * v[1] + R[i, k, 2, 2] * v[2],
+        R[k, 0, 0] * v[0] + R[k, 0, 1] * v[1] + R[k, 0, 2] * v[2],
+        R[k, 1, 0] * v[0] + R[k, 1, 1] * v[1] + R[k, 1, 2] * v[2],
+        R[k, 2, 0] * v[0] + R[k, 2, 1] * v[1] + R[k, 2, 2] * v[2],
     )
 
 
@@ -113,7 +113,7 @@ def _at(p, v, a, s):
 
 
 @njit(inline="always")
-def raster_fix(R, i, k, o, p, v, a, centre_az, centre_el, width, lines, offset, sweep, iters):
+def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, sweep, iters):
     """Pixel-visit rule (theory §6.3) for an object ``p + v s + ½ a s²`` (``s`` from the period
     start) seen from receiver ``k`` at ``o``: iterates ``s ← T_raster(φ(s), θ(s))`` from the
     middle of the sweep. Returns ``(seen, s, local offset d)``; not seen outside the sector or
@@ -123,14 +123,17 @@ def raster_fix(R, i, k, o, p, v, a, centre_az, centre_el, width, lines, offset, 
     seen = False
     for _ in range(iters):
         q = _at(p, v, a, s)
-        d = _local(R, i, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
+        d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
         phi, theta = _angles(d)
         seen = _inside(phi, theta, d, centre_az, centre_el, width)
         if not seen:
             return False, s, d
-        s = raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep)
+        s_new = raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep)
+        if s_new == s:
+            break  # converged: the raster reaches this pixel at s
+        s = s_new
     q = _at(p, v, a, s)
-    d = _local(R, i, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
+    d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
     phi, theta = _angles(d)
     seen = _inside(phi, theta, d, centre_az, centre_el, width) and norm3(d) > 0.0
     return seen, s, d
@@ -159,10 +162,48 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
     return sigma_e, sp, sv
 
 
+@njit(inline="always")
+def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
+    """The pair gate ``J ≤ ε_J``, ``ε_J = (q √2 σ_e + v_max |Δt|)²`` (000 eq. 9, theory §13.6),
+    ``σ_e² = σ_x² + ((σ_1 r̂_1)² + (σ_2 r̂_2)²)/2``: noise plus the largest miss distance the
+    unmodelled motion opens between the rays; both ranges in front of the receivers."""
+    if not (r1 > 0.0 and r2 > 0.0):
+        return False
+    x1, x2 = s1 * r1, s2 * r2
+    sigma_e = np.sqrt(position_sigma * position_sigma + 0.5 * (x1 * x1 + x2 * x2))
+    eps = gate_q * np.sqrt(2.0) * sigma_e + max_speed * abs(dt)
+    return J <= eps * eps
+
+
+@njit(inline="always")
+def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, gate_q, max_speed,
+                pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, out):  # fmt: skip
+    """``out[j1, jk]``: whether fixes ``j1`` (receiver 1) and ``jk`` (receiver ``k``) pass
+    :func:`pair_passes` — the cheap pre-gate of the triples (a true triple's pairs pass it)."""
+    npair = 0
+    for j1 in range(count1):
+        for jk in range(countk):
+            for x in range(3):
+                pa1[npair, x] = la[0, j1, x]
+                pa2[npair, 0, x] = la[k, jk, x]
+                pb[npair, 0, x] = b[k - 1, x]
+                for y in range(3):
+                    pP[npair, 0, x, y] = P[k - 1, x, y]
+            npair += 1
+    pair_kernel(pa1, pa2, pP, pb, ones, 1.0, False, 0, npair, pX, pJ, pQ, pk, pM)
+    e = 0
+    for j1 in range(count1):
+        for jk in range(countk):
+            dt = fix_time[i, k, jk] - fix_time[i, 0, j1]
+            out[j1, jk] = pair_passes(pJ[e], pX[e, 0], pX[e, 1], sig[0], sig[k], position_sigma,
+                                      gate_q, max_speed, dt)  # fmt: skip
+            e += 1
+
+
 @njit(**_JIT)
 def step_rows(
     lo, hi, tracker, action, O, R, P, b, t, drone_p, drone_v, drone_a, enter, exited,
-    scene_half, scene_height, dir_normals, pos_noise, clutter_count, clutter_uv,
+    scene_half, scene_floor, scene_height, dir_normals, pos_noise, clutter_count, clutter_uv,
     offsets, sweep, lines, period, iters, lo_w, hi_w, half_regard, kappa, sigma_min,
     position_sigma, max_speed, max_accel, gate_q, cond_max, confirm_hits, max_misses,
     sigma_ref, reward_clip, false_penalty, truth_gate,
@@ -172,8 +213,8 @@ def step_rows(
 ):  # fmt: skip
     """One scan period of scenarios ``lo..hi`` (module docstring); arrays are updated in place.
 
-    ``parts (B, 4)``: drones present, drones with a confirmed track, false confirmed tracks,
-    mean per-drone reward.
+    ``parts (B, 6)``: drones present, drones with a confirmed track, false confirmed tracks,
+    mean per-drone reward, mean ``σ_pos`` of the tracked drones, confirmed tracks.
     """
     n = O.shape[1]
     m = drone_p.shape[1]
@@ -183,41 +224,54 @@ def step_rows(
     used_n = 3 if tracker == PROPOSED else 2
     C = F**used_n
     # scratch, allocated once per call
-    la = np.zeros((n, F, 3))
-    sig = np.zeros(n)
-    a1 = np.zeros((C, 3))
-    ak = np.zeros((C, used_n - 1, 3))
-    Pc = np.zeros((C, used_n - 1, 3, 3))
-    bc = np.zeros((C, used_n - 1, 3))
-    dt = np.zeros((C, 2))
+    la = np.empty((n, F, 3))
+    sig = np.empty(n)
+    a1 = np.empty((C, 3))
+    ak = np.empty((C, used_n - 1, 3))
+    Pc = np.empty((C, used_n - 1, 3, 3))
+    bc = np.empty((C, used_n - 1, 3))
+    dt = np.empty((C, 2))
     ones = np.ones(C)
-    X = np.zeros((C, used_n + (3 if used_n == 3 else 0)))
-    J = np.zeros(C)
-    Q = np.zeros((C, X.shape[1], X.shape[1]))
-    kap = np.zeros(C)
-    M1 = np.zeros((C, 3))
-    cmem = np.zeros((C, 3), np.int64)
-    cpos = np.zeros((C, 3))
-    cvel = np.zeros((C, 3))
-    ctime = np.zeros(C)
-    csig = np.zeros((C, 2))
-    cdt = np.zeros(C)
-    cok = np.zeros(C, np.bool_)
-    ctaken = np.zeros(C, np.bool_)
-    fused = np.zeros((n, F), np.bool_)
-    pairs_t = np.zeros(T * C, np.int64)
-    pairs_c = np.zeros(T * C, np.int64)
-    pairs_s = np.zeros(T * C)
-    child_t = np.zeros(T * C, np.int64)
-    child_c = np.zeros(T * C, np.int64)
-    child_s = np.zeros(T * C)
-    old = np.zeros((T, 20))
-    old_slot = np.zeros(T, np.int64)
-    t_took = np.zeros(T, np.bool_)
-    rng_idx = np.zeros(C, np.int64)
-    d_dist = np.zeros((T, m))
-    t_end_pos = np.zeros((T, 3))
-    t_cmp = np.zeros(T)
+    X = np.empty((C, used_n + (3 if used_n == 3 else 0)))
+    J = np.empty(C)
+    Q = np.empty((C, X.shape[1], X.shape[1]))
+    kap = np.empty(C)
+    M1 = np.empty((C, 3))
+    cmem = np.empty((C, 3), np.int64)
+    cpos = np.empty((C, 3))
+    cvel = np.empty((C, 3))
+    ctime = np.empty(C)
+    csig = np.empty((C, 2))
+    cdt = np.empty(C)
+    cok = np.empty(C, np.bool_)
+    ctaken = np.empty(C, np.bool_)
+    fused = np.empty((n, F), np.bool_)
+    pairs_t = np.empty(T * C, np.int64)
+    pairs_c = np.empty(T * C, np.int64)
+    pairs_s = np.empty(T * C)
+    child_t = np.empty(T * C, np.int64)
+    child_c = np.empty(T * C, np.int64)
+    child_s = np.empty(T * C)
+    old = np.empty((T, 20))
+    old_slot = np.empty(T, np.int64)
+    t_took = np.empty(T, np.bool_)
+    rng_idx = np.empty(C, np.int64)
+    d_dist = np.empty((T, m))
+    # the triples' pair pre-gates
+    pa1 = np.empty((F * F, 3))
+    pa2 = np.empty((F * F, 1, 3))
+    pP = np.empty((F * F, 1, 3, 3))
+    pb = np.empty((F * F, 1, 3))
+    pones = np.ones(F * F)
+    pX = np.empty((F * F, 2))
+    pJ = np.empty(F * F)
+    pQ = np.empty((F * F, 2, 2))
+    pk = np.empty(F * F)
+    pM = np.empty((F * F, 3))
+    g12 = np.ones((F, F), np.bool_)
+    g13 = np.ones((F, F), np.bool_)
+    t_end_pos = np.empty((T, 3))
+    t_cmp = np.empty(T)
     for i in range(lo, hi):
         t0 = t[i]
         # ---- 1. sectors and fixes -------------------------------------------------------
@@ -225,7 +279,7 @@ def step_rows(
             az, el, w = sector_of(action[i, k], lo_w, hi_w, half_regard)
             sectors[i, k, 0], sectors[i, k, 1], sectors[i, k, 2] = az, el, w
             sig[k] = sector_sigma(w, kappa, sigma_min)
-            o = (O[i, k, 0], O[i, k, 1], O[i, k, 2])
+            o = (O[k, 0], O[k, 1], O[k, 2])
             c = 0
             for j in range(m):
                 if exited[i, j] or enter[i, j] > t0 + 1e-9:
@@ -239,7 +293,7 @@ def step_rows(
                 v = (drone_v[i, j, 0], drone_v[i, j, 1], drone_v[i, j, 2])
                 acc = (drone_a[i, j, 0], drone_a[i, j, 1], drone_a[i, j, 2])
                 seen, s, d = raster_fix(
-                    R, i, k, o, p, v, acc, az, el, w, lines, offsets[k], sweep, iters
+                    R, k, o, p, v, acc, az, el, w, lines, offsets[k], sweep, iters
                 )
                 if not seen:
                     continue
@@ -249,7 +303,7 @@ def step_rows(
                     z = (dir_normals[i, k, j, 0], dir_normals[i, k, j, 1], dir_normals[i, k, j, 2])
                     u = perturbed_direction3(u, z, sig[k])
                 la[k, c, 0], la[k, c, 1], la[k, c, 2] = u
-                uw = _world(R, i, k, u)
+                uw = _world(R, k, u)
                 fix_world[i, k, c, 0], fix_world[i, k, c, 1], fix_world[i, k, c, 2] = uw
                 fix_time[i, k, c] = t0 + s
                 fix_drone[i, k, c] = j
@@ -259,7 +313,7 @@ def step_rows(
                 theta = el + (clutter_uv[i, k, q, 1] - 0.5) * w
                 u = unit_from_angles3(phi, theta)
                 la[k, c, 0], la[k, c, 1], la[k, c, 2] = u
-                uw = _world(R, i, k, u)
+                uw = _world(R, k, u)
                 fix_world[i, k, c, 0], fix_world[i, k, c, 1], fix_world[i, k, c, 2] = uw
                 fix_time[i, k, c] = t0 + raster_time(
                     phi, theta, az, el, w, lines, offsets[k], sweep
@@ -272,23 +326,32 @@ def step_rows(
         c1 = fix_count[i, 0]
         c2 = fix_count[i, 1]
         c3 = fix_count[i, 2] if used_n == 3 else 1
+        if used_n == 3:
+            _pair_gates(i, 1, la, fix_time, c1, c2, P, b, sig, position_sigma, gate_q, max_speed,
+                        pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g12)  # fmt: skip
+            _pair_gates(i, 2, la, fix_time, c1, c3, P, b, sig, position_sigma, gate_q, max_speed,
+                        pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g13)  # fmt: skip
         for j1 in range(c1):
             for j2 in range(c2):
+                if used_n == 3 and not g12[j1, j2]:
+                    continue
                 for j3 in range(c3):
+                    if used_n == 3 and not g13[j1, j3]:
+                        continue
                     for x in range(3):
                         a1[nc, x] = la[0, j1, x]
                         ak[nc, 0, x] = la[1, j2, x]
-                        bc[nc, 0, x] = b[i, 0, x]
+                        bc[nc, 0, x] = b[0, x]
                         for y in range(3):
-                            Pc[nc, 0, x, y] = P[i, 0, x, y]
+                            Pc[nc, 0, x, y] = P[0, x, y]
                     dt[nc, 0] = fix_time[i, 1, j2] - fix_time[i, 0, j1]
                     cmem[nc, 0], cmem[nc, 1], cmem[nc, 2] = j1, j2, -1
                     if used_n == 3:
                         for x in range(3):
                             ak[nc, 1, x] = la[2, j3, x]
-                            bc[nc, 1, x] = b[i, 1, x]
+                            bc[nc, 1, x] = b[1, x]
                             for y in range(3):
-                                Pc[nc, 1, x, y] = P[i, 1, x, y]
+                                Pc[nc, 1, x, y] = P[1, x, y]
                         dt[nc, 1] = fix_time[i, 2, j3] - fix_time[i, 0, j1]
                         cmem[nc, 2] = j3
                     ctime[nc] = fix_time[i, 0, j1]
@@ -305,21 +368,20 @@ def step_rows(
             ctaken[c] = False
             if not ok:
                 continue
-            sigma_e, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma)
+            _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma)
             # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
-            mw = _world(R, i, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
+            mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
             for x in range(3):
-                cpos[c, x] = O[i, 0, x] + mw[x]
+                cpos[c, x] = O[0, x] + mw[x]
             if used_n == 3:
-                vw = _world(R, i, 0, (X[c, 3], X[c, 4], X[c, 5]))
+                vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
                 speed = norm3(vw)
                 if not speed <= max_speed:
                     continue
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
             else:
-                # J ≤ ε_J = (q(√2 σ_e) + v_max |Δt|)²: noise plus the unmodelled motion's miss
-                eps = gate_q * np.sqrt(2.0) * sigma_e + max_speed * abs(dt[c, 0])
-                if not J[c] <= eps * eps:
+                if not pair_passes(J[c], X[c, 0], X[c, 1], sig[0], sig[1], position_sigma,
+                                   gate_q, max_speed, dt[c, 0]):  # fmt: skip
                     continue
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
             cdt[c] = abs(dt[c, 0])
@@ -491,6 +553,16 @@ def step_rows(
         mean = total / npresent if npresent > 0 else 0.0
         reward[i] = mean - false_penalty * n_false
         parts[i, 0], parts[i, 1], parts[i, 2], parts[i, 3] = npresent, found, n_false, mean
+        total_sigma = 0.0
+        for j in range(m):
+            if assigned[i, j] >= 0:
+                total_sigma += drone_sigma[i, j]
+        parts[i, 4] = total_sigma / found if found > 0 else 0.0
+        n_conf = 0
+        for q in range(T):
+            if tstatus[i, q] == CONFIRMED:
+                n_conf += 1
+        parts[i, 5] = n_conf
         # ---- 5. the drones fly on; leaving the scene is for good ---------------------------
         for j in range(m):
             if exited[i, j]:
@@ -508,7 +580,7 @@ def step_rows(
                 if (
                     abs(pe[0]) > scene_half
                     or abs(pe[2]) > scene_half
-                    or pe[1] < 1.0
+                    or pe[1] < scene_floor
                     or pe[1] > scene_height
                 ):
                     exited[i, j] = True

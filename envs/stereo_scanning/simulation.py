@@ -87,10 +87,12 @@ class ScanningParams:
     close_spacing: tuple[float, float] = (2.0, 4.0)
     """Start distance of a close drone from drone 0, drawn uniformly, m."""
     scene_half_width: float = 80.0
-    """A drone beyond ``±scene_half_width`` in X or Z (or below 1 m, above ``scene_height``)
-    has left the scene for good, m."""
+    """A drone beyond ``±scene_half_width`` in X or Z (or below ``scene_floor``, above
+    ``scene_height``) has left the scene for good, m."""
     scene_height: float = 120.0
     """Ceiling of the scene, m."""
+    scene_floor: float = 1.0
+    """Floor of the scene: a drone below it has left (landed), m."""
     period: float = 1.0
     """Scan period ``τ`` = one step, s."""
     sweep_time: float = 0.5
@@ -184,8 +186,14 @@ class ScanningParams:
             raise ValueError(f"sector_width: must lie in (0, π] rad, got {self.sector_width}")
         if self.field_of_regard + self.sector_width[1] >= 2 * np.pi:
             raise ValueError("field_of_regard: with the widest sector it must stay below 2π")
-        if not 0.0 < self.start_altitude[0] and self.start_altitude[1] < self.scene_height:
-            raise ValueError("start_altitude: must lie inside (0, scene_height)")
+        if not np.isfinite(self.scene_floor) or self.scene_floor >= self.scene_height:
+            raise ValueError(
+                f"scene_floor: must be finite and below scene_height, got {self.scene_floor}"
+            )
+        if not (
+            self.scene_floor < self.start_altitude[0] and self.start_altitude[1] < self.scene_height
+        ):
+            raise ValueError("start_altitude: must lie inside (scene_floor, scene_height)")
         if self.start_spread >= self.scene_half_width:
             raise ValueError("start_spread: must be smaller than scene_half_width")
         if len(self.scan_offsets) != n:
@@ -335,7 +343,8 @@ class ScanningState:
     drone_sigma: FloatArray = field(repr=False)
     """(B, m) ``σ_pos`` of the assigned track at the period end, m (inf: none)."""
     parts: FloatArray = field(repr=False)
-    """(B, 4) drones present, drones tracked, false tracks, mean per-drone reward."""
+    """(B, 6) drones present, drones tracked, false tracks, mean per-drone reward, mean
+    ``σ_pos`` of the tracked drones (m), confirmed tracks."""
 
     @property
     def batch_size(self) -> int:
@@ -350,13 +359,23 @@ def spaces(params: ScanningParams) -> EnvSpaces:
     return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 3)
 
 
-def _empty_tracks(params: ScanningParams, B: int) -> dict:
+def _empty_tracks(params: ScanningParams, B: int, fill: bool = False) -> dict:
+    """Fresh per-period arrays (the kernel writes every entry the state exposes); ``fill``
+    gives the defined values of a scenario before its first period."""
     T, n, F, m = params.track_capacity, params.n_receivers, params.max_fixes, params.n_drones
+    if fill:
+        out = _empty_tracks(params, B)
+        out["sectors"][:] = 0.0
+        out["fix_count"][:] = 0
+        out["assigned"][:] = -1
+        out["drone_sigma"][:] = np.inf
+        out["parts"][:] = 0.0
+        return out
     return {
-        "sectors": np.zeros((B, n, 3)),
+        "sectors": np.empty((B, n, 3)),
         "fix_world": np.zeros((B, n, F, 3)),
         "fix_time": np.zeros((B, n, F)),
-        "fix_count": np.zeros((B, n), np.int64),
+        "fix_count": np.empty((B, n), np.int64),
         "fix_drone": np.full((B, n, F), -1, np.int64),
         "track_x": np.zeros((B, T, 6)),
         "track_t": np.zeros((B, T)),
@@ -368,9 +387,9 @@ def _empty_tracks(params: ScanningParams, B: int) -> dict:
         "track_sums": np.zeros((B, T, 9)),
         "track_id": np.full((B, T), -1, np.int64),
         "next_id": np.zeros(B, np.int64),
-        "assigned": np.full((B, m), -1, np.int64),
-        "drone_sigma": np.full((B, m), np.inf),
-        "parts": np.zeros((B, 4)),
+        "assigned": np.empty((B, m), np.int64),
+        "drone_sigma": np.empty((B, m)),
+        "parts": np.empty((B, 6)),
     }
 
 
@@ -398,7 +417,7 @@ def start(
         drone_acceleration=np.ascontiguousarray(a),
         enter=np.ascontiguousarray(e),
         exited=np.zeros((B, m), bool),
-        **_empty_tracks(params, B),
+        **_empty_tracks(params, B, fill=True),
     )
 
 
@@ -441,7 +460,7 @@ def reset(
     if params.late_drones > 0:
         k = m - params.late_drones
         enter[:, k:] = np.ceil(late[:, k:] / params.period - 1e-9) * params.period
-    p[..., 1] = np.clip(p[..., 1], 1.0, params.scene_height)
+    p[..., 1] = np.clip(p[..., 1], params.scene_floor, params.scene_height)
     return start(params, p, v, a, enter)
 
 
@@ -482,11 +501,8 @@ def step(
         for k in ("track_x", "track_t", "track_sigma", "track_score", "track_hits",
                   "track_misses", "track_status", "track_sums", "track_id", "next_id")
     }  # fmt: skip
-    O = np.broadcast_to(params.receivers, (B, n, 3))
-    R = np.broadcast_to(params.rotations, (B, n, 3, 3))
+    O, R = params.receivers, params.rotations
     P, b = params.relative
-    P = np.broadcast_to(P, (B, n - 1, 3, 3))
-    b = np.broadcast_to(b, (B, n - 1, 3))
     reward = np.empty(B)
     offsets = np.asarray(params.scan_offsets, dtype=np.float64)
     lo_w, hi_w = params.sector_width
@@ -494,7 +510,8 @@ def step(
     def kernel_on(lo: int, hi: int) -> None:
         kernels.step_rows(
             lo, hi, TRACKERS[params.tracker], a, O, R, P, b, t, dp, dv, state.drone_acceleration,
-            state.enter, exited, params.scene_half_width, params.scene_height, normals,
+            state.enter, exited, params.scene_half_width, params.scene_floor, params.scene_height,
+            normals,
             pos_noise, clutter_count, clutter_uv, offsets, params.sweep_time,
             float(params.raster_lines), params.period, params.pixel_iterations, lo_w, hi_w,
             0.5 * params.field_of_regard, params.noise_per_width, params.sigma_ang_min,
@@ -568,20 +585,13 @@ def observe_agents(params: ScanningParams, state: ScanningState) -> NDArray[np.f
 def info(params: ScanningParams, state: ScanningState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy)."""
     parts = state.parts
-    confirmed = (state.track_status == kernels.CONFIRMED).sum(axis=1).astype(np.float64)
-    sigma = np.where(np.isfinite(state.drone_sigma), state.drone_sigma, np.nan)
-    tracked = np.isfinite(state.drone_sigma)
-    with np.errstate(invalid="ignore"):
-        mean_sigma = np.where(
-            tracked.any(axis=1), np.nansum(np.where(tracked, sigma, 0.0), axis=1), 0.0
-        ) / np.maximum(tracked.sum(axis=1), 1)
     return {
         "drones_present": parts[:, 0].copy(),
         "drones_tracked": parts[:, 1].copy(),
         "false_tracks": parts[:, 2].copy(),
         "drone_reward": parts[:, 3].copy(),
-        "confirmed_tracks": confirmed,
-        "mean_sigma_pos": mean_sigma,
+        "mean_sigma_pos": parts[:, 4].copy(),
+        "confirmed_tracks": parts[:, 5].copy(),
     }
 
 

@@ -88,6 +88,7 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "close_spacing": (3.0, 5.0),
         "scene_half_width": 70.0,
         "scene_height": 100.0,
+        "scene_floor": 5.0,
         "period": 2.0,
         "sweep_time": 0.4,
         "scan_offsets": (0.0, 0.3, 0.5),
