@@ -2,8 +2,7 @@
 
 :func:`step_kernel` is :func:`.simulation.step` for the scenarios ``lo ≤ b < hi`` (so that
 :func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads);
-:func:`prior_kernel` and :func:`start_kernel` are the two halves of :func:`.simulation.reset`
-either side of the bound's square root. All are built from the primitives written once in
+:func:`reset_kernel` is :func:`.simulation.reset` after its draws. All are built from the primitives written once in
 :mod:`sensorgym.trackers.bearings.kernels` (prior, bank, bound, accuracy) and
 :mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings). The random draws
 are made by the caller with numpy's Generator, in the order and shapes of the numpy form, and
@@ -35,6 +34,7 @@ from sensorgym.trackers.bearings.kernels import (
     bank_update,
     bound_predict,
     bound_update,
+    psd_square_root,
     range_bank_prior,
 )
 
@@ -175,14 +175,25 @@ def step_kernel(
 
 
 @njit(**_JIT)
-def prior_kernel(c, r, sr, lw0, pos_f, vel_f, z, pos, lw, X, P, P_est):
-    """The first half of a reset, every row: the prior bank from platform 1's first bearing
-    ``z[:, 0]`` (range cells ``r``, ``sr``, ``lw0`` ``(N,)``, spread factors ``pos_f``,
-    ``vel_f`` ``(3,)``; course mean = the bearing), its moment-matched covariance ``P_est``
-    ``(B, 4, 4)`` (whose square root is the bound's), then the other platforms' first bearings
-    fused into the bank."""
+def reset_kernel(
+    c, r, sr, lw0, pos_f, vel_f, heading, speed, target, pos, eps, z, lw, X, P, L, acc, obs,
+    nearest, error,
+):  # fmt: skip
+    """Fresh scenarios from their draws (platforms ``pos (B, K, 2)``, ``heading``, ``speed``
+    ``(B, K)``, ``target (B, 4)``, bearing noise ``eps (B, K)``), every row: the first bearings
+    ``z``; the prior bank from platform 1's (range cells ``r``, ``sr``, ``lw0`` ``(N,)``, spread
+    factors ``pos_f``, ``vel_f`` ``(3,)``, course mean = the bearing) into ``lw``, ``X``,
+    ``P``; the bound's square root ``L`` of the bank's moment-matched covariance; the other
+    platforms' first bearings fused into both; the accuracy ``acc`` and the derived fields."""
     x = np.empty(STATE_DIM)
+    Pe = np.empty((STATE_DIM, STATE_DIM))
+    L_in = np.empty((STATE_DIM, STATE_DIM))
+    sigma = c[SIGMA]
     for b in range(z.shape[0]):
+        for k in range(z.shape[1]):
+            z[b, k] = noisy_bearing(
+                target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, eps[b, k]
+            )
         range_bank_prior(
             z[b, 0],
             pos[b, 0, 0],
@@ -199,24 +210,13 @@ def prior_kernel(c, r, sr, lw0, pos_f, vel_f, z, pos, lw, X, P, P_est):
             X[b],
             P[b],
         )
-        bank_estimate(lw[b], X[b], P[b], x, P_est[b])
+        # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already holds platform 1's bearing
+        bank_estimate(lw[b], X[b], P[b], x, Pe)
+        psd_square_root(Pe, L[b])
         for k in range(1, z.shape[1]):
-            bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], c[SIGMA])
-
-
-@njit(**_JIT)
-def start_kernel(c, heading, speed, z, pos, target, lw, X, P, L, acc, obs, nearest, error):
-    """The second half of a reset, every row: the other platforms' first bearings fused into the
-    bound's square root ``L`` (in place), the accuracy ``acc`` and the derived fields."""
-    L_in = np.empty((STATE_DIM, STATE_DIM))
-    x = np.empty(STATE_DIM)
-    Pe = np.empty((STATE_DIM, STATE_DIM))
-    for b in range(z.shape[0]):
-        for k in range(1, z.shape[1]):
+            bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
             L_in[:, :] = L[b]
-            bound_update(
-                L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], c[SIGMA], L[b]
-            )
+            bound_update(L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b])
         acc[b] = accuracy(
             c[RELATIVE_RANGE] > 0.0,
             L[b],

@@ -66,10 +66,8 @@ from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
     cwna_noise_factor,
-    noisy_bearings,
 )
 from sensorgym.trackers.bearings.crlb import (
-    covariance_square_root,
     predict_bound_factor,
     update_bound_factor,
 )
@@ -400,7 +398,7 @@ def reset(
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
     t = 0.0 if like is None else like.bank.t
-    w, K = params.world, params.platforms
+    K = params.platforms
     # scenario draws, in a fixed order so that a seed fixes every scenario
     heading = rng.uniform(-np.pi, np.pi, (batch, K))
     r0 = rng.uniform(*params.initial_range, batch)
@@ -421,25 +419,37 @@ def reset(
         rho = params.formation_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, K - 1)))
         phi = rng.uniform(-np.pi, np.pi, (batch, K - 1))
         positions[:, 1:] = np.stack([rho * np.sin(phi), rho * np.cos(phi)], -1)
-    z = noisy_bearings(target[:, None, :2], positions, w.sigma_bearing, rng)
+    # the first bearings' noise (drawn as noisy_bearings would: z = wrap(β + σ ε))
+    eps = rng.standard_normal((batch, K))
     # prior from platform 1's first bearing (Ristic §6.3.1), matched to the draws above: range
     # uniform over the prior's span, course uniform over the full circle (half-width π, so the
     # mean velocity is zero), speed moments of the target-speed draw (params.prior_cells,
-    # kernel_constants); the other platforms' first bearings update it
-    c = params.kernel_constants
+    # kernel_constants); the bound starts at its square root; the other platforms' first
+    # bearings update both
     N = params.bank_members
     lw, X = np.empty((batch, N)), np.empty((batch, N, STATE_DIM))
     P = np.empty((batch, N, STATE_DIM, STATE_DIM))
-    P_prior = np.empty((batch, STATE_DIM, STATE_DIM))
-    kernels.prior_kernel(c, *params.prior_cells, z, positions, lw, X, P, P_prior)
-    # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already conditions on platform 1's
-    # first bearing (its position covariance carries the bearing spread σ)
-    L = covariance_square_root(P_prior)
+    z, L = np.empty((batch, K)), np.empty((batch, STATE_DIM, STATE_DIM))
     speed = np.full((batch, K), params.initial_platform_speed)
     accuracy, nearest, error = np.empty(batch), np.empty(batch), np.empty(batch)
     obs = np.empty((batch, K, params.obs_dim), dtype=np.float32)
-    kernels.start_kernel(
-        c, heading, speed, z, positions, target, lw, X, P, L, accuracy, obs, nearest, error
+    kernels.reset_kernel(
+        params.kernel_constants,
+        *params.prior_cells,
+        heading,
+        speed,
+        target,
+        positions,
+        eps,
+        z,
+        lw,
+        X,
+        P,
+        L,
+        accuracy,
+        obs,
+        nearest,
+        error,
     )
     bank = RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t))
     return ManeuverState.trusted(

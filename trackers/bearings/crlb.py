@@ -272,16 +272,20 @@ def relative_range_bound(
 
 
 def covariance_square_root(P: ArrayLike) -> FloatArray:
-    """A square root ``L`` ``(..., 4, 4)`` of a covariance ``P = L Lᵀ`` (symmetric, from its
-    eigen-decomposition ``L = V √max(w, 0)``).
+    """The lower-triangular square root ``L`` ``(..., 4, 4)`` of a covariance ``P = L Lᵀ``
+    (Cholesky, of the lower triangle; compiled: :func:`.kernels.psd_square_root`).
 
-    Eigenvalues below zero can only be rounding of a positive semi-definite ``P`` built in
-    floating point (a moment-matched mixture whose spread spans many decades); they count
-    as zero, so ``L Lᵀ`` equals ``P`` to rounding and is positive semi-definite.
+    Pivots below zero can only be rounding of a positive semi-definite ``P`` built in floating
+    point (a moment-matched mixture whose spread spans many decades); they count as zero, with
+    their column, so ``L Lᵀ`` equals ``P`` to rounding and is positive semi-definite.
     """
     P = finite_array(P, "P", tail=(STATE_DIM, STATE_DIM))
-    w, V = np.linalg.eigh(_sym(P))
-    return V * np.sqrt(np.clip(w, 0.0, None))[..., None, :]
+    L = np.empty(P.shape)
+    kernels.psd_square_root_batch(
+        np.ascontiguousarray(P).reshape(-1, STATE_DIM, STATE_DIM),
+        L.reshape(-1, STATE_DIM, STATE_DIM),
+    )
+    return L
 
 
 def predict_bound_factor(L: ArrayLike, dt: float, q_tilde: float) -> FloatArray:

@@ -172,6 +172,33 @@ def bank_estimate(lw, X, P, x_out, P_out):
 # --- square-root bound ------------------------------------------------------------------------
 
 
+# P = L Lᵀ, L lower triangular (Cholesky–Banachiewicz): L_jj = √(P_jj − Σ_{k<j} L_jk²),
+# L_ij = (P_ij − Σ_{k<j} L_ik L_jk) / L_jj; a pivot that rounding of a positive semi-definite
+# P takes to ≤ 0 counts as zero, and so does its column
+@njit(**_JIT)
+def psd_square_root(P, L):
+    """Writes the square root ``L (4, 4)`` of the symmetric ``P (4, 4)`` (lower triangle read)."""
+    for j in range(STATE_DIM):
+        d = P[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        ljj = math.sqrt(d) if d > 0.0 else 0.0
+        L[j, j] = ljj
+        for i in range(j + 1, STATE_DIM):
+            s = P[i, j]
+            for k in range(j):
+                s -= L[i, k] * L[j, k]
+            L[i, j] = s / ljj if ljj > 0.0 else 0.0
+        for i in range(j):
+            L[i, j] = 0.0
+
+
+@njit(**_JIT)
+def psd_square_root_batch(P, L):
+    for b in range(P.shape[0]):
+        psd_square_root(P[b], L[b])
+
+
 # ‖v‖ without overflow or underflow: s √Σ(vᵢ/s)², s = maxᵢ |vᵢ|
 @njit(**_JIT)
 def _scaled_norm(A, j, lo, hi):
