@@ -40,7 +40,9 @@ from sensorgym.trackers.geometry_kernels import (
 )
 from sensorgym.trackers.stereo.conjugation_kernels import triple_velocity_kernel
 from sensorgym.trackers.stereo.kernels import (
+    MIN_RANGE,
     det3,
+    line_of_sight,
     log_ratio_reward,
     observable,
     position_information,
@@ -112,6 +114,14 @@ def any_true(flags):
 
 
 @njit(inline="always")
+def _in_disc(x, y, z, radius):
+    """``(x, y, z)`` pulled radially back onto the disc of ``radius`` where outside it
+    (:func:`.simulation.in_arena`)."""
+    scale = min(1.0, radius / max(np.hypot(x, z), 1e-12))
+    return (x * scale, y * scale, z * scale)
+
+
+@njit(inline="always")
 def _drive_row(receivers, action, period, max_speed, radius, end, i):
     """Row ``i`` of :func:`drive`."""
     for k in range(receivers.shape[1]):
@@ -126,8 +136,7 @@ def _drive_row(receivers, action, period, max_speed, radius, end, i):
             receivers[i, k, 2] + period * v[2],
         )
         # radially back onto the disc where outside it
-        scale = min(1.0, radius / max(np.hypot(p[0], p[2]), 1e-12))
-        end[i, k, 0], end[i, k, 1], end[i, k, 2] = p[0] * scale, p[1] * scale, p[2] * scale
+        end[i, k, 0], end[i, k, 1], end[i, k, 2] = _in_disc(p[0], p[1], p[2], radius)
 
 
 @njit(**_JIT)
@@ -141,15 +150,16 @@ def drive(receivers, action, period, max_speed, radius, end):
 
 @njit(**_ROW)
 def systems_row(
-    i, s, delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity,
-    previous, normals, truth, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position, Xe, Qe,
-    kappa_e,
+    i, s, delays, scalars, start, end, drone_end, drone_velocity, previous, normals, truth, R,
+    a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position, Xe, Qe, kappa_e, sight,
 ):  # fmt: skip
     """Scenario ``i`` of :func:`period_systems`: its inputs and the true geometry ``truth =
     (origins, los, ranges)`` at row ``i``, the frames, systems and solves at row ``s`` of their
-    (scratch) arrays (``J`` and ``position`` serve both solves). ``κ_F`` is left at ``inf``
-    where not solved here (n ≠ 3)."""
+    (scratch) arrays (``J`` and ``position`` serve both solves); ``scalars = (τ, σ_ang,
+    max_elevation)``, ``sight (3,)`` scratch. ``κ_F`` is left at ``inf`` where not solved here
+    (n ≠ 3)."""
     origins, los, ranges = truth
+    period, sigma_ang, max_elevation = scalars
     n = start.shape[1]
     noisy = sigma_ang > 0.0
     kappa[s] = np.inf
@@ -170,14 +180,13 @@ def systems_row(
         )
         # M(d_k) = M(τ) − V (τ − d_k)
         back = period - delays[k]
-        off = (
-            drone_end[i, 0] - drone_velocity[i, 0] * back - o[0],
-            drone_end[i, 1] - drone_velocity[i, 1] * back - o[1],
-            drone_end[i, 2] - drone_velocity[i, 2] * back - o[2],
+        at_fix = (
+            drone_end[i, 0] - drone_velocity[i, 0] * back,
+            drone_end[i, 1] - drone_velocity[i, 1] * back,
+            drone_end[i, 2] - drone_velocity[i, 2] * back,
         )
-        r = norm3(off)
-        rr = max(r, 1e-9)
-        u = (off[0] / rr, off[1] / rr, off[2] / rr)
+        r = line_of_sight(o, at_fix, sight)
+        u = (sight[0], sight[1], sight[2])
         Rk = boresight3(o, aim, max_elevation)
         ranges[i, k] = r
         for j in range(3):
@@ -187,7 +196,7 @@ def systems_row(
                 R[s, k, j, c] = Rk[c][j]
         # a_k = R_kᵀ z_k: each receiver reports the direction in its own frame
         z = perturbed_direction3(u, _row3(normals, i, k), sigma_ang) if noisy else u
-        if r == 0.0:
+        if not r > MIN_RANGE:
             z = (0.0, 0.0, 0.0)  # no direction to measure (the solve's check names it)
         a = to_local3(Rk, z)
         e = to_local3(Rk, u)
@@ -236,11 +245,12 @@ def period_systems(
     to the caller). Returns 0 or the input-check code of :func:`triple_velocity_kernel` (a zero
     line of sight).
     """
+    sight = np.empty(3)
     for i in range(start.shape[0]):
         code = systems_row(
-            i, i, delays, period, sigma_ang, max_elevation, start, end, drone_end,
+            i, i, delays, (period, sigma_ang, max_elevation), start, end, drone_end,
             drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
-            ek, X, J, Q, kappa, position, Xe, Qe, kappa_e,
+            ek, X, J, Q, kappa, position, Xe, Qe, kappa_e, sight,
         )  # fmt: skip
         if code != 0:
             return code
@@ -335,10 +345,10 @@ def _clip_obs(x):
 @njit(**_ROW)
 def observe_row(
     i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
-    sigma_ref, period, pairs, out,
+    sigma_ref, period, pairs, out, sight,
 ):  # fmt: skip
     """Scenario ``i``'s observation blocks of :func:`.simulation.observe`, clipped to
-    ``±OBS_CLIP``, into ``out[i]`` (float32)."""
+    ``±OBS_CLIP``, into ``out[i]`` (float32); ``sight (3,)`` scratch."""
     n = receivers.shape[1]
     tiny = 1e-12
     half_pi = np.pi / 2
@@ -363,7 +373,8 @@ def observe_row(
     out[i, c + 1] = _clip_obs(np.log10(min(condition[i], 1e300)))
     c += 2
     for q in range(pairs.shape[0]):
-        out[i, c + q] = _clip_obs(_pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p) / half_pi)
+        angle = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight)
+        out[i, c + q] = _clip_obs(angle / half_pi)
     c += pairs.shape[0]
     out[i, c] = 1.0 if degenerate[i] else 0.0
 
@@ -374,56 +385,57 @@ def observe_kernel(
     sigma_ref, period, pairs, out,
 ):  # fmt: skip
     """:func:`observe_row` for the scenarios ``rows``."""
+    sight = np.empty(3)
     for i in rows:
         observe_row(
             i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length,
-            speed, sigma_ref, period, pairs, out,
+            speed, sigma_ref, period, pairs, out, sight,
         )  # fmt: skip
 
 
 @njit(inline="always")
-def _sight(receivers, i, k, point):
-    d = (
-        point[0] - receivers[i, k, 0],
-        point[1] - receivers[i, k, 1],
-        point[2] - receivers[i, k, 2],
-    )
-    r = max(norm3(d), 1e-9)
-    return (d[0] / r, d[1] / r, d[2] / r)
+def _sight(receivers, i, k, point, sight):
+    """Unit line of sight from receiver ``k`` of scenario ``i`` to ``point`` (the stereo tracker
+    kernels' :func:`line_of_sight`; ``sight (3,)`` scratch)."""
+    line_of_sight(_row3(receivers, i, k), point, sight)
+    return (sight[0], sight[1], sight[2])
 
 
 @njit(inline="always")
-def _pair_angle(receivers, i, k, l, point):
-    return los_angle3(_sight(receivers, i, k, point), _sight(receivers, i, l, point))
+def _pair_angle(receivers, i, k, l, point, sight):
+    u = _sight(receivers, i, k, point, sight)
+    return los_angle3(u, _sight(receivers, i, l, point, sight))
 
 
 @njit(**_JIT)
 def los_angles_kernel(receivers, point, pairs, out):
     """Angles ``γ_kl (B, pairs)`` between the lines of sight from ``receivers (B, n, 3)`` to
     ``point (B, 3)``, rad."""
+    sight = np.empty(3)
     for i in range(receivers.shape[0]):
         p = _row(point, i)
         for q in range(pairs.shape[0]):
-            out[i, q] = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p)
+            out[i, q] = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight)
 
 
 @njit(**_ROW)
-def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle):
+def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sight):
     """Scenario ``i``'s position error ``‖p̂ − p‖`` and the smallest angle between the lines of
-    sight to the drone."""
+    sight to the drone (``sight (3,)`` scratch)."""
     p = _row(drone_position, i)
     error[i] = norm3((estimate[i, 0] - p[0], estimate[i, 1] - p[1], estimate[i, 2] - p[2]))
     smallest = np.inf
     for q in range(pairs.shape[0]):
-        smallest = min(smallest, _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p))
+        smallest = min(smallest, _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight))
     min_angle[i] = smallest
 
 
 @njit(**_JIT)
 def info_kernel(rows, receivers, estimate, drone_position, pairs, error, min_angle):
     """:func:`info_row` for the scenarios ``rows``."""
+    sight = np.empty(3)
     for i in rows:
-        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle)
+        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sight)
 
 
 #: flags returned by :func:`period_rows` (or-ed over its scenarios)
@@ -474,6 +486,7 @@ def period_rows(
     piv = np.empty(3, np.int64)
     unit = np.ones(n)
     every = np.ones(n, np.bool_)
+    sight = np.empty(3)
     flags = 0
     for i in range(lo, hi):
         if moving:
@@ -491,9 +504,9 @@ def period_rows(
                 for k in range(n):
                     end[i, k, j] = receivers[i, k, j]
         code = systems_row(
-            i, 0, delays, period, sigma_ang, constants[C_ELEVATION], receivers, end, drone_end,
+            i, 0, delays, (period, sigma_ang, constants[C_ELEVATION]), receivers, end, drone_end,
             drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
-            ek, X, J, Q, kappa, M1, Xe, Qe, kappa_e,
+            ek, X, J, Q, kappa, M1, Xe, Qe, kappa_e, sight,
         )  # fmt: skip
         condition[i] = kappa[0]
         degenerate[i] = degenerate_true[i] = False
@@ -510,20 +523,22 @@ def period_rows(
         observe_row(
             i, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
             constants[C_LENGTH], constants[C_SCALE], constants[C_REF], period, pairs, observation,
+            sight,
         )  # fmt: skip
-        info_row(i, end, estimate, drone_end, pairs, error, min_angle)
+        info_row(i, end, estimate, drone_end, pairs, error, min_angle, sight)
     return flags
 
 
 # ---------------------------------------------------------------- the heuristic rules' searches
 
 
-@njit(inline="always")
-def _in_disc(x, y, z, radius):
-    """``(x, y, z)`` pulled radially back onto the disc of ``radius`` where outside it
-    (:func:`.simulation.in_arena`)."""
-    scale = min(1.0, radius / max(np.hypot(x, z), 1e-12))
-    return (x * scale, y * scale, z * scale)
+@njit(**_JIT)
+def in_disc_batch(positions, radius, out):
+    """:func:`_in_disc` of every row of ``positions (N, 3)`` into ``out (N, 3)``."""
+    for i in range(positions.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = _in_disc(
+            positions[i, 0], positions[i, 1], positions[i, 2], radius
+        )
 
 
 @njit(**_JIT)

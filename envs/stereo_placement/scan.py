@@ -19,7 +19,7 @@ every component of ``e_k`` (the papers' model). A direction error of ``σ_ang`` 
 a point at range ``r`` by about ``r σ_ang`` across the line of sight, so we use
 ``σ_e = σ_ang · mean_k r̂_k`` with the *estimated* ranges (the tracker knows no truth). This is
 the papers' model, not the angle-noise bound: it is what the tracker reports; the reward uses
-the Cramér–Rao bound instead (:mod:`.stereo_placement_core`).
+the Cramér–Rao bound instead (:mod:`.simulation`).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ straight level line. One step is one scan period ``τ``:
    in the disc) and the drone flies on;
 2. during the period receiver ``k`` fixes the drone at its own delay ``d_k`` with angular
    noise ``σ_ang``, and the velocity-aware conjugation tracker solves the period
-   (:mod:`.placement_scan`); a degenerate solve (pseudo-inverse fallback) is not trusted: the
+   (:mod:`.scan`); a degenerate solve (pseudo-inverse fallback) is not trusted: the
    tracker then coasts its previous estimate by ``τ``;
 3. the reward is ``clip(ln(σ_ref / σ_pos), −R, R)`` with ``σ_pos = √tr I(M)⁻¹`` the
    angle-noise Cramér–Rao bound of the period's true geometry,
@@ -345,11 +345,12 @@ def reset(
 
 
 def in_arena(params: PlacementParams, positions: FloatArray, margin: float = 0.0) -> FloatArray:
-    """Ground positions pulled radially back onto the permitted disc (less ``margin`` m) where
-    outside it."""
-    norm = np.hypot(positions[..., 0], positions[..., 2])
-    scale = np.minimum(1.0, (params.arena_radius - margin) / np.maximum(norm, 1e-12))
-    return positions * scale[..., None]
+    """Ground positions ``(..., 3)`` pulled radially back onto the permitted disc (less
+    ``margin`` m) where outside it (:func:`.kernels.in_disc_batch`)."""
+    p = np.ascontiguousarray(positions, dtype=np.float64)
+    out = np.empty_like(p)
+    kernels.in_disc_batch(p.reshape(-1, 3), params.arena_radius - margin, out.reshape(-1, 3))
+    return out
 
 
 def step(

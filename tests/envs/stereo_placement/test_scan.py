@@ -1,4 +1,4 @@
-"""The scan period of moving receivers and its conjugation fix (envs/placement_scan.py): the
+"""The scan period of moving receivers and its conjugation fix (envs/stereo_placement/scan.py): the
 documented covariance mapping, its Monte Carlo check, and OC-3's clustered-versus-circle case."""
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def test_reported_covariance_is_the_papers_model_at_sigma_e_equal_sigma_ang_mean
 
 def test_reported_velocity_sigma_is_close_to_the_monte_carlo_scatter():
     """The papers' i.i.d. model is only an approximation of angular noise (module docstring of
-    placement_scan): on the √2·h circle the reported velocity σ is within 30 % of the scatter."""
+    scan.py): on the √2·h circle the reported velocity σ is within 30 % of the scatter."""
     N, h = 4000, 50.0
     ang = np.array([0.0, 2.0, 4.0]) * np.pi / 3.0
     ring = np.stack([np.sqrt(2.0) * h * np.sin(ang), 0.0 * ang, np.sqrt(2.0) * h * np.cos(ang)], -1)
