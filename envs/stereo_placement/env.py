@@ -89,7 +89,11 @@ class StereoPlacementEnv(CoreEnv):
     ## Version History
 
     * v0: initial version. Issue 11 (in place): the step is a compiled kernel; observations are
-      unchanged and rewards agree with the former numpy step to below 1e-12 relative.
+      unchanged and rewards agree with the former numpy step to below 1e-12 relative. Then the
+      step, observation and diagnostics became one compiled pass over the scenarios (split
+      over threads), bit for bit the same episodes; a receiver within ``MIN_RANGE`` (1 nm) of
+      the drone or the estimate now has no line of sight (zero, as the stereo tracker kernels'
+      ``line_of_sight``) instead of a scaled one.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
