@@ -90,7 +90,10 @@ class StereoPointingEnv(CoreEnv):
       no longer share a place on the circle; degenerate inputs that used to crash (exact fixes
       with no process noise, a fix on or behind a receiver, a drone at a receiver) now take the
       documented fallbacks. Issue 11: the step is a compiled kernel; rewards agree with the
-      former numpy step to below 1e-12 relative.
+      former numpy step to below 1e-12 relative. Later in issue 11 (episodes bit-identical):
+      the step kernel also writes the observation and info, large batches are split over
+      threads (``SENSORGYM_THREADS``), the reset is compiled, and the rules score their
+      candidates in compiled kernels (same actions).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
