@@ -35,7 +35,11 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
+from sensorgym.trackers.geometry_kernels import (
+    look_at_batch,
+    relative_pose_batch,
+    unit_from_angles_batch,
+)
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -65,8 +69,15 @@ def unit_from_angles(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
     """
     phi = finite_array(azimuth, "azimuth")
     theta = finite_array(elevation, "elevation")
-    ct = np.cos(theta)
-    return np.stack(np.broadcast_arrays(ct * np.sin(phi), np.sin(theta), ct * np.cos(phi)), axis=-1)
+    shape = np.broadcast_shapes(phi.shape, theta.shape)
+    out = np.empty((*shape, 3))
+    # a = (cos θ sin φ, sin θ, cos θ cos φ)  (geometry_kernels.unit_from_angles3)
+    unit_from_angles_batch(
+        np.ascontiguousarray(np.broadcast_to(phi, shape)).reshape(-1),
+        np.ascontiguousarray(np.broadcast_to(theta, shape)).reshape(-1),
+        out.reshape(-1, 3),
+    )
+    return out
 
 
 def angles_from_unit(a: ArrayLike, *, check: bool = True) -> tuple[FloatArray, FloatArray]:

@@ -161,3 +161,10 @@ def perturb_batch(a, z, sigma, out):
             continue
         v = perturbed_direction3(u, _row(z, i), sigma[i])
         out[i, 0], out[i, 1], out[i, 2] = v[0], v[1], v[2]
+
+
+@njit(**_JIT)
+def unit_from_angles_batch(azimuth, elevation, out):
+    """:func:`unit_from_angles3` over flat ``azimuth``/``elevation (N,)`` into ``out (N, 3)``."""
+    for i in range(azimuth.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = unit_from_angles3(azimuth[i], elevation[i])
