@@ -92,6 +92,8 @@ def step_kernel(
     K = heading.shape[1]
     dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
     L_pred = np.empty((STATE_DIM, STATE_DIM))
+    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
+    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     x = np.empty(STATE_DIM)
     Pe = np.empty((STATE_DIM, STATE_DIM))
     bad = 0
@@ -142,10 +144,17 @@ def step_kernel(
         for k in range(K):
             bank_update(lw2[b], X2[b], P2[b], z2[b, k], pos2[b, k, 0], pos2[b, k, 1], sigma)
         # 3. the bound: P̄ = F P Fᵀ + Q, then each platform's bearing information, square root
-        bound_predict(L[b], dt, q_tilde, L_pred)
+        bound_predict(L[b], dt, q_tilde, L_pred, A_pred)
         for k in range(K):
             bound_update(
-                L_pred, target2[b, 0], target2[b, 1], pos2[b, k, 0], pos2[b, k, 1], sigma, L2[b]
+                L_pred,
+                target2[b, 0],
+                target2[b, 1],
+                pos2[b, k, 0],
+                pos2[b, k, 1],
+                sigma,
+                L2[b],
+                A_update,
             )
             if k + 1 < K:
                 L_pred[:, :] = L2[b]
@@ -188,6 +197,7 @@ def reset_kernel(
     x = np.empty(STATE_DIM)
     Pe = np.empty((STATE_DIM, STATE_DIM))
     L_in = np.empty((STATE_DIM, STATE_DIM))
+    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     sigma = c[SIGMA]
     for b in range(z.shape[0]):
         for k in range(z.shape[1]):
@@ -216,7 +226,9 @@ def reset_kernel(
         for k in range(1, z.shape[1]):
             bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
             L_in[:, :] = L[b]
-            bound_update(L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b])
+            bound_update(
+                L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b], A_update
+            )
         acc[b] = accuracy(
             c[RELATIVE_RANGE] > 0.0,
             L[b],
@@ -311,6 +323,8 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
     G = np.zeros((STATE_DIM, STATE_DIM))
     Lc = np.empty((STATE_DIM, STATE_DIM))
     L_pred = np.empty((STATE_DIM, STATE_DIM))
+    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
+    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     for b in range(lo, hi):
         for j in range(command.shape[0]):
             px, py, h, v = pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0]
@@ -334,8 +348,8 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
                 # the target's mean path: x' = F x (no noise draw)
                 propagate_target(x, x, G, dt, 0.0, x_next)
                 x[:] = x_next
-                bound_predict(Lc, dt, q_tilde, L_pred)
-                bound_update(L_pred, x[0], x[1], px, py, sigma, Lc)
+                bound_predict(Lc, dt, q_tilde, L_pred, A_pred)
+                bound_update(L_pred, x[0], x[1], px, py, sigma, Lc, A_update)
                 if math.hypot(x[0] - px, x[1] - py) < too_close:
                     close = True
             if close:

@@ -22,7 +22,8 @@ One step (``params.world.dt`` seconds):
        reward_k = ln m(P_k) − ln m(P_{k+1})
 
    with ``m`` the position RMS bound ``√(P_xx + P_yy)`` or the relative range bound ``σ_r/r``
-   (:func:`accuracy_of`; :func:`advance_bound` is the one recursion, shared with the oracle).
+   (:func:`accuracy_of`; :func:`advance_bound` is the recursion in numpy form: the step kernel
+   and the oracle's plans run the same compiled primitives).
    Rewards telescope: the return of an episode is ``ln(m_0/m_T)``, the log-factor by which
    the platform's manoeuvres shrank the bound. The bound does not depend on the noise draw,
    so the reward has no measurement noise in it, only the consequences of the actions.
@@ -334,8 +335,8 @@ def accuracy_of(
 ) -> FloatArray:
     """The accuracy ``m(P)`` the reward measures (``params.metric``) of the bound ``P = L Lᵀ``
     (square root ``L`` ``(..., 4, 4)``) on ``target`` ``(..., 4)``: the position RMS bound, or the
-    relative range bound taken from ``origin`` ``(..., 2)`` (platform 1). The env and the oracle
-    call this. Read off ``L`` as sums of squares, it is never negative; it is kept inside
+    relative range bound taken from ``origin`` ``(..., 2)`` (platform 1), by the compiled
+    primitive the step kernel and the oracle's plans call. Read off ``L`` as sums of squares, it is never negative; it is kept inside
     ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that log-ratio rewards are always finite."""
     L = np.asarray(L, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
@@ -369,8 +370,9 @@ def advance_bound(
 ) -> FloatArray:
     """One step of the posterior-CRLB recursion on the square root ``L`` ``(..., 4, 4)``:
     predict over ``world.dt`` (``P̄ = F P Fᵀ + Q``), then fuse the bearings of the platforms at
-    ``positions`` ``(..., K, 2)`` on the true ``target`` ``(..., 4)`` at the new time. The env's
-    reward and the oracle's plans both run this."""
+    ``positions`` ``(..., K, 2)`` on the true ``target`` ``(..., 4)`` at the new time: the numpy
+    form of the recursion the step kernel and the oracle's plans run (same compiled
+    primitives, :func:`.kernels.step_kernel`, :func:`.kernels.plan_kernel`)."""
     w = params.world
     L = predict_bound_factor(L, w.dt, w.q_tilde)
     return fuse_bound(L, target, positions, w.sigma_bearing)

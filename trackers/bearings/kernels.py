@@ -244,14 +244,18 @@ def householder_r(A):
 # P̄ = F P Fᵀ + Q = [F L, G][F L, G]ᵀ = Rᵀ R with [F L, G]ᵀ = Q R;  L̄ = Rᵀ (= F L when q̃ = 0);
 # G = √q̃ [[√(T³/3), 0], [(√3/2)√T, √T/2]] per axis (G Gᵀ = Q)
 @njit(**_JIT)
-def bound_predict(L, T, q_tilde, out):
-    """Square root ``out (4, 4)`` of the predicted bound from the square root ``L (4, 4)``."""
+def bound_predict(L, T, q_tilde, out, A):
+    """Square root ``out (4, 4)`` of the predicted bound from the square root ``L (4, 4)``;
+    ``A (8, 4)`` is scratch."""
     if q_tilde == 0.0:
         for i in range(STATE_DIM):
             for j in range(STATE_DIM):
                 out[i, j] = L[i, j] + (T * L[i + 2, j] if i < 2 else 0.0)
         return
-    A = np.zeros((2 * STATE_DIM, STATE_DIM))  # [F L, G]ᵀ
+    # A = [F L, G]ᵀ
+    for i in range(STATE_DIM, 2 * STATE_DIM):
+        for j in range(STATE_DIM):
+            A[i, j] = 0.0
     for i in range(STATE_DIM):
         for j in range(STATE_DIM):
             A[j, i] = L[i, j] + (T * L[i + 2, j] if i < 2 else 0.0)
@@ -275,16 +279,19 @@ def bound_predict(L, T, q_tilde, out):
 # P⁺ = (P̄⁻¹ + Hᵀ H/σ²)⁻¹ with H = n̂ᵀ/r, n̂ = (Δy, −Δx)/r: triangularise the pre-array
 # M = [[r σ, n̂ᵀ L_pos], [0, L]] (Mᵀ = Q R, M Q = Rᵀ); P⁺ = Rᵀ[1:, 1:] (Rᵀ[1:, 1:])ᵀ
 @njit(**_JIT)
-def bound_update(L, tx, ty, px, py, sigma, out):
+def bound_update(L, tx, ty, px, py, sigma, out, A):
     """Square root ``out (4, 4)`` of the bound after one bearing at the true target
-    position ``(tx, ty)`` from ``(px, py)``, from the square root ``L (4, 4)`` of ``P̄``."""
+    position ``(tx, ty)`` from ``(px, py)``, from the square root ``L (4, 4)`` of ``P̄``;
+    ``A (5, 5)`` is scratch."""
     dx = tx - px
     dy = ty - py
     r = math.hypot(dx, dy)
     n0 = dy / r
     n1 = -dx / r
-    A = np.zeros((STATE_DIM + 1, STATE_DIM + 1))  # Mᵀ
+    # A = Mᵀ
     A[0, 0] = r * sigma
+    for j in range(STATE_DIM):
+        A[0, j + 1] = 0.0
     for j in range(STATE_DIM):
         A[j + 1, 0] = n0 * L[0, j] + n1 * L[1, j]
         for i in range(STATE_DIM):
@@ -360,14 +367,16 @@ def bank_estimate_batch(lw, X, P, x_out, P_out):
 
 @njit(**_JIT)
 def bound_predict_batch(L, T, q_tilde, out):
+    A = np.empty((2 * STATE_DIM, STATE_DIM))
     for b in range(L.shape[0]):
-        bound_predict(L[b], T, q_tilde, out[b])
+        bound_predict(L[b], T, q_tilde, out[b], A)
 
 
 @njit(**_JIT)
 def bound_update_batch(L, target, pos, sigma, out):
+    A = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     for b in range(L.shape[0]):
-        bound_update(L[b], target[b, 0], target[b, 1], pos[b, 0], pos[b, 1], sigma[b], out[b])
+        bound_update(L[b], target[b, 0], target[b, 1], pos[b, 0], pos[b, 1], sigma[b], out[b], A)
 
 
 @njit(**_JIT)
