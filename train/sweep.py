@@ -317,10 +317,10 @@ def fan_out_benchmark(settings: SweepSettings, runs: list[Path]) -> dict[str, di
     from sensorgym.train.benchmark import policies_for, pool, score
 
     specs = policies_for(settings.env_id, runs)
-    chunk = max(settings.benchmark_chunk, settings.n_envs_eval)
+    chunk = max(1, settings.benchmark_chunk)
     sizes = [chunk] * (settings.benchmark_episodes // chunk)
     if settings.benchmark_episodes % chunk:
-        sizes.append(max(settings.benchmark_episodes % chunk, settings.n_envs_eval))
+        sizes.append(settings.benchmark_episodes % chunk)
     task = ray.remote(num_cpus=settings.cpus_per_trial)(score)
     futures = {
         name: [

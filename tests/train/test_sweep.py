@@ -9,15 +9,19 @@ import pytest
 from scipy import stats
 
 from sensorgym.cli.main import main
+from sensorgym.train.benchmark import PolicySpec, pool, score
 from sensorgym.train.models import read_config
 from sensorgym.train.sweep import aggregate, config_tag, parse_space
 
 pytest.importorskip("ray")
 
+ENV = "sensorgym/BearingsManeuver-v0"
+
 
 def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
-    args = ["--seeds", "0", "1", "--timesteps", "2048", "--n-envs", "8", "--eval-episodes", "8"]
-    assert main(["sweep", *args, "--num-cpus", "2", "--out", str(tmp_path)]) == 0
+    args = ["--seeds", "0", "1", "--timesteps", "2048", "--n-envs", "8", "--eval-episodes", "4"]
+    bench = ["--benchmark-episodes", "8", "--benchmark-chunk", "4"]  # 2 Ray tasks per policy
+    assert main(["sweep", *args, *bench, "--num-cpus", "2", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
     assert "yaml (best)" in printed and "±95 %" in printed and "sweep.png" in printed
     doc = json.loads((tmp_path / "sweep.json").read_text())
@@ -36,6 +40,28 @@ def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
     half = stats.t.ppf(0.975, 1) * np.std(returns, ddof=1) / np.sqrt(2)
     assert config["ci95"] == pytest.approx(half)
     assert (tmp_path / "sweep.png").read_bytes()[:4] == b"\x89PNG"
+    # the benchmark fan-out: every rule and both seeds' runs, chunks on seeds 10000 and 10001
+    benchmark = doc["benchmark"]
+    assert {"paper002", "oracle-lookahead", "model:ppo_seed0", "model:ppo_seed1"} <= set(benchmark)
+    chunks = [
+        score(ENV, PolicySpec("rule", "straight-course"), 4, 4, seed) for seed in (10_000, 10_001)
+    ]
+    assert benchmark["straight-course"] == pytest.approx(pool(chunks))
+    assert all(r["episodes"] == 8 for r in benchmark.values())
+    assert (tmp_path / "benchmark.png").is_file()
+
+
+def test_pooled_statistics_equal_those_of_all_episodes():
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=50)
+    parts = [x[:20], x[20:23], x[23:]]
+    pooled = pool(
+        [{"mean": p.mean(), "std": p.std(ddof=1), "episodes": p.size, "mean_length": 30.0}
+         for p in parts]
+    )  # fmt: skip
+    assert pooled["mean"] == pytest.approx(x.mean()) and pooled["episodes"] == 50
+    assert pooled["std"] == pytest.approx(x.std(ddof=1))
+    assert pooled["ci95"] == pytest.approx(1.96 * x.std(ddof=1) / np.sqrt(50))
 
 
 def test_search_space_specs():
