@@ -70,3 +70,18 @@ def test_a_model_file_path_names_its_folder(tmp_path, name):
 def test_unknown_env_ids_are_named(tmp_path, command):
     extra = {"render": ["--out", str(tmp_path / "x.gif")], "train": ["--out", str(tmp_path)]}
     _fails([command, "--env", "sensorgym/Nope-v0", *extra.get(command, [])], "sensorgym/Nope-v0")
+
+
+@pytest.mark.parametrize(
+    "extra, words",
+    [
+        (["--space", "gamma"], ["--space", "NAME=KIND:ARGS"]),
+        (["--space", "lr=loguniform:1e-3:1e-4"], ["--space", "LO < HI"]),
+        (["--space", "gamma=normal:0:1"], ["--space", "normal"]),
+        (["--env", "sensorgym/Nope-v0"], ["--env", "sensorgym/Nope-v0"]),
+        (["--samples", "0"], ["--samples"]),
+    ],
+)
+def test_sweep_mistakes_are_named_before_ray_starts(extra, words, tmp_path):
+    pytest.importorskip("ray")
+    _fails(["sweep", *extra, "--out", str(tmp_path)], *words)
