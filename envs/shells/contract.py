@@ -23,6 +23,7 @@ Conventions shared by every env:
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import importlib
 import math
@@ -175,11 +176,12 @@ def tree_scatter(mask: ArrayLike, fresh: Any, old: Any) -> Any:
         if dataclasses.is_dataclass(b):
             if type(a) is not type(b):
                 raise ValueError(f"{name}: {type(a).__name__} vs {type(b).__name__}")
-            parts = {
-                f.name: put(getattr(a, f.name), getattr(b, f.name), f"{name}.{f.name}")
-                for f in dataclasses.fields(b)
-            }
-            return type(b)(**parts)
+            # the merged value of valid states is valid: bypass the constructor's checks
+            out = copy.copy(b)
+            for f in dataclasses.fields(b):
+                merged = put(getattr(a, f.name), getattr(b, f.name), f"{name}.{f.name}")
+                object.__setattr__(out, f.name, merged)
+            return out
         if isinstance(b, np.ndarray) and b.ndim >= 1:
             if b.shape[0] != m.shape[0]:
                 raise ValueError(f"mask: {m.shape[0]} entries for a batch of {b.shape[0]} ({name})")

@@ -16,6 +16,7 @@ and kernels compiled with ``nogil=True`` need nothing else.
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -40,6 +41,11 @@ def threads() -> int:
         if n < 1:
             raise ValueError(f"SENSORGYM_THREADS: must be >= 1, got {n}")
         return n
+    return _cpus()
+
+
+@functools.cache
+def _cpus() -> int:
     try:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
