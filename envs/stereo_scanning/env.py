@@ -41,8 +41,9 @@ class StereoScanningEnv(CoreEnv):
     solved by the velocity-aware conjugation (``n = 3`` closed form, theory §3.5) for position,
     velocity and ``Q = σ_e² (AᵀA)⁻¹``; implausible candidates (non-positive range, speed above
     ``max_speed``, ``κ_F > cond_max``) are dropped; confirmed tracks take the candidate with the
-    smallest ``ΔJ = ‖M − (M̂ + V̂ Δ)‖`` within the gate ``δ`` (one-to-one, no shared direction
-    vector); tentative tracks grow every passing continuation as a child, in ascending
+    smallest ``ΔJ = ‖M − (M̂ + V̂ Δ)‖`` within the gate ``δ`` whose velocity agrees with the
+    track's (paper 003's velocity consistency; one-to-one, no shared direction vector);
+    tentative tracks grow every passing continuation as a child, in ascending
     cumulative index, and are confirmed after ``confirm_hits`` periods (paper 000's groups run
     online); candidates sharing no vector with a continued track open tentative tracks; a
     confirmed track is dropped after more than ``max_misses`` periods without a candidate.

@@ -400,8 +400,8 @@ def step_rows(
             for c in range(nc):
                 if not cok[c]:
                     continue
-                cost = _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, ctime, csig, cdt,
-                                  gate_q, max_speed, max_accel)  # fmt: skip
+                cost = _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig,
+                                  cdt, gate_q, max_speed, max_accel)  # fmt: skip
                 if cost < np.inf:
                     pairs_t[npair], pairs_c[npair], pairs_s[npair] = q, c, cost
                     npair += 1
@@ -593,12 +593,13 @@ def _predicted_sigma(i, q, s, tsig):
 
 
 @njit(inline="always")
-def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, ctime, csig, cdt, gate_q, max_speed,
-               max_accel):  # fmt: skip
+def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, cdt, gate_q,
+               max_speed, max_accel):  # fmt: skip
     """ΔJ = ‖M(i, j) − (M̂_s + V̂_s (t − t_s))‖ if it passes the gate δ, else inf (000 step 3-4).
 
     ``δ = q · s + margin``, ``s² = (σ_pos,c² + σ_pos,pred²)/3`` per axis; margin ``½ a_max Δ²``
-    (proposed) or ``v_max |Δt|`` (the alternative's dynamic error may drift by its size). An
+    (proposed) or ``v_max |Δt|`` (the alternative's dynamic error may drift by its size); the
+    proposed also needs ``‖V − V̂_s‖ ≤ q √((σ_vel,c² + σ_vel,s²)/3) + a_max Δ``. An
     alternative track of one point has no velocity: any candidate within ``2 v_max Δ`` continues
     it at zero cost (000 temporal step 1, theory §13.11)."""
     s = ctime[c] - tt[i, q]
@@ -619,6 +620,11 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, ctime, csig, cdt, ga
         margin = max_speed * cdt[c]
     else:
         margin = 0.5 * max_accel * s * s
+        # velocity consistency (003's J_3, theory §5.5): a ghost triple of two close drones
+        # fixes near them with a velocity of neither
+        dv = norm3((cvel[c, 0] - tx[i, q, 3], cvel[c, 1] - tx[i, q, 4], cvel[c, 2] - tx[i, q, 5]))
+        if not dv <= gate_q * np.sqrt((csig[c, 1] ** 2 + tsig[i, q, 1] ** 2) / 3.0) + max_accel * s:
+            return np.inf
     return d if d <= gate_q * spread + margin else np.inf
 
 

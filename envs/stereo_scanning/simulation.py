@@ -35,7 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
-from sensorgym.envs.shells.rows import run_rows
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
 from sensorgym.trackers.stereo.association import norm_quantile
@@ -240,17 +240,22 @@ class ScanningParams:
         """Observation length ``11 · track_slots + 4 n`` (100 by default, :func:`observe`)."""
         return TRACK_FEATURES * self.track_slots + RECEIVER_FEATURES * self.n_receivers
 
-    @property
+    @functools.cached_property
+    def offsets_array(self) -> FloatArray:
+        """:attr:`scan_offsets` as a float array ``(n,)``."""
+        return np.asarray(self.scan_offsets, dtype=np.float64)
+
+    @functools.cached_property
     def centre(self) -> FloatArray:
         """The scene centre ``(0, aim_height, 0)`` the boresights look at, m."""
         return np.array([0.0, self.aim_height, 0.0])
 
-    @property
+    @functools.cached_property
     def length_scale(self) -> float:
         """Length (m) that normalises observed positions: the scene's half width."""
         return self.scene_half_width
 
-    @property
+    @functools.cached_property
     def speed_scale(self) -> float:
         """Speed (m/s) that normalises observed velocities: the fastest drone."""
         return max(self.drone_speed[1], 1.0)
@@ -310,32 +315,21 @@ class ScanningState:
     """(B, m) True once a drone has left the scene."""
     sectors: FloatArray = field(repr=False)
     """(B, n, 3) the last period's sectors: centre azimuth, elevation and width, rad."""
-    fix_world: FloatArray = field(repr=False)
-    """(B, n, F, 3) the last period's measured directions, world frame (rows < fix_count)."""
-    fix_time: FloatArray = field(repr=False)
-    """(B, n, F) their fix times, s."""
+    fixes: FloatArray = field(repr=False)
+    """(B, n, F, 4) the last period's fixes: measured direction (world frame) and fix time (s);
+    rows ``< fix_count`` are used (views: :attr:`fix_world`, :attr:`fix_time`)."""
     fix_count: IntArray = field(repr=False)
     """(B, n) number of fixes per receiver in the last period."""
     fix_drone: IntArray = field(repr=False)
     """(B, n, F) which drone each fix is of (−1: false detection; ground truth)."""
-    track_x: FloatArray = field(repr=False)
-    """(B, T, 6) track position (m) at ``track_t`` and velocity (m/s), world frame."""
-    track_t: FloatArray = field(repr=False)
-    """(B, T) time of each track's latest member, s."""
-    track_sigma: FloatArray = field(repr=False)
-    """(B, T, 2) the track's ``σ_pos`` (m) and ``σ_vel`` (m/s) from ``σ_e² (AᵀA)⁻¹``."""
-    track_score: FloatArray = field(repr=False)
-    """(B, T) cumulative index ``I = Σ ΔJ``, m."""
-    track_hits: IntArray = field(repr=False)
-    """(B, T) number of periods with a member."""
-    track_misses: IntArray = field(repr=False)
-    """(B, T) consecutive periods without one."""
-    track_status: IntArray = field(repr=False)
-    """(B, T) 0 empty, 1 tentative, 2 confirmed."""
-    track_sums: FloatArray = field(repr=False)
-    """(B, T, 9) the alternative's line-fit sums ``(S0, Σt, Σt², ΣM, ΣtM)`` (t from the latest)."""
-    track_id: IntArray = field(repr=False)
-    """(B, T) identity given at confirmation."""
+    tracks: FloatArray = field(repr=False)
+    """(B, T, 19) the tracker's table, per row: position (m) at its time and velocity (m/s),
+    world frame (0–5); time of the latest member, s (6); ``σ_pos`` (m) and ``σ_vel`` (m/s) from
+    ``σ_e² (AᵀA)⁻¹`` (7, 8); cumulative index ``I = Σ ΔJ``, m (9); the alternative's line-fit
+    sums ``(S0, Σt, Σt², ΣM, ΣtM)``, t from the latest member (10–18). Views: ``track_*``."""
+    track_int: IntArray = field(repr=False)
+    """(B, T, 4) per row: periods with a member, consecutive misses, status (0 empty,
+    1 tentative, 2 confirmed) and the identity given at confirmation."""
     next_id: IntArray = field(repr=False)
     """(B,) the next identity."""
     assigned: IntArray = field(repr=False)
@@ -351,6 +345,61 @@ class ScanningState:
         """Number of scenarios ``B``."""
         return int(self.t.shape[0])
 
+    @property
+    def fix_world(self) -> FloatArray:
+        """(B, n, F, 3) measured directions, world frame."""
+        return self.fixes[..., :3]
+
+    @property
+    def fix_time(self) -> FloatArray:
+        """(B, n, F) fix times, s."""
+        return self.fixes[..., 3]
+
+    @property
+    def track_x(self) -> FloatArray:
+        """(B, T, 6) track position (m) at ``track_t`` and velocity (m/s), world frame."""
+        return self.tracks[..., 0:6]
+
+    @property
+    def track_t(self) -> FloatArray:
+        """(B, T) time of each track's latest member, s."""
+        return self.tracks[..., 6]
+
+    @property
+    def track_sigma(self) -> FloatArray:
+        """(B, T, 2) ``σ_pos`` (m) and ``σ_vel`` (m/s)."""
+        return self.tracks[..., 7:9]
+
+    @property
+    def track_score(self) -> FloatArray:
+        """(B, T) cumulative index, m."""
+        return self.tracks[..., 9]
+
+    @property
+    def track_sums(self) -> FloatArray:
+        """(B, T, 9) the alternative's line-fit sums."""
+        return self.tracks[..., 10:19]
+
+    @property
+    def track_hits(self) -> IntArray:
+        """(B, T) periods with a member."""
+        return self.track_int[..., 0]
+
+    @property
+    def track_misses(self) -> IntArray:
+        """(B, T) consecutive periods without one."""
+        return self.track_int[..., 1]
+
+    @property
+    def track_status(self) -> IntArray:
+        """(B, T) 0 empty, 1 tentative, 2 confirmed."""
+        return self.track_int[..., 2]
+
+    @property
+    def track_id(self) -> IntArray:
+        """(B, T) identity given at confirmation (−1: none)."""
+        return self.track_int[..., 3]
+
 
 def spaces(params: ScanningParams) -> EnvSpaces:
     """Agents ``receiver_0 … receiver_{n−1}``, each choosing its sector ``(φ_c, θ_c, w)``; the
@@ -359,38 +408,38 @@ def spaces(params: ScanningParams) -> EnvSpaces:
     return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 3)
 
 
-def _empty_tracks(params: ScanningParams, B: int, fill: bool = False) -> dict:
-    """Fresh per-period arrays (the kernel writes every entry the state exposes); ``fill``
-    gives the defined values of a scenario before its first period."""
-    T, n, F, m = params.track_capacity, params.n_receivers, params.max_fixes, params.n_drones
-    if fill:
-        out = _empty_tracks(params, B)
-        out["sectors"][:] = 0.0
-        out["fix_count"][:] = 0
-        out["assigned"][:] = -1
-        out["drone_sigma"][:] = np.inf
-        out["parts"][:] = 0.0
-        return out
+def _fresh(params: ScanningParams, B: int) -> dict:
+    """The per-period arrays the kernel writes (every entry the state exposes)."""
+    n, F, m = params.n_receivers, params.max_fixes, params.n_drones
     return {
         "sectors": np.empty((B, n, 3)),
-        "fix_world": np.zeros((B, n, F, 3)),
-        "fix_time": np.zeros((B, n, F)),
+        "fixes": np.zeros((B, n, F, 4)),
         "fix_count": np.empty((B, n), np.int64),
-        "fix_drone": np.full((B, n, F), -1, np.int64),
-        "track_x": np.zeros((B, T, 6)),
-        "track_t": np.zeros((B, T)),
-        "track_sigma": np.zeros((B, T, 2)),
-        "track_score": np.zeros((B, T)),
-        "track_hits": np.zeros((B, T), np.int64),
-        "track_misses": np.zeros((B, T), np.int64),
-        "track_status": np.zeros((B, T), np.int64),
-        "track_sums": np.zeros((B, T, 9)),
-        "track_id": np.full((B, T), -1, np.int64),
-        "next_id": np.zeros(B, np.int64),
+        "fix_drone": np.zeros((B, n, F), np.int64),
         "assigned": np.empty((B, m), np.int64),
         "drone_sigma": np.empty((B, m)),
         "parts": np.empty((B, 6)),
     }
+
+
+def _initial(params: ScanningParams, B: int) -> dict:
+    """The defined values of scenarios before their first period: no fixes, an empty table."""
+    T = params.track_capacity
+    out = _fresh(params, B)
+    out["sectors"][:] = 0.0
+    out["fix_count"][:] = 0
+    out["fix_drone"][:] = -1
+    out["assigned"][:] = -1
+    out["drone_sigma"][:] = np.inf
+    out["parts"][:] = 0.0
+    track_int = np.zeros((B, T, 4), np.int64)
+    track_int[..., 3] = -1
+    out |= {
+        "tracks": np.zeros((B, T, 19)),
+        "track_int": track_int,
+        "next_id": np.zeros(B, np.int64),
+    }
+    return out
 
 
 def start(
@@ -417,7 +466,7 @@ def start(
         drone_acceleration=np.ascontiguousarray(a),
         enter=np.ascontiguousarray(e),
         exited=np.zeros((B, m), bool),
-        **_empty_tracks(params, B, fill=True),
+        **_initial(params, B),
     )
 
 
@@ -495,39 +544,36 @@ def step(
     t = state.t.copy()
     dp, dv = state.drone_position.copy(), state.drone_velocity.copy()
     exited = state.exited.copy()
-    fresh = _empty_tracks(params, B)
-    tracks = {
-        k: getattr(state, k).copy()
-        for k in ("track_x", "track_t", "track_sigma", "track_score", "track_hits",
-                  "track_misses", "track_status", "track_sums", "track_id", "next_id")
-    }  # fmt: skip
+    fresh = _fresh(params, B)
+    tracks, track_int, next_id = state.tracks.copy(), state.track_int.copy(), state.next_id.copy()
+    fixes = fresh["fixes"]
     O, R = params.receivers, params.rotations
     P, b = params.relative
     reward = np.empty(B)
-    offsets = np.asarray(params.scan_offsets, dtype=np.float64)
+    offsets = params.offsets_array
     lo_w, hi_w = params.sector_width
 
     def kernel_on(lo: int, hi: int) -> None:
         kernels.step_rows(
             lo, hi, TRACKERS[params.tracker], a, O, R, P, b, t, dp, dv, state.drone_acceleration,
             state.enter, exited, params.scene_half_width, params.scene_floor, params.scene_height,
-            normals,
-            pos_noise, clutter_count, clutter_uv, offsets, params.sweep_time,
+            normals, pos_noise, clutter_count, clutter_uv, offsets, params.sweep_time,
             float(params.raster_lines), params.period, params.pixel_iterations, lo_w, hi_w,
             0.5 * params.field_of_regard, params.noise_per_width, params.sigma_ang_min,
             params.position_sigma, params.max_speed, params.max_acceleration, params.gate_q,
             params.cond_max, params.confirm_hits, params.max_misses, params.sigma_ref,
             params.reward_clip, params.false_track_penalty, params.truth_gate,
-            fresh["sectors"], fresh["fix_world"], fresh["fix_time"], fresh["fix_count"],
-            fresh["fix_drone"], tracks["track_x"], tracks["track_t"], tracks["track_sigma"],
-            tracks["track_score"], tracks["track_hits"], tracks["track_misses"],
-            tracks["track_status"], tracks["track_sums"], tracks["track_id"], tracks["next_id"],
+            fresh["sectors"], fixes[..., :3], fixes[..., 3], fresh["fix_count"],
+            fresh["fix_drone"], tracks[..., 0:6], tracks[..., 6], tracks[..., 7:9],
+            tracks[..., 9], track_int[..., 0], track_int[..., 1], track_int[..., 2],
+            tracks[..., 10:19], track_int[..., 3], next_id,
             fresh["assigned"], fresh["drone_sigma"], reward, fresh["parts"],
         )  # fmt: skip
 
-    run_rows(B, kernel_on)
-    for k in tracks:
-        fresh[k] = tracks[k]
+    if B < MIN_ROWS_PER_THREAD:  # one chunk: skip the pool's bookkeeping
+        kernel_on(0, B)
+    else:
+        run_rows(B, kernel_on)
     new = ScanningState(
         t=t,
         drone_position=dp,
@@ -535,6 +581,9 @@ def step(
         drone_acceleration=state.drone_acceleration,
         enter=state.enter,
         exited=exited,
+        tracks=tracks,
+        track_int=track_int,
+        next_id=next_id,
         **fresh,
     )
     terminated = np.all(exited, axis=1)
