@@ -71,6 +71,10 @@ POLICY_LABELS = {
     "hold-still": "`HoldStill` (stay on the cue until the drones leave the field of view)",
     "circle-placement": "`CirclePlacement` (theory §10.3 OC-3: circle of radius √2·ĥ around the estimated ground point)",
     "hold-position": "`HoldPosition` (stay in the 15 m start cluster)",
+    "oracle-sectors": "`OracleSectors` (ceiling: the greedy sectors on the true drones)",
+    "cue-following": "`CueFollowing` (sectors just covering the predicted tracks; a full sweep every fifth period)",
+    "orthogonal-sectors": "`OrthogonalSectors` (theory §10.1 OC-1: narrow sectors on the tracks with the most orthogonal lines of sight)",
+    "full-sweep": "`FullSweep` (the papers' fixed sweep of the whole field of regard)",
 }
 
 
@@ -78,6 +82,7 @@ GREEDY_LABELS = {
     "BearingsManeuver-v0": "`GreedyManeuver` (one-step D-optimal, from the tracker's estimate)",
     "StereoPointing-v0": "`GreedyPointing` (assignment maximising Σ ln det of the predicted position information)",
     "StereoPlacement-v0": "`GreedyPlacement` (one-step move of every receiver maximising ln det of the predicted position information)",
+    "StereoScanning-v0": "`GreedyInformation` (the common width and centres maximising the expected covariance reward of the tracks)",
 }
 
 
@@ -108,6 +113,7 @@ TABLES = {
     "scores-bearings": lambda: scores("BearingsManeuver-v0"),
     "scores-pointing": lambda: scores("StereoPointing-v0"),
     "scores-placement": lambda: scores("StereoPlacement-v0"),
+    "scores-scanning": lambda: scores("StereoScanning-v0"),
 }
 
 

@@ -11,7 +11,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sensorgym.envs import ManeuverParams, PlacementParams, PointingParams
+from sensorgym.envs import ManeuverParams, PlacementParams, PointingParams, ScanningParams
 from sensorgym.envs.worlds.platform import PlatformWorldParams
 
 STEPS = 200
@@ -36,6 +36,7 @@ def _runs_finite_or_names_a_field(env_id: str, make_params) -> None:
         fields = {f.name for f in dataclasses.fields(ManeuverParams)}
         fields |= {f.name for f in dataclasses.fields(PointingParams)}
         fields |= {f.name for f in dataclasses.fields(PlacementParams)}
+        fields |= {f.name for f in dataclasses.fields(ScanningParams)}
         fields |= {f.name for f in dataclasses.fields(PlatformWorldParams)}
         named = str(exc).split(":")[0].split("/")[0].split(".")[-1].split(" ")[0]
         assert named in fields or any(f in str(exc) for f in fields), str(exc)
@@ -132,3 +133,35 @@ def test_stereo_placement_params(delays, period, sigma, speed, arena, altitude, 
         )
 
     _runs_finite_or_names_a_field("sensorgym/StereoPlacement-v0", make)
+
+
+@SETTINGS
+@given(
+    kappa=st.one_of(st.just(0.0), log_uniform(1e-7, 0.1)),
+    position_sigma=st.one_of(st.just(0.0), log_uniform(1e-4, 10.0)),
+    period=log_uniform(0.05, 20.0),
+    drones=st.integers(1, 6),
+    clutter=st.one_of(st.just(0.0), log_uniform(0.01, 5.0)),
+    speed=span(0.0, 60.0),
+    radius=log_uniform(5.0, 2_000.0),
+    tracker=st.sampled_from(["proposed", "alternative"]),
+)
+def test_stereo_scanning_params(kappa, position_sigma, period, drones, clutter, speed, radius,
+                                tracker):  # fmt: skip
+    def make():
+        return ScanningParams(
+            noise_per_width=kappa,
+            position_sigma=position_sigma,
+            period=period,
+            sweep_time=0.4 * period,
+            scan_offsets=(0.0, 0.25 * period, 0.5 * period),
+            n_drones=drones,
+            close_drones=min(1, drones - 1),
+            late_drones=min(1, drones),
+            clutter_rate=clutter,
+            drone_speed=speed,
+            circle_radius=radius,
+            tracker=tracker,
+        )
+
+    _runs_finite_or_names_a_field("sensorgym/StereoScanning-v0", make)
