@@ -25,6 +25,7 @@ the Cramér–Rao bound instead (:mod:`.simulation`).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -53,6 +54,14 @@ class ScanFix:
     degenerate: BoolArray = field(repr=False)
     """(B,) True where the solver fell back to the pseudo-inverse (``used_pinv``)."""
 
+    @classmethod
+    def trusted(cls, **fields: Any) -> ScanFix:
+        """One from arrays the kernels have just written, without the dataclass constructor
+        (hot paths only: every field must be given, consistent)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
+
 
 @dataclass(frozen=True)
 class ScanGeometry:
@@ -67,6 +76,14 @@ class ScanGeometry:
     degenerate: BoolArray = field(repr=False)
     """(B,) True where the noise-free conjugation of this geometry needs the pseudo-inverse
     (coplanar or parallel lines of sight, equal delays): no noise draw can be trusted there."""
+
+    @classmethod
+    def trusted(cls, **fields: Any) -> ScanGeometry:
+        """One from arrays the kernels have just written, without the dataclass constructor
+        (hot paths only: every field must be given, consistent)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
 
 
 def boresight_rotations(origins: FloatArray, aim: FloatArray, max_elevation: float) -> FloatArray:

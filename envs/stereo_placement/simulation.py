@@ -40,6 +40,7 @@ from __future__ import annotations
 import functools
 import itertools
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -199,6 +200,14 @@ class PlacementState:
     """(B,) derived diagnostic: the smallest angle between the receivers' lines of sight to the
     drone, rad."""
 
+    @classmethod
+    def trusted(cls, **fields: Any) -> PlacementState:
+        """One from arrays the kernels have just written, without the dataclass constructor
+        (hot paths only: every field must be given, consistent)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
+
     @property
     def batch_size(self) -> int:
         """Number of scenarios ``B``."""
@@ -278,11 +287,18 @@ def _advance(
             params.pairs_array, obs,
         )  # fmt: skip
         kernels.info_kernel(rows, end, estimate, drone_end, params.pairs_array, error, min_angle)
-    fix = ScanFix(position, velocity, range_sigma, velocity_sigma, condition, degenerate)
-    geometry = ScanGeometry(origins, los, ranges, degenerate_true)
-    state = PlacementState(
-        t_out, end, drone_end, drone_velocity, fix, estimate, geometry, bound, obs, error, min_angle
+    fix = ScanFix.trusted(
+        position=position, velocity=velocity, range_sigma=range_sigma,
+        velocity_sigma=velocity_sigma, condition=condition, degenerate=degenerate,
+    )  # fmt: skip
+    geometry = ScanGeometry.trusted(
+        origins=origins, los=los, ranges=ranges, degenerate=degenerate_true
     )
+    state = PlacementState.trusted(
+        t=t_out, receivers=end, drone_position=drone_end, drone_velocity=drone_velocity, fix=fix,
+        estimate=estimate, geometry=geometry, bound=bound, observation=obs,
+        position_error=error, min_los_angle=min_angle,
+    )  # fmt: skip
     return state, reward
 
 
