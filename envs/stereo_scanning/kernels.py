@@ -31,7 +31,7 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": Fal
 #: track status codes of the table
 EMPTY, TENTATIVE, CONFIRMED = 0, 1, 2
 #: tracker codes
-PROPOSED, ALTERNATIVE = 0, 1
+PROPOSED, ALTERNATIVE, ALGORITHMIC = 0, 1, 2
 
 
 @njit(inline="always")
@@ -249,6 +249,8 @@ def step_rows(
     pairs_t = np.empty(T * C, np.int64)
     pairs_c = np.empty(T * C, np.int64)
     pairs_s = np.empty(T * C)
+    pairs_mv = np.empty((T * C, 6))
+    child_mv = np.empty((T * C, 6))
     child_t = np.empty(T * C, np.int64)
     child_c = np.empty(T * C, np.int64)
     child_s = np.empty(T * C)
@@ -384,7 +386,7 @@ def step_rows(
                                    gate_q, max_speed, dt[c, 0]):  # fmt: skip
                     continue
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
-            cdt[c] = abs(dt[c, 0])
+            cdt[c] = dt[c, 0]
             csig[c, 0], csig[c, 1] = sp, sv
             cok[c] = True
         # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
@@ -402,6 +404,15 @@ def step_rows(
                     continue
                 cost = _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig,
                                   cdt, gate_q, max_speed, max_accel)  # fmt: skip
+                if tracker == ALGORITHMIC and cost < np.inf and thits[i, q] >= 2:
+                    cost = _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b,
+                                             cdt, ctime, csig, sig, position_sigma, gate_q,
+                                             max_accel, pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk,
+                                             pM, pairs_mv, npair)  # fmt: skip
+                elif cost < np.inf:
+                    for x in range(3):
+                        pairs_mv[npair, x] = cpos[c, x]
+                        pairs_mv[npair, 3 + x] = cvel[c, x]
                 if cost < np.inf:
                     pairs_t[npair], pairs_c[npair], pairs_s[npair] = q, c, cost
                     npair += 1
@@ -414,7 +425,7 @@ def step_rows(
             t_took[q] = True
             _mark(cmem, c, fused, used_n)
             ctaken[c] = True
-            _update(tracker, i, q, c, pairs_s[e], cpos, cvel, ctime, csig, tx, tt, tsig, tscore,
+            _update(tracker, i, q, c, pairs_s[e], pairs_mv[e], ctime, csig, cdt, tx, tt, tsig, tscore,
                     thits, tmiss, tsums, max_speed)  # fmt: skip
         # tentative tracks: every passing continuation is a child (000's groups), in ascending
         # cumulative index; a child reaching ``confirm_hits`` is confirmed if it shares no vector
@@ -425,6 +436,8 @@ def step_rows(
                 continue
             child_t[n_child], child_c[n_child] = q, c
             child_s[n_child] = tscore[i, q] + pairs_s[e]
+            for x in range(6):
+                child_mv[n_child, x] = pairs_mv[e, x]
             n_child += 1
         child_order = np.argsort(child_s[:n_child])
         # old tentative tracks are replaced by their children (copied into a scratch first)
@@ -444,7 +457,7 @@ def step_rows(
                 break
             _load(old, old_slot[q], i, slot, tx, tt, tsig, tscore, thits, tsums)
             tmiss[i, slot] = 0
-            _update(tracker, i, slot, c, child_s[e] - tscore[i, slot], cpos, cvel, ctime, csig,
+            _update(tracker, i, slot, c, child_s[e] - tscore[i, slot], child_mv[e], ctime, csig, cdt,
                     tx, tt, tsig, tscore, thits, tmiss, tsums, max_speed)  # fmt: skip
             ctaken[c] = True
             if thits[i, slot] >= confirm_hits:
@@ -478,7 +491,10 @@ def step_rows(
             tmiss[i, slot] = 0
             for x in range(9):
                 tsums[i, slot, x] = 0.0
-            _update(tracker, i, slot, c, 0.0, cpos, cvel, ctime, csig, tx, tt, tsig, tscore,
+            for x in range(3):
+                child_mv[0, x] = cpos[c, x]
+                child_mv[0, 3 + x] = cvel[c, x]
+            _update(tracker, i, slot, c, 0.0, child_mv[0], ctime, csig, cdt, tx, tt, tsig, tscore,
                     thits, tmiss, tsums, max_speed)  # fmt: skip
             if confirm_hits <= 1:
                 tstatus[i, slot] = CONFIRMED
@@ -612,12 +628,14 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, c
             cpos[c, 2] - (tx[i, q, 2] + tx[i, q, 5] * s),
         )
     )
-    if tracker == ALTERNATIVE and thits[i, q] < 2:
+    if tracker != PROPOSED and thits[i, q] < 2:
         return 0.0 if d <= 2.0 * max_speed * s else np.inf
+    if tracker == ALGORITHMIC:
+        return 0.0  # scored by _algorithmic_cost
     sp = _predicted_sigma(i, q, s, tsig)
     spread = np.sqrt((csig[c, 0] ** 2 + sp**2) / 3.0)
     if tracker == ALTERNATIVE:
-        margin = max_speed * cdt[c]
+        margin = max_speed * abs(cdt[c])
     else:
         margin = 0.5 * max_accel * s * s
         # velocity consistency (003's J_3, theory §5.5): a ghost triple of two close drones
@@ -626,6 +644,62 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, c
         if not dv <= gate_q * np.sqrt((csig[c, 1] ** 2 + tsig[i, q, 1] ** 2) / 3.0) + max_accel * s:
             return np.inf
     return d if d <= gate_q * spread + margin else np.inf
+
+
+@njit(**_JIT)
+def _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b, cdt, ctime, csig, sig,
+                      position_sigma, gate_q, max_accel, pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk,
+                      pM, out, row):  # fmt: skip
+    """Paper 003's algorithmic index of extending track ``q`` by pair ``c`` (theory §5.5, online):
+    the pair re-solved with the track's motion moved to the right-hand side,
+    ``B̂_2 = b_2 − V Δt_2`` (steps 2.1–2.2, the range re-solve of theory §3.3), then
+    ``J = c_1 J_1 + c_2 J_2 + c_3 J_3`` with the compensated miss ``J_1 = ‖e_2‖``, the proximity
+    ``J_2 = ‖M* − (M̂_s + V̂_s Δ)‖`` and the velocity consistency ``J_3 = ‖V̂ − V̂_s‖``,
+    ``V̂ = (M* − M̂_s)/Δ``; ``c_1 = 1/√(σ_e² + (σ_vel Δt_2)²)``, ``c_2 = 1/(2√2 σ_p)``,
+    ``c_3 = Δ/(2√2 σ_p)`` (theory §13.6; ``σ_p`` per axis of the candidate and the track's
+    prediction; both floored at 1 mm); ``J_2``, ``J_3`` less the gentle
+    acceleration's ``½ a_max Δ²``, ``a_max Δ``; ``J ≤ α_3 = 3 q``, else inf. Writes
+    ``(M*, V̂)`` to ``out[row]``."""
+    s = ctime[c] - tt[i, q]
+    # V in frame 1: R_1ᵀ V
+    v1 = _local(R, 0, (tx[i, q, 3], tx[i, q, 4], tx[i, q, 5]))
+    j1, j2 = cmem[c, 0], cmem[c, 1]
+    for x in range(3):
+        pa1[0, x] = la[0, j1, x]
+        pa2[0, 0, x] = la[1, j2, x]
+        # B̂_2 = b_2 − V Δt_2
+        pb[0, 0, x] = b[0, x] - v1[x] * cdt[c]
+        for y in range(3):
+            pP[0, 0, x, y] = P[0, x, y]
+    pair_kernel(pa1, pa2, pP, pb, pones, 1.0, False, 0, 1, pX, pJ, pQ, pk, pM)
+    if not (pX[0, 0] > 0.0 and pX[0, 1] > 0.0):
+        return np.inf
+    mw = _world(R, 0, (pM[0, 0], pM[0, 1], pM[0, 2]))
+    m = (O[0, 0] + mw[0], O[0, 1] + mw[1], O[0, 2] + mw[2])
+    x1, x2 = sig[0] * pX[0, 0], sig[1] * pX[0, 1]
+    sigma_e = np.sqrt(position_sigma * position_sigma + 0.5 * (x1 * x1 + x2 * x2))
+    # σ_p per axis: the candidate's and the track's prediction (its velocity error over Δ)
+    sp = np.sqrt((csig[c, 0] ** 2 + _predicted_sigma(i, q, s, tsig) ** 2) / 3.0)
+    J1 = np.sqrt(pJ[0])
+    J2 = 0.0
+    J3 = 0.0
+    for x in range(3):
+        d = m[x] - (tx[i, q, x] + tx[i, q, 3 + x] * s)
+        J2 += d * d
+        v = (m[x] - tx[i, q, x]) / s
+        out[row, x] = m[x]
+        out[row, 3 + x] = v
+        dv = v - tx[i, q, 3 + x]
+        J3 += dv * dv
+    # the drones accelerate gently: J_2, J_3 allow ½ a_max Δ² and a_max Δ; normalisers are
+    # floored at 1 mm (noise-free fixes)
+    k = 2.0 * np.sqrt(2.0) * max(sp, 1e-3)
+    J2 = max(np.sqrt(J2) - 0.5 * max_accel * s * s, 0.0)
+    J3 = max(np.sqrt(J3) - max_accel * s, 0.0)
+    # J_1's spread also holds the track velocity's error over the delay (the compensation)
+    s1 = np.sqrt(sigma_e * sigma_e + (tsig[i, q, 1] * cdt[c]) ** 2)
+    cost = J1 / max(s1, 1e-3) + J2 / k + s * J3 / k
+    return cost if cost <= 3.0 * gate_q else np.inf
 
 
 @njit(inline="always")
@@ -675,20 +749,46 @@ def _load(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
 
 
 @njit(inline="always")
-def _update(tracker, i, q, c, cost, cpos, cvel, ctime, csig, tx, tt, tsig, tscore, thits, tmiss,
+def _update(tracker, i, q, c, cost, mv, ctime, csig, cdt, tx, tt, tsig, tscore, thits, tmiss,
             tsums, max_speed):  # fmt: skip
     """Extend track ``q`` by candidate ``c``: ``I ← I + ΔJ``. Proposed (000 step 3): the track
     takes the latest spatial estimate ``(M, V)``. Alternative (theory §13.11): a least-squares
     line ``M(t) = M̂ + V̂ (t − t_latest)`` over all members, kept as running sums."""
     tscore[i, q] += cost
+    before = thits[i, q]
     thits[i, q] += 1
     tmiss[i, q] = 0
     tc = ctime[c]
     if tracker == PROPOSED:
         for x in range(3):
-            tx[i, q, x] = cpos[c, x]
-            tx[i, q, 3 + x] = cvel[c, x]
+            tx[i, q, x] = mv[x]
+            tx[i, q, 3 + x] = mv[3 + x]
         tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], csig[c, 1]
+        tt[i, q] = tc
+        return
+    if tracker == ALGORITHMIC:
+        # 003 steps 2.5 and 3: the motion-compensated fix; the velocity from the previous fix
+        # (first continuation), then averaged recursively, V_i = V_{i−1} + (V̂ − V_{i−1})/(i − 1)
+        s = tc - tt[i, q]
+        for x in range(3):
+            if before == 0:
+                v = 0.0
+            elif before == 1:
+                v = (mv[x] - tx[i, q, x]) / s
+            else:
+                v = tx[i, q, 3 + x] + (mv[3 + x] - tx[i, q, 3 + x]) / before
+            tx[i, q, x] = mv[x]
+            tx[i, q, 3 + x] = v
+        tsig[i, q, 0] = csig[c, 0]
+        # σ_vel: a difference of two fixes s apart, averaged over the continuations, plus the
+        # dynamic error ‖V‖ |Δt_2| of the uncompensated first fixes, diluted by the average
+        if before == 0:
+            tsig[i, q, 1] = max_speed
+        else:
+            speed = norm3((tx[i, q, 3], tx[i, q, 4], tx[i, q, 5]))
+            tsig[i, q, 1] = (np.sqrt(2.0) * csig[c, 0] + speed * abs(cdt[c])) / (
+                s * np.sqrt(before)
+            )
         tt[i, q] = tc
         return
     # sums of (1, t, t², M, t M) with t measured from the new member's time (well scaled)
@@ -708,7 +808,7 @@ def _update(tracker, i, q, c, cost, cpos, cvel, ctime, csig, tx, tt, tsig, tscor
     s0 += 1.0
     tsums[i, q, 0], tsums[i, q, 1], tsums[i, q, 2] = s0, st, stt
     for x in range(3):
-        tsums[i, q, 3 + x] += cpos[c, x]
+        tsums[i, q, 3 + x] += mv[x]
         tsums[i, q, 6 + x] = stm[x]
     tt[i, q] = tc
     det = s0 * stt - st * st
@@ -722,7 +822,7 @@ def _update(tracker, i, q, c, cost, cpos, cvel, ctime, csig, tx, tt, tsig, tscor
         tsig[i, q, 1] = csig[c, 0] * np.sqrt(s0 / det)
     else:
         for x in range(3):
-            tx[i, q, x] = cpos[c, x]
+            tx[i, q, x] = mv[x]
             tx[i, q, 3 + x] = 0.0
         tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], max_speed
 

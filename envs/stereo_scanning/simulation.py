@@ -46,7 +46,11 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
 
-TRACKERS = {"proposed": kernels.PROPOSED, "alternative": kernels.ALTERNATIVE}
+TRACKERS = {
+    "proposed": kernels.PROPOSED,
+    "alternative": kernels.ALTERNATIVE,
+    "algorithmic": kernels.ALGORITHMIC,
+}
 
 #: observed values per track slot (:func:`observe`)
 TRACK_FEATURES = 11
@@ -124,8 +128,10 @@ class ScanningParams:
     max_clutter: int = 2
     """Most false detections per receiver and period."""
     tracker: str = "proposed"
-    """``"proposed"`` (paper 000's velocity-aware triples, theory §5.3) or ``"alternative"``
-    (receivers 1–2 only, delays ignored, line fits, theory §5.2)."""
+    """``"proposed"`` (paper 000's velocity-aware triples, theory §5.3), ``"alternative"``
+    (receivers 1–2 only, delays ignored, line fits, theory §5.2) or ``"algorithmic"`` (paper
+    003's detector on receivers 1–2: pairs re-solved with the track's motion, the index
+    ``c_1 J_1 + c_2 J_2 + c_3 J_3``, theory §5.5)."""
     max_speed: float = 50.0
     """Candidates faster than this are implausible and dropped, m/s (theory §13.13)."""
     gate_probability: float = 0.999
