@@ -32,7 +32,7 @@ Every function accepts leading batch axes.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, vectorize
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.geometry_kernels import (
@@ -50,9 +50,9 @@ R_YUP_FROM_ZUP: FloatArray = np.array([[-1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, 
 
 
 def wrap_angle(angle: ArrayLike) -> FloatArray:
-    """Wrap angles (radians) into ``[-π, π)``. The one angle-wrapping function of sensorgym."""
-    a = np.asarray(angle, dtype=np.float64)
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    """Wrap angles (radians) into ``[-π, π)``. The one angle-wrapping function of sensorgym:
+    :func:`wrap_angle_scalar` as a numpy ufunc (any shape, float64)."""
+    return _wrap_angle_ufunc(angle)
 
 
 # wrap(a) = (a + π) mod 2π − π ∈ [−π, π)
@@ -60,6 +60,10 @@ def wrap_angle(angle: ArrayLike) -> FloatArray:
 def wrap_angle_scalar(a: float) -> float:
     """:func:`wrap_angle` of one float, compiled (for the numba kernels)."""
     return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+#: :func:`wrap_angle_scalar` elementwise (the same bits as numpy's ``(a + π) % 2π − π``)
+_wrap_angle_ufunc = vectorize(["float64(float64)"], cache=True)(wrap_angle_scalar.py_func)
 
 
 def unit_from_angles(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
