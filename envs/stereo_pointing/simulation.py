@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -224,10 +225,10 @@ class PointingState:
 
     Derived values: a state made by :func:`step` also carries its observation and diagnostics,
     written by the same compiled kernel (a private attribute, not a field, tagged with the
-    params that made it), so :func:`observe` and :func:`info` only read them. A state built
-    any other way (:func:`start`, ``dataclasses.replace``, the shells' scenario selection) has
-    none: they are computed on the first call and kept. States are values: never change their
-    arrays in place.
+    params and the field objects they were computed from), so :func:`observe` and :func:`info`
+    only read them. A state built any other way (:func:`start`, ``dataclasses.replace``, the
+    shells' scenario selection) computes them on the first call and keeps them. States are
+    values: never change their arrays in place.
     """
 
     t: FloatArray
@@ -446,7 +447,7 @@ def step(
     if not finite:
         raise ValueError("action: contains NaN or infinite values")
     new = PointingState(t, az, el, p, state.drone_velocity, CVTrack(x, P), seen, fixed, bound)
-    object.__setattr__(new, "_derived", (params, obs, diag))
+    object.__setattr__(new, "_derived", (params, obs, diag, _sources(new)))
     return new, reward, np.zeros(B, dtype=bool)
 
 
@@ -496,13 +497,31 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     return _derived(params, state)[1]
 
 
-def _derived(
-    params: PointingParams, state: PointingState
-) -> tuple[PointingParams, NDArray[np.float32], FloatArray]:
-    """``(params, observation, diagnostics (3, B))`` of ``state``: those :func:`step` wrote,
-    else computed by the compiled kernel and kept on the state (:class:`PointingState`)."""
+def _sources(state: PointingState) -> tuple[object, ...]:
+    """The field values the observation and diagnostics are computed from."""
+    return (
+        state.azimuth,
+        state.elevation,
+        state.drone_position,
+        state.track,
+        state.track.x,
+        state.track.P,
+        state.seen,
+        state.fixed,
+    )
+
+
+def _derived(params: PointingParams, state: PointingState) -> tuple[Any, ...]:
+    """``(params, observation, diagnostics (3, B), sources)`` of ``state``: those :func:`step`
+    wrote, else computed by the compiled kernel and kept on the state (:class:`PointingState`).
+    They are used only for the same params and the very field objects they were computed from
+    (a copy of the state with other fields, e.g. the shells' autoreset merge, recomputes)."""
     d = state.__dict__.get("_derived")
-    if d is not None and d[0] is params:
+    if (
+        d is not None
+        and d[0] is params
+        and all(a is b for a, b in zip(d[3], _sources(state), strict=True))
+    ):
         return d
     B = state.t.shape[0]
     obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
@@ -519,7 +538,7 @@ def _derived(
         obs,
         diag,
     )
-    d = (params, obs, diag)
+    d = (params, obs, diag, _sources(state))
     object.__setattr__(state, "_derived", d)
     return d
 

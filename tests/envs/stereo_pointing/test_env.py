@@ -19,7 +19,7 @@ from sensorgym.agents.stereo_pointing import (
     OrthogonalPairs,
     TrackNearest,
 )
-from sensorgym.envs.shells import tree_where
+from sensorgym.envs.shells import tree_scatter, tree_where
 from sensorgym.envs.stereo_pointing import simulation as core
 from sensorgym.envs.stereo_pointing.env import StereoPointingEnv, StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
@@ -112,6 +112,24 @@ def test_where_swaps_only_the_masked_scenarios():
     np.testing.assert_array_equal(mixed.t, np.where(mask, 0.0, params.dt))
     with pytest.raises(ValueError, match="mask"):
         tree_where(mask[:3], new, old)
+
+
+def test_scatter_gives_the_observation_and_info_of_the_merged_state():
+    """The step's observation and info travel with its state; a state merged from two
+    (the shells' autoreset) must show its own, not the stepped state's."""
+    params = PointingParams()
+    old = core.reset(params, np.random.default_rng(1), 5)
+    old, _, _ = core.step(params, old, np.zeros((5, 8)), np.random.default_rng(2))
+    core.observe(params, old)
+    fresh = core.reset(params, np.random.default_rng(3), 2)
+    mask = np.array([False, True, False, False, True])
+    merged = tree_scatter(mask, fresh, old)
+    obs, info = core.observe(params, merged), core.info(params, merged)
+    np.testing.assert_array_equal(obs[mask], core.observe(params, fresh))
+    np.testing.assert_array_equal(obs[~mask], core.observe(params, old)[~mask])
+    for key, value in core.info(params, fresh).items():
+        np.testing.assert_array_equal(info[key][mask], value)
+        np.testing.assert_array_equal(info[key][~mask], core.info(params, old)[key][~mask])
 
 
 # --- geometry, measurement, reward --------------------------------------------------------------
