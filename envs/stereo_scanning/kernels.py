@@ -120,17 +120,16 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
     behind the receiver."""
     s = offset + 0.5 * sweep
     d = (0.0, 0.0, 1.0)
-    seen = False
     for _ in range(iters):
         q = _at(p, v, a, s)
         d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
         phi, theta = _angles(d)
-        seen = _inside(phi, theta, d, centre_az, centre_el, width)
-        if not seen:
+        if not _inside(phi, theta, d, centre_az, centre_el, width):
             return False, s, d
         s_new = raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep)
         if s_new == s:
-            break  # converged: the raster reaches this pixel at s
+            # converged: the raster reaches this pixel at s, where the object is at d
+            return norm3(d) > 0.0, s, d
         s = s_new
     q = _at(p, v, a, s)
     d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
