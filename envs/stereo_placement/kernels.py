@@ -451,12 +451,6 @@ C_PERIOD, C_SIGMA, C_ELEVATION, C_SPEED, C_RADIUS, C_REF, C_CLIP, C_COND, C_LENG
 )
 
 
-@njit(inline="always")
-def _carve(buf, at, size):
-    """The view ``buf[at : at + size]`` and the offset after it."""
-    return buf[at : at + size], at + size
-
-
 @njit(**_JIT)
 def period_rows(
     lo, hi, moving, constants, delays, pairs, t, receivers, action, drone, drone_velocity,
@@ -481,41 +475,18 @@ def period_rows(
     period, sigma_ang = constants[C_PERIOD], constants[C_SIGMA]
     cond_max = constants[C_COND]
     noisy = sigma_ang > 0.0
-    # scratch: one scenario's systems and solves (row 0), the bound's and the sights' — views
-    # of one buffer (one allocation per call instead of twenty)
-    buf = np.empty(10 * n + 19 * m + 2 * p * p + 2 * p + 42)
-    R, at = _carve(buf, 0, 9 * n)
-    R = R.reshape((1, n, 3, 3))
-    a1, at = _carve(buf, at, 3)
-    e1, at = _carve(buf, at, 3)
-    M1, at = _carve(buf, at, 3)
-    a1, e1, M1 = a1.reshape((1, 3)), e1.reshape((1, 3)), M1.reshape((1, 3))
-    ak, at = _carve(buf, at, 3 * m)
-    ek, at = _carve(buf, at, 3 * m)
-    b, at = _carve(buf, at, 3 * m)
-    ak, ek, b = ak.reshape((1, m, 3)), ek.reshape((1, m, 3)), b.reshape((1, m, 3))
-    P, at = _carve(buf, at, 9 * m)
-    P = P.reshape((1, m, 3, 3))
-    dt, at = _carve(buf, at, m)
-    dt = dt.reshape((1, m))
-    X, at = _carve(buf, at, p)
-    Xe, at = _carve(buf, at, p)
-    X, Xe = X.reshape((1, p)), Xe.reshape((1, p))
-    Q, at = _carve(buf, at, p * p)
-    Qe, at = _carve(buf, at, p * p)
-    Q, Qe = Q.reshape((1, p, p)), Qe.reshape((1, p, p))
-    J, at = _carve(buf, at, 1)
-    kappa, at = _carve(buf, at, 1)
-    kappa_e, at = _carve(buf, at, 1)
-    G, at = _carve(buf, at, 9)
-    LU, at = _carve(buf, at, 9)
-    inv, at = _carve(buf, at, 9)
-    G, LU, inv = G.reshape((3, 3)), LU.reshape((3, 3)), inv.reshape((3, 3))
-    sight, at = _carve(buf, at, 3)
-    unit, at = _carve(buf, at, n)
-    unit[:] = 1.0
+    # one scenario's systems and solves (row 0), the bound's scratch
+    R, a1, ak = np.empty((1, n, 3, 3)), np.empty((1, 3)), np.empty((1, m, 3))
+    P, b, dt = np.empty((1, m, 3, 3)), np.empty((1, m, 3)), np.empty((1, m))
+    e1, ek = np.empty((1, 3)), np.empty((1, m, 3))
+    X, J, Q = np.empty((1, p)), np.empty(1), np.empty((1, p, p))
+    kappa, M1 = np.empty(1), np.empty((1, 3))
+    Xe, Qe, kappa_e = np.empty((1, p)), np.empty((1, p, p)), np.empty(1)
+    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     piv = np.empty(3, np.int64)
+    unit = np.ones(n)
     every = np.ones(n, np.bool_)
+    sight = np.empty(3)
     flags = 0
     for i in range(lo, hi):
         if moving:
