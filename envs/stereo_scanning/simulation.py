@@ -140,7 +140,7 @@ class ScanningParams:
     """A tentative track is confirmed once it holds this many periods' candidates."""
     max_misses: int = 2
     """A confirmed track is dropped after more than this many periods without a candidate."""
-    track_capacity: int = 16
+    track_capacity: int = 32
     """Rows of the tracker's table (tentative and confirmed tracks)."""
     track_slots: int = 8
     """Confirmed tracks shown in the observation (in table order)."""

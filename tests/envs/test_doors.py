@@ -106,7 +106,7 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "gate_probability": 0.99,
         "confirm_hits": 3,
         "max_misses": 1,
-        "track_capacity": 24,
+        "track_capacity": 16,
         "track_slots": 5,
         "cond_max": 1e6,
         "sigma_ref": 0.5,
