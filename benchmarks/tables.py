@@ -17,7 +17,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 DOCS = (ROOT / "README.md", ROOT / "docs" / "environments.md")
-ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement")
+ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement", "stereo_scanning")
 
 
 def _rows(name: str) -> dict[str, dict]:
@@ -107,8 +107,20 @@ def scores(env: str) -> str:
     return "\n".join(lines)
 
 
+def cold_start() -> str:
+    """Seconds from a fresh interpreter to every env's first steps, with an empty and a warm
+    numba cache (``benchmarks/cold_start.py``)."""
+    doc = json.loads((RESULTS / "cold_start.json").read_text())
+    lines = ["| | cold (empty cache), s | warm (cached kernels), s |", "| --- | ---: | ---: |"]
+    for r in doc["results"]:
+        case = r["case"] if r["case"] in ("import", "total") else f"`{r['case']}`"
+        lines.append(f"| {case} | {r['cold_s']:.1f} | {r['warm_s']:.2f} |")
+    return "\n".join(lines)
+
+
 TABLES = {
     "env-speed": env_speed,
+    "cold-start": cold_start,
     "training-speed": training_speed,
     "scores-bearings": lambda: scores("BearingsManeuver-v0"),
     "scores-pointing": lambda: scores("StereoPointing-v0"),
