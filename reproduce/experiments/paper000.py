@@ -294,24 +294,18 @@ def reproduce(
     }
 
 
-def format_report(result: dict) -> str:
-    """Plain aligned text: both tables with paper vs ours, then the target checks."""
-    lines = [
-        f"Paper 000 — {result['runs']} runs per cell, seed {result['seed']}",
-        "Scenario choices:",
-    ]
-    lines += [f"  {k} = {v}" for k, v in result["scenario"].items()]
-    for table, title in (
-        ("1", "Table 1 — alternative algorithm (n = 2)"),
-        ("2", "Table 2 — proposed algorithm (n = 3)"),
-    ):
+def format_tables(cells: list[dict], titles: dict[str, str]) -> list[str]:
+    """Lines of Tables 1 and 2, paper beside ours per cell (``titles``: table id → title);
+    the reproduction and the one through StereoScanning-v0 print the same layout."""
+    lines: list[str] = []
+    for table, title in titles.items():
         lines += [
             "",
             title,
             f"  {'m':>2} {'Δt, s':>9} | {'d_avg/σ_d paper':>16} {'ours':>13}"
             f" | {'Pr_m paper':>10} {'ours':>6} {'m̂=m':>6}",
         ]
-        for x in result["cells"]:
+        for x in cells:
             if x["table"] != table:
                 continue
             p, o = x["paper"], x["ours"]
@@ -321,8 +315,25 @@ def format_report(result: dict) -> str:
                 f" {o['d_avg']:>6.3f}/{o['d_std']:<6.3f} | {p['pr_m']:>10.2f}"
                 f" {o['pr_m']:>6.3f} {o['m_hat_exact']:>6.3f}"
             )
+    return lines
+
+
+def format_report(result: dict) -> str:
+    """Plain aligned text: both tables with paper vs ours, then the target checks."""
+    lines = [
+        f"Paper 000 — {result['runs']} runs per cell, seed {result['seed']}",
+        "Scenario choices:",
+    ]
+    lines += [f"  {k} = {v}" for k, v in result["scenario"].items()]
+    lines += format_tables(
+        result["cells"],
+        {
+            "1": "Table 1 — alternative algorithm (n = 2)",
+            "2": "Table 2 — proposed algorithm (n = 3)",
+        },
+    )
     lines += format_checks(result["checks"])
     return "\n".join(lines)
 
 
-__all__ = ["CELLS", "Scenario000", "format_report", "reproduce", "run_cell"]
+__all__ = ["CELLS", "Scenario000", "format_report", "format_tables", "reproduce", "run_cell"]

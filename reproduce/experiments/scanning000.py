@@ -24,7 +24,7 @@ import numpy as np
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.envs.stereo_scanning import simulation as sim
 from sensorgym.envs.worlds.drones import GroupSpec, random_group
-from sensorgym.reproduce.experiments.paper000 import CELLS, Scenario000
+from sensorgym.reproduce.experiments.paper000 import CELLS, Scenario000, format_tables
 from sensorgym.reproduce.experiments.reporting import format_checks
 from sensorgym.trackers.stereo.association import match_tracks
 
@@ -180,26 +180,13 @@ def format_report(result: dict) -> str:
         f"Raster sweep {result['sweep_time'] * 1e3:g} ms per period; scenario choices:",
     ]
     lines += [f"  {k} = {v}" for k, v in result["scenario"].items()]
-    for table, title in (
-        ("1", "Table 1 — alternative algorithm (receivers 1–2)"),
-        ("2", "Table 2 — proposed algorithm (n = 3)"),
-    ):
-        lines += [
-            "",
-            title,
-            f"  {'m':>2} {'Δt, s':>9} | {'d_avg/σ_d paper':>16} {'ours':>13}"
-            f" | {'Pr_m paper':>10} {'ours':>6} {'m̂=m':>6}",
-        ]
-        for x in result["cells"]:
-            if x["table"] != table:
-                continue
-            p, o = x["paper"], x["ours"]
-            dl = "/".join(f"{d:g}" for d in x["delays"])
-            lines.append(
-                f"  {x['m']:>2} {dl:>9} | {p['d_avg']:>7.2f}/{p['d_std']:<8.2f}"
-                f" {o['d_avg']:>6.3f}/{o['d_std']:<6.3f} | {p['pr_m']:>10.2f}"
-                f" {o['pr_m']:>6.3f} {o['m_hat_exact']:>6.3f}"
-            )
+    lines += format_tables(
+        result["cells"],
+        {
+            "1": "Table 1 — alternative algorithm (receivers 1–2)",
+            "2": "Table 2 — proposed algorithm (n = 3)",
+        },
+    )
     lines += format_checks(result["checks"])
     return "\n".join(lines)
 
