@@ -28,6 +28,13 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
     },
+    # the textbook scenario: the same rules (they read the book's limits from params)
+    "sensorgym/BearingsManeuverBook-v0": {
+        "straight-course": lambda params, _: maneuver.StraightCourse(),
+        "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
+        "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
+        "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
+    },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),
         "track-nearest": lambda params, _: pointing.TrackNearest(params),

@@ -7,6 +7,7 @@ length is set; the vector and PettingZoo doors read it from there.
 | id | package | PettingZoo |
 |----|---------|------------|
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
+| ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``book.book_parallel_env`` |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |
 | ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning.parallel_env`` |
@@ -23,6 +24,12 @@ _ENVS = [
         "entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverEnv",
         "vector_entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverVectorEnv",
         "max_episode_steps": 30,
+    },
+    {
+        "id": "sensorgym/BearingsManeuverBook-v0",
+        "entry_point": "sensorgym.envs.bearings_maneuver.book:BearingsManeuverBookEnv",
+        "vector_entry_point": "sensorgym.envs.bearings_maneuver.book:BearingsManeuverBookVectorEnv",
+        "max_episode_steps": 32,
     },
     {
         "id": "sensorgym/StereoPointing-v0",
@@ -85,6 +92,7 @@ from sensorgym.envs.stereo_scanning import (  # noqa: E402
 #: ``max_episode_steps`` as keywords)
 PARALLEL_ENVS = {
     "sensorgym/BearingsManeuver-v0": bearings_maneuver.parallel_env,
+    "sensorgym/BearingsManeuverBook-v0": bearings_maneuver.book_parallel_env,
     "sensorgym/StereoPointing-v0": stereo_pointing.parallel_env,
     "sensorgym/StereoPlacement-v0": stereo_placement.parallel_env,
     "sensorgym/StereoScanning-v0": stereo_scanning.parallel_env,

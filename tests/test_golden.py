@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import sensorgym.envs as envs
+from sensorgym.envs.bearings_maneuver import book_parallel_env
 from sensorgym.envs.bearings_maneuver import parallel_env as maneuver_parallel
 from sensorgym.envs.stereo_placement import parallel_env as placement_parallel
 from sensorgym.envs.stereo_pointing import parallel_env as pointing_parallel
@@ -30,6 +31,7 @@ from tests.golden_record import (
 
 PARALLEL_FACTORIES = {
     "sensorgym/BearingsManeuver-v0": functools.partial(maneuver_parallel, platforms=2),
+    "sensorgym/BearingsManeuverBook-v0": book_parallel_env,
     "sensorgym/StereoPointing-v0": pointing_parallel,
     "sensorgym/StereoPlacement-v0": placement_parallel,
     "sensorgym/StereoScanning-v0": scanning_parallel,

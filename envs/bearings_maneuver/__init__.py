@@ -1,9 +1,17 @@
 """``sensorgym/BearingsManeuver-v0``: steer platforms so that bearings alone locate a target.
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.env` (Gymnasium, native
-vector and PettingZoo envs) and :mod:`.render`.
+vector and PettingZoo envs), :mod:`.render`, and :mod:`.book` (the textbook scenario,
+``sensorgym/BearingsManeuverBook-v0``).
 """
 
+from sensorgym.envs.bearings_maneuver.book import (
+    BearingsManeuverBookEnv,
+    BearingsManeuverBookParallelEnv,
+    BearingsManeuverBookVectorEnv,
+    BookManeuverParams,
+)
+from sensorgym.envs.bearings_maneuver.book import parallel_env as book_parallel_env
 from sensorgym.envs.bearings_maneuver.env import (
     BearingsManeuverEnv,
     BearingsManeuverParallelEnv,
@@ -13,10 +21,15 @@ from sensorgym.envs.bearings_maneuver.env import (
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
 
 __all__ = [
+    "BearingsManeuverBookEnv",
+    "BearingsManeuverBookParallelEnv",
+    "BearingsManeuverBookVectorEnv",
     "BearingsManeuverEnv",
     "BearingsManeuverParallelEnv",
     "BearingsManeuverVectorEnv",
+    "BookManeuverParams",
     "ManeuverParams",
     "ManeuverState",
+    "book_parallel_env",
     "parallel_env",
 ]

@@ -105,6 +105,13 @@ class ManeuverParams:
     """Target speed, drawn uniformly (m/s); course uniform over all directions."""
     initial_platform_speed: float = 5.0
     """Platform speed at the start (m/s); its heading is drawn uniformly."""
+    initial_heading: tuple[float, float] = (-np.pi, np.pi)
+    """Platform headings at the start, drawn uniformly (rad, from North clockwise); a pair
+    ``(h, h)`` fixes it (a scripted scenario such as the textbook's)."""
+    initial_bearing: tuple[float, float] = (-np.pi, np.pi)
+    """Bearing of the target from platform 1 at the start, drawn uniformly (rad)."""
+    target_course: tuple[float, float] = (-np.pi, np.pi)
+    """Target course, drawn uniformly (rad, from North clockwise)."""
     platforms: int = 1
     """Number of platforms ``K`` taking bearings on the one target (agents in PettingZoo)."""
     formation_radius: float = 2_000.0
@@ -145,6 +152,10 @@ class ManeuverParams:
             b_lo, b_hi = _pair(self, "bank_ranges")
             if not 0.0 < b_lo < b_hi:
                 raise ValueError(f"bank_ranges: need 0 < low < high, got {self.bank_ranges}")
+        for name in ("initial_heading", "initial_bearing", "target_course"):
+            a_lo, a_hi = _pair(self, name)
+            if not a_lo <= a_hi:
+                raise ValueError(f"{name}: need low <= high, got {getattr(self, name)}")
         count(self.platforms, "platforms")
         if not _number(self, "formation_radius") >= 0.0:
             raise ValueError(
@@ -402,11 +413,11 @@ def reset(
     t = 0.0 if like is None else like.bank.t
     K = params.platforms
     # scenario draws, in a fixed order so that a seed fixes every scenario
-    heading = rng.uniform(-np.pi, np.pi, (batch, K))
+    heading = rng.uniform(*params.initial_heading, (batch, K))
     r0 = rng.uniform(*params.initial_range, batch)
-    beta0 = rng.uniform(-np.pi, np.pi, batch)
+    beta0 = rng.uniform(*params.initial_bearing, batch)
     v_t = rng.uniform(*params.target_speed, batch)
-    course = rng.uniform(-np.pi, np.pi, batch)
+    course = rng.uniform(*params.target_course, batch)
     target = np.stack(
         [
             r0 * np.sin(beta0),

@@ -201,16 +201,16 @@ def bank_prior_for(scn: BotScenario, sim: Simulation, n_members: int):
     )
 
 
-def pcrlb_position(scn: BotScenario, sim: Simulation) -> np.ndarray:
-    """Posterior CRLB position RMS ``(K,)`` (m), with the prior and q̃, averaged info over runs."""
-    traj = sim.trajectory
-    x0 = traj.target[0, 0]
+def prior_information(scn: BotScenario, x0: np.ndarray, p0: np.ndarray) -> np.ndarray:
+    """The bound's prior information ``J₀ = P₀⁻¹`` ``(4, 4)`` for the true initial target state
+    ``x0`` seen from ``p0``: the book's prior (range σ, speed σ, course z + π with σ_c) around the
+    truth, as the filters' priors are drawn."""
     r0 = np.hypot(*scn.target_offset)
     beta0 = np.arctan2(*scn.target_offset)
     P0 = bearing_prior(
         beta0,
         scn.sigma,
-        traj.platform_position[0, 0],
+        p0,
         0.0,
         range_mean=r0,
         range_sigma=scn.range_sigma,
@@ -220,10 +220,28 @@ def pcrlb_position(scn: BotScenario, sim: Simulation) -> np.ndarray:
         course_sigma=scn.course_sigma,
         course_distribution="uniform",
     ).P
+    return np.linalg.inv(P0)
+
+
+def pcrlb_of(
+    scn: BotScenario, J0: np.ndarray, Im: np.ndarray, final_only: bool = False
+) -> np.ndarray:
+    """Posterior CRLB position RMS ``(..., K)`` (m) from the prior information ``J0`` and the
+    bearings' information ``Im`` ``(..., K, 4, 4)`` (one trajectory each, or averaged over
+    runs); the first bearing's is left out (it is already inside the prior). ``final_only``:
+    only the last time, ``(..., 1)``."""
+    Im = np.array(Im, dtype=np.float64)
+    Im[..., 0, :, :] = 0.0
+    J = posterior_information(J0, scn.times, Im, scn.q_tilde)
+    return position_rms_bound(crlb(J[..., -1:, :, :] if final_only else J))
+
+
+def pcrlb_position(scn: BotScenario, sim: Simulation) -> np.ndarray:
+    """Posterior CRLB position RMS ``(K,)`` (m), with the prior and q̃, averaged info over runs."""
+    traj = sim.trajectory
+    J0 = prior_information(scn, traj.target[0, 0], traj.platform_position[0, 0])
     Im = bearing_information(traj.target, traj.platform_position, scn.sigma).mean(axis=0)
-    Im[0] = 0.0  # the first bearing is already inside the prior P₀
-    J = posterior_information(np.linalg.inv(P0), scn.times, Im, scn.q_tilde)
-    return position_rms_bound(crlb(J))
+    return pcrlb_of(scn, J0, Im)
 
 
 def _errors(x_hat: np.ndarray, P: np.ndarray, truth: np.ndarray):

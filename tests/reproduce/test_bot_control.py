@@ -1,0 +1,92 @@
+"""The textbook observer-control scenario: the env is the book's, and bot-control measures it."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from sensorgym.envs.bearings_maneuver import BookManeuverParams, ManeuverParams
+from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID
+from sensorgym.envs.worlds.platform import rollout
+from sensorgym.reproduce.experiments import bot_control
+from sensorgym.reproduce.experiments.bot_benchmark import pcrlb_position, simulate
+from sensorgym.reproduce.experiments.bot_control import (
+    BOOK,
+    STANDOFF,
+    book_leg_change,
+    fly,
+    format_report,
+    optimise_open_loop,
+)
+from sensorgym.train.evaluation import make_sb3_env
+
+
+def test_book_env_starts_in_the_books_scenario():
+    env = gym.make(BOOK_ENV_ID)
+    env.reset(seed=3)
+    s = env.unwrapped.simulator_state
+    x0 = BOOK.initial_state(1)
+    np.testing.assert_allclose(s.target[0, :2] - s.platform_position[0, 0], BOOK.target_offset)
+    np.testing.assert_allclose(s.target, x0.target, atol=1e-12)
+    np.testing.assert_allclose(s.heading[0], x0.heading)
+    np.testing.assert_allclose(s.speed[0], x0.speed)
+    assert env.unwrapped.params.world == BOOK.world_params()
+    assert env.spec.max_episode_steps == BOOK.n_bearings - 1
+    assert env.unwrapped.params.min_range == STANDOFF
+
+
+def test_default_scenario_draws_are_unchanged_by_the_new_fields():
+    p = ManeuverParams()
+    assert p.initial_heading == p.initial_bearing == p.target_course == (-np.pi, np.pi)
+    with pytest.raises(ValueError, match="target_course"):
+        ManeuverParams(target_course=(1.0, 0.0))
+    with pytest.raises(ValueError, match="initial_heading"):
+        BookManeuverParams(initial_heading=(0.0, np.inf))
+    # the book params are ManeuverParams with other defaults only
+    assert {f.name for f in dataclasses.fields(BookManeuverParams)} == {
+        f.name for f in dataclasses.fields(ManeuverParams)
+    }
+
+
+def test_leg_change_through_the_env_is_bot_benchmarks_trajectory_and_bound():
+    runs = 64
+    env = make_sb3_env(BOOK_ENV_ID, runs, 5, max_episode_steps=None)
+    flown = fly(book_leg_change(), env, runs, 5)
+    env.close()
+    assert not flown["broken"].any()
+    # the observer flies the book's arcs exactly
+    w = BOOK.world_params(q_tilde=0.0)
+    ref = rollout(w, BOOK.initial_state(1), BOOK.actions())
+    np.testing.assert_allclose(
+        flown["pos"], np.broadcast_to(ref.platform_position, (runs, 33, 2)), atol=1e-6
+    )
+    # the book's PCRLB along the env's runs is bot-benchmark's (93 m with 1000 runs)
+    result = bot_control._summarise("leg", "open-loop", flown)
+    sim = simulate(BOOK, 256, np.random.default_rng(0))
+    assert result.pcrlb_32min == pytest.approx(pcrlb_position(BOOK, sim)[-1], rel=0.05)
+    assert 80.0 < result.pcrlb_32min < 110.0
+
+
+def test_optimised_open_loop_beats_the_leg_change_and_keeps_the_standoff():
+    opt = optimise_open_loop(restarts=1, seed=0)
+    leg = np.exp(bot_control._final_log_bound(np.asarray([book_leg_change().turns]))[0][0])
+    assert opt.pcrlb_noise_free < 0.9 * leg
+    assert opt.min_range >= STANDOFF + bot_control.STANDOFF_MARGIN - 1.0
+    assert np.all(np.abs(opt.turns) <= 1.0)
+
+
+def test_bot_control_runs_and_lists_a_missing_trained_policy(monkeypatch):
+    monkeypatch.setattr("sensorgym.train.shipped.shipped_policies", lambda env_id: {})
+    res = bot_control.run_bot_control(runs=4, seed=1, restarts=0)
+    names = [p.name for p in res.policies]
+    assert names[0] == "no manoeuvre" and "greedy information" in names
+    assert res.missing_trained
+    report = format_report(res)
+    assert "missing" in report
+    by = {p.name: p.pcrlb_32min for p in res.policies}
+    # without a manoeuvre range stays poorly observed; the ceiling beats the book's turn
+    assert by["no manoeuvre"] > by["book leg change 140->20 deg, min 13-16"]
+    assert by["optimised open loop (ceiling)"] < by["book leg change 140->20 deg, min 13-16"]
