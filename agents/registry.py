@@ -26,6 +26,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "straight-course": lambda params, _: maneuver.StraightCourse(),
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
+        "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
     },
     # the textbook scenario: the same rules (they read the book's limits from params)

@@ -79,7 +79,13 @@ def test_benchmark_command_scores_every_rule(tmp_path, capsys):
     assert main(["benchmark", *args]) == 0
     doc = json.loads((tmp_path / "sensorgym__BearingsManeuver-v0.json").read_text())
     results = doc["results"]
-    assert set(results) == {"straight-course", "paper002", "greedy-information", "oracle-lookahead"}
+    assert set(results) == {
+        "straight-course",
+        "paper002",
+        "greedy-information",
+        "lookahead-estimate",
+        "oracle-lookahead",
+    }
     assert results["oracle-lookahead"]["mean"] > results["greedy-information"]["mean"]
     assert results["greedy-information"]["mean"] > results["straight-course"]["mean"]
     assert "greedy-information" in capsys.readouterr().out
