@@ -38,9 +38,11 @@ RULES: dict[str, dict[str, RuleFactory]] = {
     },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),
+        "hold-cue": lambda params, _: pointing.HoldCue(params),
         "track-nearest": lambda params, _: pointing.TrackNearest(params),
         "orthogonal-pairs": lambda params, _: pointing.OrthogonalPairs(params),
         "greedy-information": lambda params, _: pointing.GreedyPointing(params),
+        "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {
         "hold-position": lambda params, _: placement.HoldPosition(params),

@@ -43,11 +43,18 @@ class StereoPointingEnv(CoreEnv):
 
     ## Observation Space
 
-    ``Box(-10, 10, (3n + 3nm + 4m,), float32)`` (44 with the defaults): own gimbal angles,
+    ``Box(-10, 10, (3n + 3nm + 8m,), float32)`` (52 with the defaults): own gimbal angles,
     and the tracker's view, no ground truth (table in
     :func:`~sensorgym.envs.stereo_pointing.simulation.observe`): per receiver and drone the
     predicted drone direction relative to the boresight in field-of-view half-angles and
-    whether the receiver saw it; per drone the predicted position and its log RMS error.
+    whether the receiver saw it; per drone the predicted position and its log RMS error, the
+    estimated velocity and its log RMS error.
+
+    For training, :class:`~sensorgym.envs.stereo_pointing.wrappers.AssignmentAction` (SB3
+    wrapper ``pointing-assignment``) replaces the gimbal rates by an assignment,
+    ``MultiDiscrete([m] * n)``: which drone each receiver watches, slewed onto by the env's
+    slew controller (:func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, the one
+    the assignment rules use). Scenarios and rewards stay the env's.
 
     ## Rewards
 
@@ -93,7 +100,16 @@ class StereoPointingEnv(CoreEnv):
       former numpy step to below 1e-12 relative. Later in issue 11 (episodes bit-identical):
       the step kernel also writes the observation and info, large batches are split over
       threads (``SENSORGYM_THREADS``), the reset is compiled, and the rules score their
-      candidates in compiled kernels (same actions).
+      candidates in compiled kernels (same actions). Issue 13 (in place; rewards and dynamics
+      unchanged, golden observations re-recorded — the old entries are bit-identical, the new
+      ones inserted): the observation gains each drone's estimated velocity ``v̂_j / V``
+      (``V = velocity_scale``) and ``ln(σ̂_v,j · 1 s / σ_ref)`` (the CV filter's velocity and
+      its RMS error), so ``obs_dim`` is ``3n + 3nm + 8m`` (was ``+ 4m``; 52, was 44). Rules:
+      ``hold-cue`` added (the cue assignment held) and ``oracle-plan`` (a ceiling planning on
+      the truth); the assignment rules' hysteresis counts a receiver aimed at a drone's
+      prediction, not only one that saw it, and is larger (orthogonal pairs 0.3, greedy 3.0,
+      were 0.05), which ends the step-0 near-tie that sent every receiver to the other drone;
+      one slew controller serves the rules and the assignment action wrapper.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
@@ -161,7 +177,8 @@ class StereoPointingParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version; issues 10 and 11 as for :class:`StereoPointingEnv`.
+    * v0: initial version; issues 10, 11 and 13 (velocity estimates in the observation) as for
+      :class:`StereoPointingEnv`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"name": "stereo_pointing_v0", "render_modes": []}

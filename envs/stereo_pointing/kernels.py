@@ -66,7 +66,9 @@ def pointing_offset(azimuth, elevation, u):
 
 
 #: layout of the per-params constants array (``simulation.PointingParams._constants``)
-C_SLEW, C_MAX_EL, C_DT, C_Q, C_COS_FOV, C_SIGMA, C_SIGMA_REF, C_CLIP, C_FOV, C_LENGTH = range(10)
+(C_SLEW, C_MAX_EL, C_DT, C_Q, C_COS_FOV, C_SIGMA, C_SIGMA_REF, C_CLIP, C_FOV, C_LENGTH, C_SPEED) = (
+    range(11)
+)
 #: rows of the diagnostics array ``info (3, B)`` (``simulation.info``)
 I_ERROR, I_FIXED, I_VIEWS = range(3)
 
@@ -75,10 +77,10 @@ I_ERROR, I_FIXED, I_VIEWS = range(3)
 def observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_pred, u):
     """``simulation.observe`` of scenario ``b`` into ``obs[b]`` (float32, clipped to
     ``±OBS_CLIP``): gimbals, offsets of the predicted drones from each boresight and who saw
-    whom, the predicted positions and their log accuracy. Scratch ``x_pred (6,)``,
+    whom, the predicted positions and velocities and their log accuracies. Scratch ``x_pred (6,)``,
     ``P_pred (6, 6)``, ``u (3,)``."""
     n, m = azimuth.shape[1], x.shape[1]
-    fov, length, sigma_ref = c[C_FOV], c[C_LENGTH], c[C_SIGMA_REF]
+    fov, length, speed, sigma_ref = c[C_FOV], c[C_LENGTH], c[C_SPEED], c[C_SIGMA_REF]
     for k in range(n):
         obs[b, 3 * k] = clip(math.sin(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
         obs[b, 3 * k + 1] = clip(math.cos(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
@@ -93,12 +95,16 @@ def observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_
             obs[b, col] = clip(d_az / fov, -OBS_CLIP, OBS_CLIP)
             obs[b, col + 1] = clip(d_el / fov, -OBS_CLIP, OBS_CLIP)
             obs[b, col + 2] = 1.0 if seen[b, k, j] else 0.0
-        col = 3 * n + 3 * n * m + 4 * j
+        col = 3 * n + 3 * n * m + 8 * j
         for i in range(3):
             obs[b, col + i] = clip(x_pred[i] / length, -OBS_CLIP, OBS_CLIP)
+            obs[b, col + 4 + i] = clip(x_pred[3 + i] / speed, -OBS_CLIP, OBS_CLIP)
         # σ̂ = √tr P_pp
         sigma = math.sqrt(max(P_pred[0, 0] + P_pred[1, 1] + P_pred[2, 2], 0.0))
         obs[b, col + 3] = clip(math.log(max(sigma, 1e-12) / sigma_ref), -OBS_CLIP, OBS_CLIP)
+        # σ̂_v = √tr P_vv, per second
+        sigma = math.sqrt(max(P_pred[3, 3] + P_pred[4, 4] + P_pred[5, 5], 0.0))
+        obs[b, col + 7] = clip(math.log(max(sigma, 1e-12) / sigma_ref), -OBS_CLIP, OBS_CLIP)
 
 
 @njit(**INLINE)

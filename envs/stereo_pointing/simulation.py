@@ -202,6 +202,7 @@ class PointingParams:
                 self.reward_clip,
                 self.fov,
                 self.length_scale,
+                self.velocity_scale,
             ]
         )
         c.flags.writeable = False
@@ -213,10 +214,15 @@ class PointingParams:
         return self.start_distance[1]
 
     @property
+    def velocity_scale(self) -> float:
+        """Speed (m/s) that normalises observed velocities: the top drone speed (at least 1 m/s)."""
+        return max(self.drone_speed[1], 1.0)
+
+    @property
     def obs_dim(self) -> int:
-        """Observation length: ``3n + 3nm + 4m`` (see :func:`observe`)."""
+        """Observation length: ``3n + 3nm + 8m`` (see :func:`observe`)."""
         n, m = self.n_receivers, self.n_drones
-        return 3 * n + 3 * n * m + 4 * m
+        return 3 * n + 3 * n * m + 8 * m
 
 
 @dataclass(frozen=True)
@@ -488,8 +494,13 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     | offsets     | ``(n, m, 3)``| direction of ``p̂_j`` from receiver ``k`` relative to its |
     |             |              | boresight, ``(Δα, Δε) / fov``; and 1.0 if ``k`` saw ``j``|
     |             |              | on the last step, else 0.0                               |
-    | drones      | ``(m, 4)``   | ``p̂_j / L`` (world, m) and ``ln(σ̂_j / σ_ref)``,          |
-    |             |              | ``σ̂ = √tr P_pp``                                         |
+    | drones      | ``(m, 8)``   | ``p̂_j / L`` (world, m) and ``ln(σ̂_j / σ_ref)``,          |
+    |             |              | ``σ̂ = √tr P_pp``; ``v̂_j / V`` (world, m/s) and           |
+    |             |              | ``ln(σ̂_v,j · 1 s / σ_ref)``, ``σ̂_v = √tr P_vv``          |
+
+    ``V = velocity_scale`` (the top drone speed). The velocity estimate and its uncertainty are
+    the tracker's own (the CV filter's state), so a policy can tell where each drone is heading
+    and how far its prediction can be trusted.
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]`` (an offset of more than ten
     half-angles reads as ±10).
@@ -564,11 +575,56 @@ def split_observation(
     params: PointingParams, obs: ArrayLike
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Inverse of :func:`observe`'s layout: ``(gimbals (N, n, 3), pairs (N, n, m, 3), drones
-    (N, m, 4))`` of observations ``(N, obs_dim)``."""
+    (N, m, 8))`` of observations ``(N, obs_dim)``."""
     n, m = params.n_receivers, params.n_drones
     o = np.asarray(obs, dtype=np.float64)
     N = o.shape[0]
     g = o[:, : 3 * n].reshape(N, n, 3)
     pairs = o[:, 3 * n : 3 * n + 3 * n * m].reshape(N, n, m, 3)
-    drones = o[:, 3 * n + 3 * n * m :].reshape(N, m, 4)
+    drones = o[:, 3 * n + 3 * n * m :].reshape(N, m, 8)
     return g, pairs, drones
+
+
+def observed_pointing(
+    params: PointingParams, obs: ArrayLike
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """What an observation ``(N, obs_dim)`` says about the pointing: boresight azimuths and
+    elevations ``(N, n)`` (rad) and the tracker's predicted drone positions ``(N, m, 3)`` (m)."""
+    gimbals, _, drones = split_observation(params, obs)
+    azimuth = np.arctan2(gimbals[..., 0], gimbals[..., 1])
+    elevation = gimbals[..., 2] * (np.pi / 2)
+    return azimuth, elevation, drones[..., :3] * params.length_scale
+
+
+def slew_actions(
+    params: PointingParams,
+    azimuth: FloatArray,
+    elevation: FloatArray,
+    points: FloatArray,
+    target: ArrayLike,
+) -> FloatArray:
+    """The slew controller: normalised actions ``(N, 2n)`` that turn receiver ``k`` (boresight
+    at ``azimuth``/``elevation (N, n)``) straight at ``points[:, target[:, k]]`` (``points
+    (N, m, 3)``, ``target (N, n)`` drone indices) as fast as the gimbal allows, stopping on it
+    (the largest step is ``slew_rate · dt``; the elevation stops at its limit)."""
+    tgt = np.asarray(target, dtype=np.int64)
+    m = points.shape[1]
+    if tgt.shape != azimuth.shape or (tgt.size and (tgt.min() < 0 or tgt.max() >= m)):
+        raise ValueError(f"target: need drone indices in [0, {m}) of shape {azimuth.shape}")
+    offsets = pointing_offsets(params, azimuth, elevation, points)
+    off = np.take_along_axis(offsets, tgt[:, :, None, None], axis=2)[:, :, 0]  # (N, n, 2)
+    # the gimbal stops at its elevation limit
+    lim = params.max_elevation
+    d_el = np.clip(elevation + off[..., 1], -lim, lim) - elevation
+    step = max(params.slew_rate * params.dt, 1e-12)
+    action = np.stack([off[..., 0], d_el], -1) / step
+    return np.clip(action, -1.0, 1.0).reshape(off.shape[0], -1)
+
+
+def assignment_actions(params: PointingParams, obs: ArrayLike, target: ArrayLike) -> FloatArray:
+    """:func:`slew_actions` read off observations ``(N, obs_dim)``: receiver ``k`` slews at the
+    tracker's predicted position of drone ``target[:, k]`` — the one slew controller the
+    assignment rules and the assignment action
+    (:class:`~sensorgym.envs.stereo_pointing.wrappers.AssignmentAction`) share."""
+    azimuth, elevation, points = observed_pointing(params, obs)
+    return slew_actions(params, azimuth, elevation, points, target)

@@ -52,12 +52,12 @@ def _still(params: PointingParams, points, target, seed=0) -> core.PointingState
 def test_registration_sets_the_time_limit_and_the_vector_entry_point():
     env = gym.make(ENV_ID)
     assert env.spec.max_episode_steps == 150
-    assert env.observation_space.shape == (44,) and env.action_space.shape == (8,)
+    assert env.observation_space.shape == (52,) and env.action_space.shape == (8,)
     venv = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point")
     assert isinstance(venv.unwrapped, StereoPointingVectorEnv)
     assert venv.unwrapped.max_episode_steps == 150
     obs, info = venv.reset(seed=1)
-    assert obs.shape == (3, 44) and info["position_error"].shape == (3,)
+    assert obs.shape == (3, 52) and info["position_error"].shape == (3,)
 
 
 def test_vector_env_of_one_reproduces_the_single_env_across_autoreset():
@@ -154,6 +154,11 @@ def test_a_predicted_drone_on_the_boresight_has_zero_offset():
     az1, el1 = angles_from_unit(d / np.linalg.norm(d, axis=-1, keepdims=True))
     want = np.stack([np.angle(np.exp(1j * (az1 - az[0]))), el1 - el[0]], -1) / params.fov
     np.testing.assert_allclose(pairs[0, :, 1, :2], np.clip(want, -10, 10), atol=1e-5)
+    # the velocity block: the filter's velocity (unchanged by the CV prediction) and ln σ̂_v
+    np.testing.assert_allclose(drones[0, :, 4:7] * params.velocity_scale, x[0, :, 3:], rtol=1e-6)
+    P = core.predicted_track(params, state).P[0]
+    sigma_v = np.sqrt(np.trace(P[:, 3:, 3:], axis1=1, axis2=2))
+    np.testing.assert_allclose(drones[0, :, 7], np.log(sigma_v / params.sigma_ref), rtol=1e-6)
 
 
 def test_a_receiver_sees_exactly_the_drones_inside_its_cone():
