@@ -52,6 +52,9 @@ RULES: dict[str, dict[str, RuleFactory]] = {
     "sensorgym/StereoScanning-v0": {
         "full-sweep": lambda params, _: scanning.FullSweep(params),
         "cue-following": lambda params, _: scanning.CueFollowing(params),
+        "cue-no-search": lambda params, _: scanning.CueFollowing(
+            params, sweep_every=scanning.NEVER
+        ),
         "orthogonal-sectors": lambda params, _: scanning.OrthogonalSectors(params),
         "greedy-information": lambda params, _: scanning.GreedyInformation(params),
         "oracle-sectors": lambda params, state_fn: scanning.OracleSectors(state_fn, params),

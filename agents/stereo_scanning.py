@@ -7,8 +7,8 @@ reads the simulator's true drones (a ceiling, not a fieldable policy).
 
 * :class:`FullSweep` — the papers' fixed sweep: every receiver scans its whole field of regard.
 * :class:`CueFollowing` — sectors centred on the predicted tracks, just wide enough for them
-  and their motion during the period; a full sweep every ``sweep_every`` periods (and whenever
-  there is no track) to find new drones.
+  and their motion during the period; a search of two consecutive full sweeps every
+  ``sweep_every`` periods (and a full sweep whenever there is no track) to find new drones.
 * :class:`OrthogonalSectors` — OC-1: the tracks ranked by the papers' range-only score
   ``σ_e/√(Σ_k sin²γ_k)`` (lines of sight from receiver 1 against the others); each receiver's
   sector covers the best-ranked tracks that fit a narrow sector, the others wait for the sweeps.
@@ -87,12 +87,24 @@ class FullSweep(MemorylessRule):
         return sector_action(self.params, _full(self.params, N)).reshape(N, -1)
 
 
+#: periods between the starts of two searches (tuned on seeds below 10000: flat from 8 to 16)
+SWEEP_EVERY = 10
+#: a ``sweep_every`` longer than any episode: the rule searches only at its start
+NEVER = 10**9
+#: consecutive full-sweep periods of one search: a drone found by a sweep opens a tentative
+#: track, which dies unless the next period continues it, so a single sweep never confirms a
+#: drone that the sectors on the known tracks do not happen to cover
+SWEEP_PERIODS = 2
+
+
 class _Periodic:
-    """A rule with a period counter per env (SB3's ``state``): a full sweep every
-    ``sweep_every`` periods and whenever it has no track."""
+    """A rule with a period counter per env (SB3's ``state``): a search — ``sweep_periods``
+    consecutive full sweeps — every ``sweep_every`` periods, and a full sweep whenever it has
+    no track."""
 
     params: ScanningParams
     sweep_every: int
+    sweep_periods: int = SWEEP_PERIODS
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         raise NotImplementedError
@@ -114,7 +126,7 @@ class _Periodic:
         o = split_observation(self.params, obs)
         sectors = _full(self.params, N)
         for i in range(N):
-            if o["valid"][i].any() and count[i] % self.sweep_every != 0:
+            if o["valid"][i].any() and count[i] % self.sweep_every >= self.sweep_periods:
                 sectors[i] = self.sectors(o, i)
         count += 1
         action = sector_action(self.params, sectors).reshape(N, -1).astype(np.float32)
@@ -124,9 +136,11 @@ class _Periodic:
 class CueFollowing(_Periodic):
     """Sectors centred on the predicted tracks, covering them and their motion in a period."""
 
-    def __init__(self, params: ScanningParams, sweep_every: int = 5):
+    def __init__(self, params: ScanningParams, sweep_every: int = SWEEP_EVERY,
+                 sweep_periods: int = SWEEP_PERIODS):  # fmt: skip
         self.params = params
         self.sweep_every = sweep_every
+        self.sweep_periods = sweep_periods
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         ang, valid = _track_angles(self.params, o, i)
@@ -150,10 +164,11 @@ class OrthogonalSectors(_Periodic):
     """OC-1: narrow sectors on the tracks whose lines of sight are nearest orthogonal."""
 
     def __init__(self, params: ScanningParams, max_width: float = float(np.deg2rad(20.0)),
-                 sweep_every: int = 5):  # fmt: skip
+                 sweep_every: int = SWEEP_EVERY, sweep_periods: int = SWEEP_PERIODS):  # fmt: skip
         self.params = params
         self.max_width = max_width
         self.sweep_every = sweep_every
+        self.sweep_periods = sweep_periods
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         ang, valid = _track_angles(self.params, o, i)
@@ -213,10 +228,12 @@ def greedy_sectors(
 class GreedyInformation(_Periodic):
     """Per period, the sector width and centres with the best expected covariance reward."""
 
-    def __init__(self, params: ScanningParams, n_widths: int = 8, sweep_every: int = 5):
+    def __init__(self, params: ScanningParams, n_widths: int = 8, sweep_every: int = SWEEP_EVERY,
+                 sweep_periods: int = SWEEP_PERIODS):  # fmt: skip
         self.params = params
         self.widths = np.geomspace(*params.sector_width, n_widths)
         self.sweep_every = sweep_every
+        self.sweep_periods = sweep_periods
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         valid = o["valid"][i]
@@ -249,6 +266,9 @@ class OracleSectors(MemorylessRule):
 
 
 __all__ = [
+    "NEVER",
+    "SWEEP_EVERY",
+    "SWEEP_PERIODS",
     "CueFollowing",
     "FullSweep",
     "GreedyInformation",

@@ -1,0 +1,91 @@
+"""Action re-parameterisations of ``sensorgym/StereoScanning-v0`` for training (SB3 wrappers).
+
+:class:`ScanModes` replaces the raw sector action (three sector centres and widths, 9 numbers)
+by a choice among the sector plans the rules compute from the observation: a full sweep, or
+sectors on the confirmed tracks (cue-following's cover, or that cover twice as wide).
+A policy then learns *when* to search and how to dwell — the decisions the rules fix by a
+schedule — while the geometry of a sector stays the rules' exact computation. The wrapper keeps
+the env's scenarios and rewards (it only translates the action), so a wrapped policy is scored
+against the rules on the same seeded scenarios. Registered in
+:data:`sensorgym.train.wrappers.WRAPPERS` as ``scan-modes``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+
+from sensorgym.agents import stereo_scanning as rules
+from sensorgym.envs.stereo_scanning.simulation import (
+    ScanningParams,
+    sector_action,
+    split_observation,
+)
+
+#: the plans of :class:`ScanModes`, in action order
+MODES = ("sweep", "cue", "cue-wide")
+
+
+def mode_sectors(
+    params: ScanningParams, obs: NDArray[Any], modes: NDArray[np.int64]
+) -> NDArray[np.float64]:
+    """Sectors ``(N, n, 3)`` (rad) of the plans ``modes (N,)`` (indices into :data:`MODES`)
+    for observations ``(N, obs_dim)``: ``sweep`` every receiver's whole field of regard;
+    ``cue`` :class:`~sensorgym.agents.stereo_scanning.CueFollowing`'s cover of the confirmed
+    tracks and their motion; ``cue-wide`` the same centres at twice the width (a margin for
+    uncertain tracks). Without a confirmed track every plan is a sweep."""
+    m = np.asarray(modes, dtype=np.int64).reshape(-1)
+    N = m.shape[0]
+    if np.any((m < 0) | (m >= len(MODES))):
+        raise ValueError(f"modes: must lie in [0, {len(MODES)}), got {m}")
+    o = split_observation(params, np.asarray(obs, dtype=np.float64).reshape(N, -1))
+    out = rules._full(params, N)
+    cue = rules.CueFollowing(params)
+    for i in range(N):
+        if m[i] == 0 or not o["valid"][i].any():
+            continue
+        out[i] = cue.sectors(o, i)
+        if m[i] == 2:
+            out[i, :, 2] = np.minimum(2.0 * out[i, :, 2], params.sector_width[1])
+    return out
+
+
+class ScanModes(VecEnvWrapper):
+    """``Discrete(3)`` actions over the env's sector action: 0 sweep, 1 cue, 2 cue-wide
+    (:func:`mode_sectors`, planned on the observation the policy acted on)."""
+
+    def __init__(self, venv: VecEnv):
+        params = venv.get_attr("params")[0]
+        if not isinstance(params, ScanningParams):
+            raise ValueError(f"scan-modes: needs a StereoScanning env, got {type(params).__name__}")
+        self.params = params
+        super().__init__(venv, action_space=spaces.Discrete(len(MODES)))
+        self._obs: NDArray[Any] | None = None
+
+    def reset(self) -> NDArray[Any]:
+        self._obs = self.venv.reset()
+        return self._obs
+
+    def step_async(self, actions: NDArray[Any]) -> None:
+        if self._obs is None:
+            raise RuntimeError("scan-modes: step before reset")
+        sectors = mode_sectors(self.params, self._obs, np.asarray(actions).reshape(-1))
+        raw = sector_action(self.params, sectors).reshape(self.num_envs, -1)
+        self.venv.step_async(raw.astype(np.float32))
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self._obs = obs
+        return obs, rewards, dones, infos
+
+
+def scan_modes(venv: VecEnv) -> VecEnv:
+    """The ``scan-modes`` wrapper factory (:class:`ScanModes`)."""
+    return ScanModes(venv)
+
+
+__all__ = ["MODES", "ScanModes", "mode_sectors", "scan_modes"]
