@@ -4,7 +4,7 @@
 |-----|--------|-------|
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | :class:`StraightCourse`, :class:`Paper002Maneuver`, :class:`GreedyManeuver`, :class:`OracleLookahead` (ceiling) |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | :class:`HoldStill`, :class:`TrackNearest`, :class:`OrthogonalPairs`, :class:`GreedyPointing` |
-| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement` |
+| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement`, :class:`OracleGreedyPlacement` (ceiling) |
 | ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | :class:`FullSweep`, :class:`CueFollowing`, :class:`OrthogonalSectors`, :class:`GreedyInformation`, :class:`OracleSectors` (ceiling) |
 
 :mod:`.registry` maps env ids to rule factories (what ``sensorgym benchmark`` scores);
@@ -19,7 +19,12 @@ from sensorgym.agents.bearings_maneuver import (
 )
 from sensorgym.agents.protocol import MemorylessRule, PolicyPredictor
 from sensorgym.agents.registry import RULES, rules_for
-from sensorgym.agents.stereo_placement import CirclePlacement, GreedyPlacement, HoldPosition
+from sensorgym.agents.stereo_placement import (
+    CirclePlacement,
+    GreedyPlacement,
+    HoldPosition,
+    OracleGreedyPlacement,
+)
 from sensorgym.agents.stereo_pointing import (
     GreedyPointing,
     HoldStill,
@@ -46,6 +51,7 @@ __all__ = [
     "HoldPosition",
     "HoldStill",
     "MemorylessRule",
+    "OracleGreedyPlacement",
     "OracleLookahead",
     "OracleSectors",
     "OrthogonalPairs",

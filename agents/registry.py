@@ -48,6 +48,10 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "hold-position": lambda params, _: placement.HoldPosition(params),
         "circle-placement": lambda params, _: placement.CirclePlacement(params),
         "greedy-information": lambda params, _: placement.GreedyPlacement(params),
+        "lookahead-information": lambda params, _: placement.GreedyPlacement(params, horizon=3),
+        "oracle-lookahead": lambda params, state_fn: placement.OracleGreedyPlacement(
+            params, horizon=3, state_fn=state_fn
+        ),
     },
     "sensorgym/StereoScanning-v0": {
         "full-sweep": lambda params, _: scanning.FullSweep(params),

@@ -81,7 +81,7 @@ POLICY_LABELS = {
 GREEDY_LABELS = {
     "BearingsManeuver-v0": "`GreedyManeuver` (one-step D-optimal, from the tracker's estimate)",
     "StereoPointing-v0": "`GreedyPointing` (assignment maximising Σ ln det of the predicted position information)",
-    "StereoPlacement-v0": "`GreedyPlacement` (one-step move of every receiver maximising ln det of the predicted position information)",
+    "StereoPlacement-v0": "`GreedyPlacement` (one-step move of every receiver maximising the env's reward predicted one period ahead)",
     "StereoScanning-v0": "`GreedyInformation` (the common width and centres maximising the expected covariance reward of the tracks)",
 }
 
