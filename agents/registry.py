@@ -13,6 +13,7 @@ from collections.abc import Callable
 from typing import Any
 
 from sensorgym.agents import bearings_maneuver as maneuver
+from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents import stereo_scanning as scanning
@@ -29,11 +30,14 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
     },
-    # the textbook scenario: the same rules (they read the book's limits from params)
+    # the textbook scenario: the same rules (they read the book's limits from params), and the
+    # book's own manoeuvre
     "sensorgym/BearingsManeuverBook-v0": {
         "straight-course": lambda params, _: maneuver.StraightCourse(),
+        "book-leg-change": lambda params, _: book.book_leg_change(),
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
+        "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
     },
     "sensorgym/StereoPointing-v0": {

@@ -59,7 +59,8 @@ class BearingsManeuverEnv(CoreEnv):
 
     Platform at the origin with a uniform random heading at ``initial_platform_speed``; target
     at a uniform range in ``initial_range`` and a uniform bearing, with a uniform course and
-    speed in ``target_speed``. The tracker starts from the first bearing with a prior that
+    speed in ``target_speed`` (the angles' ranges are ``initial_heading``, ``initial_bearing``
+    and ``target_course``, the full circle by default). The tracker starts from the first bearing with a prior that
     matches these draws: range uniform over ``bank_ranges`` (default ``initial_range``),
     course uniform over the full circle, speed moments of ``target_speed`` (or
     ``prior_speed``).
@@ -90,7 +91,10 @@ class BearingsManeuverEnv(CoreEnv):
       by a unit in the last place), and the bound starts from the Cholesky factor of the prior
       covariance instead of its eigen-decomposition (the same ``P_0 = L Lᵀ`` to rounding).
       Observations and episode ends are unchanged; rewards moved by at most 8.3e-12 relative
-      on the recorded seeded episodes (re-recorded).
+      on the recorded seeded episodes (re-recorded). Issue 13 added the params fields
+      ``initial_heading``, ``initial_bearing`` and ``target_course`` (ranges of the uniform
+      draws; the defaults are the former full circle, so seeded episodes are bit-identical);
+      ``sensorgym/BearingsManeuverBook-v0`` fixes them to the textbook scenario.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

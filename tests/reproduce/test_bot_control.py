@@ -8,6 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from sensorgym.agents.book_maneuver import OpenLoop, book_leg_change
 from sensorgym.envs.bearings_maneuver import BookManeuverParams, ManeuverParams
 from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID
 from sensorgym.envs.worlds.platform import rollout
@@ -16,7 +17,6 @@ from sensorgym.reproduce.experiments.bot_benchmark import pcrlb_position, simula
 from sensorgym.reproduce.experiments.bot_control import (
     BOOK,
     STANDOFF,
-    book_leg_change,
     fly,
     format_report,
     optimise_open_loop,
@@ -64,10 +64,25 @@ def test_leg_change_through_the_env_is_bot_benchmarks_trajectory_and_bound():
         flown["pos"], np.broadcast_to(ref.platform_position, (runs, 33, 2)), atol=1e-6
     )
     # the book's PCRLB along the env's runs is bot-benchmark's (93 m with 1000 runs)
-    result = bot_control._summarise("leg", "open-loop", flown)
+    result = bot_control._summarise("leg", "rule", flown)
     sim = simulate(BOOK, 256, np.random.default_rng(0))
     assert result.pcrlb_32min == pytest.approx(pcrlb_position(BOOK, sim)[-1], rel=0.05)
     assert 80.0 < result.pcrlb_32min < 110.0
+    # one trajectory for all runs: averaging the information first changes little
+    assert result.per_run_32min == pytest.approx(result.pcrlb_32min, rel=0.05)
+
+
+def test_open_loop_counts_steps_per_env_and_checks_its_turns():
+    policy = book_leg_change()
+    obs = np.zeros((2, 10), dtype=np.float32)
+    a, k = policy.predict(obs)
+    for _ in range(12):
+        a, k = policy.predict(obs, k, np.array([False, False]))
+    assert a[:, 0].tolist() == [-1.0, -1.0] and k.tolist() == [13, 13]
+    a, k = policy.predict(obs, k, np.array([True, False]))  # env 0 starts a new episode
+    assert a[:, 0].tolist() == [0.0, -1.0] and k.tolist() == [1, 14]
+    with pytest.raises(ValueError, match="turns"):
+        OpenLoop((0.0, 1.5))
 
 
 def test_optimised_open_loop_beats_the_leg_change_and_keeps_the_standoff():

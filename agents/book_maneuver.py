@@ -1,0 +1,67 @@
+"""Open-loop manoeuvres of the textbook observer-control scenario (``BearingsManeuverBook-v0``).
+
+:class:`OpenLoop` flies a fixed sequence of turn commands, one per step, whatever the bearings
+say; :func:`book_leg_change` is the book's own manoeuvre (Ristic, Arulampalam & Gordon, ch. 6):
+course 140° → 20° at 30°/min during minutes 13–16. On the book's fixed scenario it is the
+baseline a reader asks a trained policy to beat. The numerically optimised sequence (a ceiling:
+it was optimised on the true target) is made by ``sensorgym reproduce bot-control``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: the book's leg change: minutes (steps) during which the observer turns at the full rate
+LEG_CHANGE_STEPS = (12, 13, 14, 15)
+#: its direction: −1 = full turn to port (140° → 20° at 30°/min)
+LEG_CHANGE_TURN = -1.0
+
+
+@dataclass(frozen=True)
+class OpenLoop:
+    """A fixed sequence of turn commands ``a₀`` in ``[−1, 1]`` (× the world's turn limit), one
+    per step, speed change 0; after the sequence, straight on. An SB3-style predictor whose
+    ``state`` is the step count per env (reset by ``episode_start``), as SB3 does for recurrent
+    policies."""
+
+    turns: tuple[float, ...]
+    """Turn command per step."""
+
+    def __post_init__(self) -> None:
+        u = np.asarray(self.turns, dtype=np.float64)
+        if u.ndim != 1 or u.size == 0 or not np.all(np.isfinite(u)):
+            raise ValueError(
+                f"turns: need a non-empty sequence of finite numbers, got {self.turns}"
+            )
+        if np.any(np.abs(u) > 1.0):
+            raise ValueError("turns: every command must lie in [-1, 1]")
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: NDArray[np.int64] | None = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        obs = np.asarray(observation)
+        single = obs.ndim == 1
+        n = 1 if single else obs.shape[0]
+        k = np.zeros(n, dtype=np.int64) if state is None else np.asarray(state, dtype=np.int64)
+        if episode_start is not None:
+            k = np.where(np.asarray(episode_start, dtype=bool), 0, k)
+        turns = np.append(np.asarray(self.turns, dtype=np.float64), 0.0)
+        action = np.zeros((n, 2), dtype=np.float32)
+        action[:, 0] = turns[np.minimum(k, turns.size - 1)]
+        return (action[0] if single else action), k + 1
+
+
+def book_leg_change(steps: int = 32) -> OpenLoop:
+    """The book's manoeuvre over ``steps`` steps: straight on course 140°, a full turn to port
+    (−30°/min) during minutes 13–16 (steps 12–15) to course 20°, straight again."""
+    turns = np.zeros(steps)
+    turns[[k for k in LEG_CHANGE_STEPS if k < steps]] = LEG_CHANGE_TURN
+    return OpenLoop(tuple(turns))
