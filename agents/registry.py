@@ -63,6 +63,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "cue-no-search": lambda params, _: scanning.CueFollowing(
             params, sweep_every=scanning.NEVER
         ),
+        "cue-entry-search": lambda params, _: scanning.CueFollowing(params, search="entry"),
         "orthogonal-sectors": lambda params, _: scanning.OrthogonalSectors(params),
         "greedy-information": lambda params, _: scanning.GreedyInformation(params),
         "oracle-sectors": lambda params, state_fn: scanning.OracleSectors(state_fn, params),

@@ -8,7 +8,8 @@ reads the simulator's true drones (a ceiling, not a fieldable policy).
 * :class:`FullSweep` — the papers' fixed sweep: every receiver scans its whole field of regard.
 * :class:`CueFollowing` — sectors centred on the predicted tracks, just wide enough for them
   and their motion during the period; a search of two consecutive full sweeps every
-  ``sweep_every`` periods (and a full sweep whenever there is no track) to find new drones.
+  ``sweep_every`` periods (and a full sweep whenever there is no track) to find new drones;
+  ``search="entry"`` searches with sectors on the region where drones enter instead.
 * :class:`OrthogonalSectors` — OC-1: the tracks ranked by the papers' range-only score
   ``σ_e/√(Σ_k sin²γ_k)`` (lines of sight from receiver 1 against the others); each receiver's
   sector covers the best-ranked tracks that fit a narrow sector, the others wait for the sweeps.
@@ -97,14 +98,34 @@ NEVER = 10**9
 SWEEP_PERIODS = 2
 
 
+def entry_points(params: ScanningParams) -> FloatArray:
+    """The 8 corners ``(8, 3)`` of the box where drones start or enter the scene (``±
+    start_spread`` in X and Z, ``start_altitude`` in height), grown by one period of flight at
+    the fastest speed, m (the scenario distribution is part of the params every rule sees)."""
+    grow = params.drone_speed[1] * params.period
+    xz = params.start_spread + grow
+    lo, hi = params.start_altitude[0] - grow, params.start_altitude[1] + grow
+    corners = [(x, y, z) for x in (-xz, xz) for y in (lo, hi) for z in (-xz, xz)]
+    return np.asarray(corners, dtype=np.float64)
+
+
+def entry_sectors(params: ScanningParams, o: dict, i: int) -> FloatArray:
+    """Sectors ``(n, 3)`` covering the entry region (:func:`entry_points`) and scenario ``i``'s
+    confirmed tracks: a search with finer fixes than the full sweep (53° wide by default)."""
+    ang, valid = _track_angles(params, o, i)
+    both = np.concatenate([local_angles(params, entry_points(params)), ang[valid]])
+    return _cover(params, both, np.ones(both.shape[0], bool))
+
+
 class _Periodic:
     """A rule with a period counter per env (SB3's ``state``): a search — ``sweep_periods``
-    consecutive full sweeps — every ``sweep_every`` periods, and a full sweep whenever it has
-    no track."""
+    consecutive periods of full sweeps, or with ``search="entry"`` of :func:`entry_sectors` —
+    every ``sweep_every`` periods, and a full sweep whenever it has no track."""
 
     params: ScanningParams
     sweep_every: int
     sweep_periods: int = SWEEP_PERIODS
+    search: str = "sweep"
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         raise NotImplementedError
@@ -126,7 +147,10 @@ class _Periodic:
         o = split_observation(self.params, obs)
         sectors = _full(self.params, N)
         for i in range(N):
-            if o["valid"][i].any() and count[i] % self.sweep_every >= self.sweep_periods:
+            searching = count[i] % self.sweep_every < self.sweep_periods
+            if searching and self.search == "entry":
+                sectors[i] = entry_sectors(self.params, o, i)
+            elif o["valid"][i].any() and not searching:
                 sectors[i] = self.sectors(o, i)
         count += 1
         action = sector_action(self.params, sectors).reshape(N, -1).astype(np.float32)
@@ -137,10 +161,13 @@ class CueFollowing(_Periodic):
     """Sectors centred on the predicted tracks, covering them and their motion in a period."""
 
     def __init__(self, params: ScanningParams, sweep_every: int = SWEEP_EVERY,
-                 sweep_periods: int = SWEEP_PERIODS):  # fmt: skip
+                 sweep_periods: int = SWEEP_PERIODS, search: str = "sweep"):  # fmt: skip
+        if search not in ("sweep", "entry"):
+            raise ValueError(f"search: 'sweep' or 'entry', got {search!r}")
         self.params = params
         self.sweep_every = sweep_every
         self.sweep_periods = sweep_periods
+        self.search = search
 
     def sectors(self, o: dict, i: int) -> FloatArray:
         ang, valid = _track_angles(self.params, o, i)
@@ -274,6 +301,8 @@ __all__ = [
     "GreedyInformation",
     "OracleSectors",
     "OrthogonalSectors",
+    "entry_points",
+    "entry_sectors",
     "greedy_sectors",
     "oc1_score",
 ]

@@ -126,9 +126,11 @@ class StereoScanningEnv(CoreEnv):
     * v0: initial version (issue 12). Issue 13 (observation and dynamics unchanged, golden
       episodes unchanged): the rules search with two consecutive full sweeps every 10 periods
       (a single sweep never confirmed a new drone: its tentative track dies unless the next
-      period continues it), ``cue-no-search`` is a registered baseline, and the ``scan-modes``
-      wrapper (:mod:`sensorgym.envs.stereo_scanning.wrappers`) lets a policy choose per period
-      between a sweep and the rules' sectors on the tracks.
+      period continues it); ``cue-entry-search`` (cue-following searching with sectors on the
+      region where drones enter, 53° instead of the 90° sweep) and ``cue-no-search`` are
+      registered rules; the ``scan-modes`` wrapper
+      (:mod:`sensorgym.envs.stereo_scanning.wrappers`) lets a policy choose per period between
+      a sweep, an entry search and the rules' sectors on the tracks.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

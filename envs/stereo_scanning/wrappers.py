@@ -27,7 +27,7 @@ from sensorgym.envs.stereo_scanning.simulation import (
 )
 
 #: the plans of :class:`ScanModes`, in action order
-MODES = ("sweep", "cue", "cue-wide")
+MODES = ("sweep", "cue", "cue-wide", "entry")
 
 
 def mode_sectors(
@@ -37,7 +37,10 @@ def mode_sectors(
     for observations ``(N, obs_dim)``: ``sweep`` every receiver's whole field of regard;
     ``cue`` :class:`~sensorgym.agents.stereo_scanning.CueFollowing`'s cover of the confirmed
     tracks and their motion; ``cue-wide`` the same centres at twice the width (a margin for
-    uncertain tracks). Without a confirmed track every plan is a sweep."""
+    uncertain tracks); ``entry`` one sector per receiver covering the region where drones
+    enter the scene and the confirmed tracks
+    (:func:`~sensorgym.agents.stereo_scanning.entry_sectors`) — a search at a finer
+    noise than the sweep's. Without a confirmed track ``cue`` and ``cue-wide`` sweep."""
     m = np.asarray(modes, dtype=np.int64).reshape(-1)
     N = m.shape[0]
     if np.any((m < 0) | (m >= len(MODES))):
@@ -46,6 +49,9 @@ def mode_sectors(
     out = rules._full(params, N)
     cue = rules.CueFollowing(params)
     for i in range(N):
+        if m[i] == 3:
+            out[i] = rules.entry_sectors(params, o, i)
+            continue
         if m[i] == 0 or not o["valid"][i].any():
             continue
         out[i] = cue.sectors(o, i)
@@ -55,7 +61,7 @@ def mode_sectors(
 
 
 class ScanModes(VecEnvWrapper):
-    """``Discrete(3)`` actions over the env's sector action: 0 sweep, 1 cue, 2 cue-wide
+    """``Discrete(4)`` actions over the env's sector action: 0 sweep, 1 cue, 2 cue-wide, 3 entry
     (:func:`mode_sectors`, planned on the observation the policy acted on)."""
 
     def __init__(self, venv: VecEnv):

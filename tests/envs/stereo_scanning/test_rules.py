@@ -7,7 +7,12 @@ import pytest
 from gymnasium import spaces
 
 from sensorgym.agents import stereo_scanning as rules
-from sensorgym.envs.stereo_scanning.simulation import ScanningParams, split_observation
+from sensorgym.envs.stereo_scanning.simulation import (
+    ScanningParams,
+    local_angles,
+    sector_action,
+    split_observation,
+)
 from sensorgym.envs.stereo_scanning.wrappers import MODES, ScanModes, mode_sectors
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 
@@ -65,16 +70,34 @@ def test_the_search_beats_no_search_and_single_sweeps():
     assert scores["search"] > scores["never"]
 
 
+def test_entry_search_covers_the_entry_region_and_the_tracks_narrower_than_a_sweep():
+    o = split_observation(PARAMS, one_track_observation())
+    sectors = rules.entry_sectors(PARAMS, o, 0)
+    w = sectors[:, 2]
+    assert np.all(w < np.deg2rad(60.0)) and np.all(w > np.deg2rad(40.0))
+    points = np.concatenate([rules.entry_points(PARAMS), o["position"][0, :1]])
+    ang = local_angles(PARAMS, points)  # (9, n, 3)
+    assert np.all(np.abs(ang[..., :2] - sectors[None, :, :2]) <= 0.5 * w[None, :, None] + 1e-9)
+    # the rule searches with these sectors on its search periods, even before any track
+    rule = rules.CueFollowing(PARAMS, search="entry")
+    action, _ = rule.predict(np.zeros((1, PARAMS.obs_dim), np.float32), None, np.array([True]))
+    np.testing.assert_allclose(action[0, 2], sector_action(PARAMS, sectors)[0, 2], atol=0.05)
+    with pytest.raises(ValueError, match="search"):
+        rules.CueFollowing(PARAMS, search="spiral")
+
+
 def test_mode_sectors_are_the_rules_plans():
-    obs = np.repeat(one_track_observation(), 3, axis=0)
-    sectors = mode_sectors(PARAMS, obs, np.array([0, 1, 2]))
+    obs = np.repeat(one_track_observation(), 4, axis=0)
+    sectors = mode_sectors(PARAMS, obs, np.array([0, 1, 2, 3]))
     np.testing.assert_allclose(sectors[0, :, :2], 0.0)
     np.testing.assert_allclose(sectors[0, :, 2], PARAMS.sector_width[1])
     cue = rules.CueFollowing(PARAMS).sectors(split_observation(PARAMS, obs), 1)
     np.testing.assert_allclose(sectors[1], cue)
     np.testing.assert_allclose(sectors[2, :, :2], cue[:, :2])
     np.testing.assert_allclose(sectors[2, :, 2], np.minimum(2 * cue[:, 2], PARAMS.sector_width[1]))
-    # without a confirmed track every plan is a sweep
+    entry = rules.entry_sectors(PARAMS, split_observation(PARAMS, obs), 3)
+    np.testing.assert_allclose(sectors[3], entry)
+    # without a confirmed track cue and cue-wide sweep
     empty = mode_sectors(PARAMS, np.zeros((3, PARAMS.obs_dim)), np.array([0, 1, 2]))
     np.testing.assert_allclose(empty, np.repeat(sectors[:1], 3, axis=0))
     with pytest.raises(ValueError, match="modes"):
