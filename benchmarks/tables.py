@@ -1,8 +1,8 @@
 """The docs' speed tables, generated from the committed benchmark results (so they cannot drift).
 
 ``python benchmarks/tables.py`` rewrites every block between ``<!-- table:NAME -->`` and
-``<!-- /table:NAME -->`` in README.md and docs/environments.md from
-``benchmarks/results/*.json``; ``--check`` only reports (exit 1) blocks that differ — what
+``<!-- /table:NAME -->`` in README.md, docs/environments.md and docs/results.md from
+``benchmarks/results/*.json`` and ``docs/scores/*.json``; ``--check`` only reports (exit 1) blocks that differ — what
 ``tests/test_docs_tables.py`` runs.
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-DOCS = (ROOT / "README.md", ROOT / "docs" / "environments.md")
+DOCS = (ROOT / "README.md", ROOT / "docs" / "environments.md", ROOT / "docs" / "results.md")
 ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement", "stereo_scanning")
 
 
@@ -101,10 +101,98 @@ def scores(env: str) -> str:
         label = (
             GREEDY_LABELS[env] if name == "greedy-information" else POLICY_LABELS.get(name, name)
         )
-        if name.startswith("model:"):
-            label = f"PPO (`train/hyperparams/ppo.yml`, training seed 0), `{name[6:]}`"
+        if ":" in name:
+            label = f"trained (`{name}`; `train/hyperparams/`)"
         lines.append(f"| {label} | {r['mean']:.3f} | {r['ci95']:.3f} |")
     return "\n".join(lines)
+
+
+#: Student's t quantiles, two-sided 95 %, by degrees of freedom (across training seeds)
+T95 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8: 2.306, 9: 2.262}
+
+
+def _score_doc(env: str) -> dict:
+    """A committed benchmark file; ``best_rule`` filled in for files written before it was."""
+    from sensorgym.train.benchmark import best_rule
+
+    doc = json.loads((SCORES / f"sensorgym__{env}.json").read_text())
+    doc.setdefault("best_rule", best_rule(doc["results"]))
+    return doc
+
+
+def _trained(results: dict) -> list[str]:
+    return sorted(name for name in results if ":" in name)
+
+
+def results_summary() -> str:
+    """Per env: the best fieldable rule, the trained policies' paired difference to it (mean
+    over training seeds with a t interval across seeds), the oracle ceiling where there is one."""
+    lines = [
+        "| env | episodes, seed | best rule | its mean | trained policies | their mean | "
+        "paired − best rule, mean over runs (95 % t interval across runs) | runs above the rule "
+        "(paired 95 % interval > 0) | oracle ceiling |",
+        "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for env in SCORE_ENVS:
+        doc = _score_doc(env)
+        res, best, paired = doc["results"], doc.get("best_rule"), doc.get("paired", {})
+        settings = doc["settings"]
+        runs = [name for name in _trained(res) if name in paired]
+        oracle = [r["mean"] for k, r in res.items() if k.startswith("oracle-")]
+        ceiling = f"{max(oracle):.3f}" if oracle else "—"
+        if not runs or best is None:
+            lines.append(
+                f"| `{env}` | {settings['episodes']}, {settings['seed']} | {best} | "
+                f"{res[best]['mean']:.3f} | none | | | | {ceiling} |"
+                if best
+                else f"| `{env}` | | | | none | | | | {ceiling} |"
+            )
+            continue
+        diffs = [paired[name]["mean"] for name in runs]
+        mean = sum(diffs) / len(diffs)
+        if len(diffs) > 1:
+            sd = (sum((d - mean) ** 2 for d in diffs) / (len(diffs) - 1)) ** 0.5
+            half = T95[len(diffs) - 1] * sd / len(diffs) ** 0.5
+            across = f"{mean:+.3f} ({mean - half:+.3f}, {mean + half:+.3f})"
+        else:
+            across = f"{mean:+.3f} (one run)"
+        above = sum(paired[n]["mean"] - paired[n]["ci95"] > 0 for n in runs)
+        trained_mean = sum(res[n]["mean"] for n in runs) / len(runs)
+        names = ", ".join(f"`{n.split(':', 1)[1]}`" for n in runs)
+        lines.append(
+            f"| `{env}` | {settings['episodes']}, {settings['seed']} | `{best}` | "
+            f"{res[best]['mean']:.3f} | {names} | {trained_mean:.3f} | {across} | "
+            f"{above} of {len(runs)} | {ceiling} |"
+        )
+    return "\n".join(lines)
+
+
+def results_env(env: str) -> str:
+    """Every policy of ``docs/scores/<env>.json`` with its paired difference to the best rule."""
+    doc = _score_doc(env)
+    settings, best, paired = doc["settings"], doc.get("best_rule"), doc.get("paired", {})
+    lines = [
+        f"Seed {settings['seed']}, {settings['episodes']} episodes, {settings['n_envs']} "
+        f"scenarios at a time (`docs/scores/sensorgym__{env}.json`); the paired difference is "
+        f"per episode, on the same scenarios, to the best rule `{best}`:",
+        "",
+        "| policy | mean return | ± 95 % | paired − best rule | paired 95 % interval |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    for name, r in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"]):
+        d = paired.get(name)
+        if name == best:
+            diff, interval = "(best rule)", ""
+        elif d is None:
+            diff, interval = "", ""
+        else:
+            diff = f"{d['mean']:+.3f}"
+            interval = f"[{d['mean'] - d['ci95']:+.3f}, {d['mean'] + d['ci95']:+.3f}]"
+        lines.append(f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | {diff} | {interval} |")
+    return "\n".join(lines)
+
+
+SCORE_ENVS = ("BearingsManeuver-v0", "StereoPointing-v0", "StereoPlacement-v0", "StereoScanning-v0")
 
 
 def cold_start() -> str:
@@ -126,6 +214,8 @@ TABLES = {
     "scores-pointing": lambda: scores("StereoPointing-v0"),
     "scores-placement": lambda: scores("StereoPlacement-v0"),
     "scores-scanning": lambda: scores("StereoScanning-v0"),
+    "results-summary": results_summary,
+    **{f"results-{env.split('-')[0]}": (lambda e=env: results_env(e)) for env in SCORE_ENVS},
 }
 
 

@@ -3,9 +3,12 @@
 Every env registered under ``sensorgym/`` (or those given with ``--env``) is scored: every rule
 registered for it in :mod:`sensorgym.agents.registry`, every policy shipped with sensorgym
 (:mod:`sensorgym.train.shipped`) and every model given with ``--model``, each evaluated with one
-seed over the same scenarios (SB3's ``evaluate_policy`` on the native vector env). One table per
-env shows mean return, the 95 % confidence half-width and interval and the mean episode length
-(the JSON also holds the standard deviation); the numbers go to
+seed over the same scenarios, in the same order (:func:`sensorgym.train.evaluation.evaluate` on
+the native vector env). One table per env shows mean return, the 95 % confidence half-width and
+interval, the mean episode length and each policy's paired difference to the best fieldable
+rule (oracles, which see the truth, excluded): the mean and 95 % interval of the per-episode
+difference on the same scenarios. The JSON also holds the standard deviation, every policy's
+per-episode ``returns`` and the paired differences (``paired``); the numbers go to
 ``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
 ``OUT/benchmark.png``.
 
@@ -63,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from sensorgym.train.benchmark import plot_scores, registered_envs
+    from sensorgym.train.benchmark import paired_to_best_rule, plot_scores, registered_envs
     from sensorgym.train.models import RunFolderError, check_run_folder
 
     if args.n_envs < 1 or args.episodes < args.n_envs:
@@ -93,7 +96,13 @@ def run(args: argparse.Namespace) -> int:
         scores[env_id] = results
         args.out.mkdir(parents=True, exist_ok=True)
         path = args.out / f"{env_id.replace('/', '__')}.json"
-        doc = {"settings": {"env": env_id, **settings}, "results": results}
+        best, paired = paired_to_best_rule(results)
+        doc = {
+            "settings": {"env": env_id, **settings},
+            "results": results,
+            "best_rule": best,
+            "paired": paired,
+        }
         path.write_text(json.dumps(doc, indent=2) + "\n")
         written.append(path)
     if scores:
@@ -114,7 +123,7 @@ def _benchmark(
     """Score every policy of ``env_id`` and print its table; ``None`` when it has none."""
     from rich.table import Table
 
-    from sensorgym.train.benchmark import policies_for, score
+    from sensorgym.train.benchmark import paired_to_best_rule, policies_for, score
     from sensorgym.train.models import RunFolderError
 
     specs = policies_for(env_id, args.model, shipped=not args.no_shipped)
@@ -131,16 +140,29 @@ def _benchmark(
             except RunFolderError as exc:
                 raise SystemExit(f"--model: {exc}") from None
 
+    best, paired = paired_to_best_rule(results)
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
-    for column in ("policy", "mean", "±95 %", "95 % interval", "length"):
+    columns = ("policy", "mean", "±95 %", "95 % interval", "length", f"− {best} (paired)")
+    for column in columns:
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
+        d = paired.get(name)
+        diff = "best rule" if name == best else "" if d is None else _interval(d)
         table.add_row(
             name,
             f"{r['mean']:.3f}",
             f"{r['ci95']:.3f}",
             f"[{r['mean'] - r['ci95']:.2f}, {r['mean'] + r['ci95']:.2f}]",
             f"{r['mean_length']:.1f}",
+            diff,
         )
     console.print(table)
     return results
+
+
+def _interval(d: dict[str, float]) -> str:
+    """``mean [lo, hi]`` of a paired difference, marked ``+``/``−`` when the 95 % interval
+    lies above/below zero."""
+    lo, hi = d["mean"] - d["ci95"], d["mean"] + d["ci95"]
+    mark = " +" if lo > 0 else " −" if hi < 0 else ""
+    return f"{d['mean']:+.3f} [{lo:+.2f}, {hi:+.2f}]{mark}"

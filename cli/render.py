@@ -2,7 +2,9 @@
 
 Runs one seeded episode of the Gymnasium env with ``render_mode="rgb_array"`` and writes the
 frames: an animated ``.gif`` (every ``--every``-th step), or the last frame as ``.png``.
-Prints the episode return and length.
+Prints the episode return and length. ``--model`` takes a run folder or the name of a policy
+shipped for the env (``sensorgym benchmark`` lists them as ``shipped:<name>``); a model acts
+through the wrappers its run recorded (:mod:`sensorgym.train.wrappers`).
 """
 
 from __future__ import annotations
@@ -10,6 +12,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 from typing import Any
+
+import gymnasium as gym
+import numpy as np
 
 from sensorgym.cli.benchmark import UNSAFE_PICKLE_HELP
 
@@ -23,7 +28,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--model",
         type=Path,
         default=None,
-        help="a `sensorgym train` run folder (policy.safetensors + config.yaml)",
+        help="a `sensorgym train` run folder (policy.safetensors + config.yaml), or the name "
+        "of a policy shipped for --env (e.g. ppo_seed0 or shipped:ppo_seed0)",
     )
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--seed", type=int, default=0)
@@ -34,12 +40,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     import gymnasium as gym
-    import numpy as np
     from PIL import Image
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
     from sensorgym.agents.registry import rules_for
-    from sensorgym.train.models import RunFolderError, check_run_folder, load_model
+    from sensorgym.train.models import RunFolderError, check_run_folder, load_model, wrappers_of
+    from sensorgym.train.wrappers import apply_wrappers
 
     if args.out.suffix.lower() not in (".gif", ".png"):
         raise SystemExit("--out must end in .gif or .png")
@@ -47,15 +54,18 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit("--every must be >= 1 and --fps > 0")
     if args.env not in gym.registry:
         raise SystemExit(f"--env: {args.env!r} is not a registered id")
+    wrappers: list[dict[str, Any]] = []
     if args.model is not None:
+        args.model = _model_folder(args.model, args.env)
         try:
             config = check_run_folder(args.model, args.unsafe_pickle)
+            wrappers = wrappers_of(config)
         except RunFolderError as exc:
             raise SystemExit(f"--model: {exc}") from None
         trained_on = config["env"]
         if trained_on != args.env:
             raise SystemExit(f"--model {args.model}: trained on {trained_on}, not on {args.env}")
-    env = gym.make(args.env, render_mode="rgb_array")
+    env = _Frames(gym.make(args.env, render_mode="rgb_array"), args.every)
     core_env = env.unwrapped
     if args.model is not None:
         try:
@@ -71,19 +81,20 @@ def run(args: argparse.Namespace) -> int:
         if name not in rules:
             raise SystemExit(f"--rule: one of {sorted(rules)}, got {name!r}")
         policy = rules[name]
-    obs, _ = env.reset(seed=args.seed)
-    frames, total, steps, state, start = [env.render()], 0.0, 0, None, np.array([True])
+    # one slot of SB3's VecEnv API, so a model meets the wrappers it was trained through
+    venv = apply_wrappers(VecMonitor(DummyVecEnv([lambda: env])), wrappers)
+    venv.seed(args.seed)
+    obs = venv.reset()
+    total, steps, state, start = 0.0, 0, None, np.array([True])
     done = False
     while not done:
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
-        start = np.array([False])
-        obs, reward, terminated, truncated, _ = env.step(action)
-        total, steps, done = total + reward, steps + 1, terminated or truncated
-        if steps % args.every == 0 or done:
-            frames.append(env.render())
-    env.close()
+        obs, reward, dones, _ = venv.step(action)
+        start = dones
+        total, steps, done = total + float(reward[0]), steps + 1, bool(dones[0])
+    venv.close()
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    images = [Image.fromarray(f) for f in frames]
+    images = [Image.fromarray(f) for f in env.frames]
     if args.out.suffix.lower() == ".png":
         images[-1].save(args.out)
     else:
@@ -92,6 +103,46 @@ def run(args: argparse.Namespace) -> int:
     print(f"{args.env}, {name}, seed {args.seed}: return {total:.3f} over {steps} steps")
     print(f"wrote {args.out} ({len(images)} frames)")
     return 0
+
+
+def _model_folder(model: Path, env_id: str) -> Path:
+    """``model`` itself when it exists, else the shipped policy of ``env_id`` it names."""
+    from sensorgym.train.shipped import shipped_policies
+
+    if Path(model).exists():
+        return Path(model)
+    shipped = shipped_policies(env_id)
+    key = str(model).removeprefix("shipped:")
+    if key in shipped:
+        return shipped[key]
+    raise SystemExit(
+        f"--model: {str(model)!r} is neither a run folder nor a policy shipped for {env_id} "
+        f"(shipped: {sorted(shipped) or 'none'})"
+    )
+
+
+class _Frames(gym.Wrapper):
+    """Keeps the frames of the first episode: the first state, every ``every``-th step's and
+    the last one's (drawn before any reset)."""
+
+    def __init__(self, env: gym.Env, every: int):
+        super().__init__(env)
+        self.every, self.frames, self._steps, self._done = every, [], 0, False
+
+    def reset(self, **kwargs: Any) -> Any:
+        result = self.env.reset(**kwargs)
+        if not self.frames:
+            self.frames.append(self.env.render())
+        return result
+
+    def step(self, action: Any) -> Any:
+        result = self.env.step(action)
+        if not self._done:
+            self._steps += 1
+            self._done = bool(result[2] or result[3])
+            if self._steps % self.every == 0 or self._done:
+                self.frames.append(self.env.render())
+        return result
 
 
 class SharedPolicy:

@@ -2,8 +2,9 @@
 
 Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--timesteps`` and
 ``--n-envs`` override them. The run folder gets the policy weights ``policy.safetensors`` (data
-only: loading them runs no code), the resolved ``config.yaml`` and ``evaluation.json`` (the
-trained policy beside the heuristic rules, same seed and scenarios); ``sensorgym benchmark
+only: loading them runs no code), the resolved ``config.yaml``, ``evaluation.json`` (the
+trained policy beside the heuristic rules, same seed and scenarios) and the learning curve
+``curve.json``/``curve.png`` (evaluation return against samples, the rules as lines); ``sensorgym benchmark
 --model RUN_FOLDER`` scores it again later. ``--tensorboard DIR`` logs the run for TensorBoard.
 """
 
@@ -45,6 +46,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "metrics per episode (episode/bound, episode/position_error, …); view them with "
         "`tensorboard --logdir DIR`",
     )
+    parser.add_argument(
+        "--curve-points",
+        type=int,
+        default=10,
+        help="evaluations during learning for curve.json/curve.png (default 10; 0: none)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -71,6 +78,7 @@ def run(args: argparse.Namespace) -> int:
         agents=args.agents,
         torch_threads=args.torch_threads,
         tensorboard=args.tensorboard,
+        curve_points=args.curve_points,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):

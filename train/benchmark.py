@@ -75,14 +75,15 @@ def score(
     of those scenarios."""
     from sensorgym.agents.registry import RULES
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-    from sensorgym.train.models import load_model, read_config, run_dir_of
+    from sensorgym.train.models import load_model, read_config, run_dir_of, wrappers_of
 
     if spec.kind == "rule":
         env = make_sb3_env(env_id, n_envs, seed)
         policy: Any = RULES[env_id][spec.name](env_params(env), simulator_state(env))
     elif spec.kind == "model":
-        agents = bool(read_config(run_dir_of(Path(spec.name))).get("agents", False))
-        env = make_sb3_env(env_id, n_envs, seed, agents=agents)
+        config = read_config(run_dir_of(Path(spec.name)))
+        agents = bool(config.get("agents", False))
+        env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers_of(config))
         policy = load_model(Path(spec.name), env, unsafe_pickle=unsafe_pickle)
     else:
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
@@ -112,6 +113,60 @@ def pool(parts: list[dict[str, float]]) -> dict[str, float]:
         "ci95": float(1.96 * sd / np.sqrt(total)),
         "episodes": int(total),
         "mean_length": length,
+        "returns": [x for p in parts for x in p.get("returns", [])],
+    }
+
+
+#: a rule whose name starts so plans on the truth: a ceiling, not a rival (agents.registry)
+ORACLE_PREFIX = "oracle-"
+
+
+def is_rule(name: str) -> bool:
+    """Whether a benchmark row is a registered rule (models are ``model:…``/``shipped:…``)."""
+    return ":" not in name
+
+
+def best_rule(results: dict[str, dict[str, Any]]) -> str | None:
+    """The rule with the highest mean return among ``results``' rows that are fieldable rules
+    (no oracle: those see the truth); ``None`` when there is none."""
+    rules = {
+        k: r["mean"] for k, r in results.items() if is_rule(k) and not k.startswith(ORACLE_PREFIX)
+    }
+    return max(rules, key=rules.__getitem__) if rules else None
+
+
+def paired_difference(a: list[float], b: list[float]) -> dict[str, float]:
+    """Mean, standard deviation and normal 95 % half-width of the per-episode difference
+    ``a − b`` of two policies' returns on the same scenarios (:func:`score` with one seed and
+    batch gives them in the same episode order): pairing removes the scenario-to-scenario
+    spread both share, so the interval is far tighter than the two separate ones."""
+    x, y = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 1 or x.size < 2:
+        raise ValueError(
+            f"paired_difference: need two equally long lists of >= 2 returns, got "
+            f"{x.shape} and {y.shape}"
+        )
+    d = x - y
+    sd = float(d.std(ddof=1))
+    return {
+        "mean": float(d.mean()),
+        "std": sd,
+        "ci95": float(1.96 * sd / np.sqrt(d.size)),
+        "episodes": int(d.size),
+    }
+
+
+def paired_to_best_rule(results: dict[str, dict[str, Any]]) -> tuple[str | None, dict[str, Any]]:
+    """``(best rule, {policy: paired difference to it})`` for every other row of ``results``
+    that has per-episode ``returns`` (rows without them are left out)."""
+    best = best_rule(results)
+    if best is None or not results[best].get("returns"):
+        return best, {}
+    ref = results[best]["returns"]
+    return best, {
+        name: paired_difference(r["returns"], ref)
+        for name, r in results.items()
+        if name != best and len(r.get("returns", ())) == len(ref)
     }
 
 

@@ -2,7 +2,9 @@
 
 Hyperparameters live in ``hyperparams/<algo>.yml`` keyed by env id (the rl-baselines3-zoo
 layout) and are read with ``yaml.safe_load`` — values are data, never code. ``n_envs``,
-``n_timesteps`` and ``policy`` are run settings; every other key goes to the algorithm.
+``n_timesteps`` and ``policy`` are run settings, and so are the optional ``wrappers``
+(:mod:`.wrappers`: what the policy sees and how it acts) and ``pretrain`` (:mod:`.experts`:
+imitation before RL); every other key goes to the algorithm.
 """
 
 from __future__ import annotations
@@ -17,8 +19,11 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 #: algorithm name -> SB3 class (both handle the continuous Box actions of our envs)
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
 
-#: keys of a hyperparameter set that configure the run, not the algorithm
+#: keys every hyperparameter set has that configure the run, not the algorithm
 RUN_KEYS = ("n_envs", "n_timesteps", "policy")
+
+#: keys a hyperparameter set may have that configure the run, not the algorithm
+OPTIONAL_RUN_KEYS = ("wrappers", "pretrain")
 
 
 def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
@@ -39,5 +44,6 @@ def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
 def split_run_settings(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(run settings, algorithm keyword arguments)`` of a hyperparameter set."""
     run = {k: hp[k] for k in RUN_KEYS}
-    algo_kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    run.update({k: hp[k] for k in OPTIONAL_RUN_KEYS if hp.get(k) is not None})
+    algo_kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS + OPTIONAL_RUN_KEYS}
     return run, algo_kwargs

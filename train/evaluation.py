@@ -1,6 +1,6 @@
 """Seeded evaluation of any SB3-style policy on a registered env, batched.
 
-Rules and trained models are scored the same way: SB3's ``evaluate_policy`` over the env's
+Rules and trained models are scored the same way: SB3's ``predict`` stepped over the env's
 native vector env (through :class:`.sb3_vec_env.SB3VecEnv`), deterministic actions, a fixed
 seed, so that two policies evaluated with one seed meet the same scenarios.
 """
@@ -8,17 +8,17 @@ seed, so that two policies evaluated with one seed meet the same scenarios.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.train.sb3_vec_env import SB3VecEnv
+from sensorgym.train.wrappers import apply_wrappers
 
 
 @dataclass(frozen=True)
@@ -35,17 +35,29 @@ class EpisodeStats:
     """Number of episodes."""
     mean_length: float
     """Mean episode length (steps)."""
+    returns: tuple[float, ...] = field(default=(), repr=False)
+    """Every episode's return, in a fixed order: round ``k`` of every slot, slot by slot
+    (episode ``k·B + i`` is slot ``i``'s ``k``-th): two policies evaluated with one seed and
+    batch pair up episode by episode on the same scenarios."""
 
-    def as_dict(self) -> dict[str, float]:
-        return asdict(self)
+    def as_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["returns"] = list(self.returns)
+        return d
 
 
 def make_sb3_env(
-    env_id: str, n_envs: int, seed: int, agents: bool = False, **env_kwargs: Any
+    env_id: str,
+    n_envs: int,
+    seed: int,
+    agents: bool = False,
+    wrappers: Any = (),
+    **env_kwargs: Any,
 ) -> VecEnv:
     """The env's native vector env of ``n_envs`` scenarios as an SB3 ``VecEnv`` (SAME_STEP
     autoreset, ``VecMonitor``); ``agents=True`` makes every agent of every scenario a slot
-    (parameter sharing over the env's PettingZoo agents). ``env_kwargs``: params fields."""
+    (parameter sharing over the env's PettingZoo agents). ``wrappers``: a run's wrapper list
+    (:mod:`.wrappers`), applied over the monitor. ``env_kwargs``: params fields."""
     venv = gym.make_vec(
         env_id,
         num_envs=n_envs,
@@ -54,7 +66,7 @@ def make_sb3_env(
         agent_view=agents,
         **env_kwargs,
     )
-    env = VecMonitor(SB3VecEnv(venv))
+    env = apply_wrappers(VecMonitor(SB3VecEnv(venv)), wrappers)
     env.seed(seed)
     return env
 
@@ -77,29 +89,57 @@ def agents_per_scenario(env: VecEnv) -> int:
 
 
 def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats:
-    """Score ``policy`` (anything with SB3's ``predict``) over ``episodes`` episodes of ``env``.
+    """Score ``policy`` (anything with SB3's ``predict``) over ``episodes`` episodes of ``env``,
+    deterministic actions.
 
-    ``env`` is reseeded with ``seed`` first, so policies evaluated with one seed meet the same
-    scenarios (exactly so while no episode ends early by termination). On an env whose slots
-    are agents (``make_sb3_env(..., agents=True)``) an episode is a scenario's, counted once:
-    ``episodes`` must then be a multiple of the number of scenarios.
+    ``env`` is reseeded with ``seed`` first, so policies evaluated with one seed and batch meet
+    the same scenarios, in the same slots (exactly so while no episode ends early by a
+    termination the policy caused). Slot ``i`` plays episodes until it has its share
+    (``episodes // B``, one more for the last ``episodes % B`` slots, as SB3's
+    ``evaluate_policy``); the returns are ordered
+    by round, then slot (:attr:`EpisodeStats.returns`). On an env whose slots are agents
+    (``make_sb3_env(..., agents=True)``) an episode is a scenario's, counted once: ``episodes``
+    must then be a multiple of the number of scenarios.
     """
     if episodes < 1:
         raise ValueError(f"episodes: must be >= 1, got {episodes}")
     n = agents_per_scenario(env)
-    if n > 1 and episodes % (env.num_envs // n):
-        raise ValueError(
-            f"episodes: {episodes} is not a multiple of the {env.num_envs // n} scenarios"
-        )
+    slots = env.num_envs
+    scenarios = slots // n
+    if n > 1 and episodes % scenarios:
+        raise ValueError(f"episodes: {episodes} is not a multiple of the {scenarios} scenarios")
+    # SB3's split (evaluate_policy): scenario s plays (episodes + s) // scenarios episodes
+    target = np.array([(episodes + s) // scenarios for s in range(scenarios)]).repeat(n)
     env.seed(seed)
-    returns, lengths = evaluate_policy(
-        policy, env, n_eval_episodes=episodes * n, deterministic=True, return_episode_rewards=True
-    )
-    # every agent of a scenario ends with it, one after another: one return per scenario
-    r = np.asarray(returns, dtype=np.float64).reshape(-1, n)
+    obs = env.reset()
+    start = np.ones(slots, dtype=bool)
+    state = None
+    running = np.zeros(slots)
+    length = np.zeros(slots, dtype=np.int64)
+    done_returns: list[list[float]] = [[] for _ in range(slots)]
+    done_lengths: list[list[int]] = [[] for _ in range(slots)]
+    while any(len(done_returns[i]) < target[i] for i in range(slots)):
+        action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
+        obs, reward, done, _ = env.step(action)
+        running += np.asarray(reward, dtype=np.float64)
+        length += 1
+        for i in np.flatnonzero(done):
+            if len(done_returns[i]) < target[i]:
+                done_returns[i].append(float(running[i]))
+                done_lengths[i].append(int(length[i]))
+        running[done] = 0.0
+        length[done] = 0
+        start = np.asarray(done, dtype=bool)
+    # one return per scenario: the agents of a scenario share its team return
+    rounds = max(len(r) for r in done_returns)
+    order = [
+        (k, s) for k in range(rounds) for s in range(scenarios) if k < len(done_returns[s * n])
+    ]
+    r = np.array([[done_returns[s * n + a][k] for a in range(n)] for k, s in order])
     if not np.allclose(r, r[:, :1], rtol=1e-5, atol=1e-5):
         raise RuntimeError("evaluate: the agents of a scenario disagree on its team return")
-    r, lengths = r[:, 0], np.asarray(lengths).reshape(-1, n)[:, 0]
+    r = r[:, 0]
+    lengths = np.array([done_lengths[s * n][k] for k, s in order], dtype=np.float64)
     std = float(r.std(ddof=1)) if r.size > 1 else 0.0
     return EpisodeStats(
         mean=float(r.mean()),
@@ -107,4 +147,5 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
         ci95=float(1.96 * std / np.sqrt(r.size)),
         episodes=int(r.size),
         mean_length=float(np.mean(lengths)),
+        returns=tuple(float(x) for x in r),
     )

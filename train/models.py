@@ -7,8 +7,8 @@ hyperparameters) and ``evaluation.json`` (the trained policy beside the rules).
 Both files a model is loaded from are plain data: safetensors is a JSON header and raw tensor
 bytes, and the config is read with ``yaml.safe_load``. Loading rebuilds the algorithm the config
 describes (its policy class alias, ``policy_kwargs`` and the observation and action spaces of
-the registered env, per agent for a parameter-sharing run) and loads the weights into its
-policy; nothing in the folder is ever unpickled, so a hostile folder cannot run code.
+the registered env, per agent for a parameter-sharing run, seen through the run's
+``wrappers``) and loads the weights into its policy; nothing in the folder is ever unpickled, so a hostile folder cannot run code.
 
 SB3's own ``model.zip`` is different: its ``data`` entry carries cloudpickled objects that run
 code when loaded. ``sensorgym train`` does not write one; a folder that has only a ``model.zip``
@@ -25,7 +25,8 @@ from typing import Any
 import yaml
 from stable_baselines3.common.base_class import BaseAlgorithm
 
-from sensorgym.train.config import ALGORITHMS, RUN_KEYS
+from sensorgym.train.config import ALGORITHMS, OPTIONAL_RUN_KEYS, RUN_KEYS
+from sensorgym.train.wrappers import check_wrappers
 
 WEIGHTS_FILE = "policy.safetensors"
 CONFIG_FILE = "config.yaml"
@@ -115,10 +116,21 @@ def save_run(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any]) -> Non
     (run_dir / SB3_ZIP_FILE).unlink(missing_ok=True)
 
 
+def wrappers_of(config: dict[str, Any]) -> list[dict[str, Any]]:
+    """The wrapper list (:mod:`.wrappers`) a run's policy acts through; :class:`RunFolderError`
+    when ``config.yaml`` names an unknown one."""
+    hp = config.get("hyperparams") or {}
+    try:
+        return check_wrappers(hp.get("wrappers") if isinstance(hp, dict) else None)
+    except ValueError as exc:
+        raise RunFolderError(f"{CONFIG_FILE}, hyperparams: {exc}") from None
+
+
 def build_model(config: dict[str, Any], env: Any = None) -> BaseAlgorithm:
     """The untrained SB3 algorithm a checked ``config`` describes, on the CPU: its ``algo`` and
     hyperparameters (policy alias, ``policy_kwargs`` and the rest) over the observation and
-    action spaces of the registered env (per agent when ``agents`` is true).
+    action spaces of the registered env (per agent when ``agents`` is true) seen through the
+    run's ``wrappers`` (:func:`wrappers_of`; ``env`` must already carry them).
 
     The model keeps no env unless ``env`` (an SB3 ``VecEnv`` with those spaces) is given, as
     after SB3's own ``load``. Hyperparameters that do not build the algorithm
@@ -135,9 +147,9 @@ def build_model(config: dict[str, Any], env: Any = None) -> BaseAlgorithm:
     if not isinstance(policy, str) or policy not in algo.policy_aliases:
         known = sorted(algo.policy_aliases)
         raise RunFolderError(f"{where}: policy {policy!r} is not one of {known}")
-    kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS}
+    kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS + OPTIONAL_RUN_KEYS}
     agents = bool(config.get("agents", False))
-    spaces_env = make_sb3_env(config["env"], 1, seed=0, agents=agents)
+    spaces_env = make_sb3_env(config["env"], 1, seed=0, agents=agents, wrappers=wrappers_of(config))
     try:
         if env is not None and (
             env.observation_space != spaces_env.observation_space

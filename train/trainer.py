@@ -1,9 +1,11 @@
 """Train an SB3 algorithm on a registered env's native vector env, save it, score it.
 
 The run folder (:mod:`.models`) gets the policy weights (``policy.safetensors``: data, no
-pickle), the resolved configuration and an evaluation of the trained policy beside every
-heuristic rule registered for the env, all on one seed and the same evaluation scenarios (a seed
-disjoint from training's).
+pickle), the resolved configuration, an evaluation of the trained policy beside every heuristic
+rule registered for the env, all on one seed and the same evaluation scenarios (a seed disjoint
+from training's), and the learning curve on those scenarios (:mod:`.curves`). A run may act
+through wrappers (:mod:`.wrappers`) and imitate an expert before RL (:mod:`.experts`), as its
+hyperparameters say.
 """
 
 from __future__ import annotations
@@ -23,7 +25,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES, rules_for
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
+from sensorgym.train.curves import LearningCurve, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
+from sensorgym.train.experts import Pretrain, pretrain
 from sensorgym.train.models import save_run
 
 #: evaluation scenarios come from this offset of the training seed
@@ -92,6 +96,7 @@ def train(
     hyperparams: dict[str, Any] | None = None,
     tensorboard: Path | None = None,
     callbacks: Sequence[BaseCallback] = (),
+    curve_points: int = 10,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
     override them), save the run and evaluate it beside the rules.
@@ -109,6 +114,10 @@ def train(
     files — SB3's scalars plus the env's accuracy metrics per episode
     (:class:`EpisodeInfoLogger`) — in ``<tensorboard>/<env id with __>_<algo>_seed<seed>_1``.
     ``callbacks`` are further SB3 callbacks run during learning.
+
+    ``curve_points``: evaluations of the policy during learning (evenly spaced, plus one
+    before it), each over the ``eval_episodes`` evaluation scenarios; written with the rules'
+    scores as ``curve.json``/``curve.png`` (0: no curve).
     """
     import torch
 
@@ -130,6 +139,7 @@ def train(
             hyperparams or {},
             tensorboard,
             list(callbacks),
+            curve_points,
         )
     finally:
         torch.set_num_threads(previous_threads)
@@ -148,6 +158,7 @@ def _train(
     overrides: dict[str, Any],
     tensorboard: Path | None,
     callbacks: list[BaseCallback],
+    curve_points: int,
 ) -> TrainResult:
     hp = load_hyperparams(algo, env_id)
     hp.update(overrides)
@@ -158,7 +169,11 @@ def _train(
     run, algo_kwargs = split_run_settings(hp)
     if run["n_timesteps"] < 1 or run["n_envs"] < 1:
         raise ValueError(f"timesteps and n_envs must be >= 1, got {run}")
-    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents)
+    if curve_points < 0:
+        raise ValueError(f"curve_points: must be >= 0, got {curve_points}")
+    wrappers = run.get("wrappers", [])
+    imitation = Pretrain.from_config(run["pretrain"]) if "pretrain" in run else None
+    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents, wrappers=wrappers)
     tb_log = None if tensorboard is None else str(Path(tensorboard).resolve())
     model = ALGORITHMS[algo](
         run["policy"],
@@ -169,12 +184,35 @@ def _train(
         tensorboard_log=tb_log,
         **algo_kwargs,
     )
+
+    # the same evaluation scenarios for all: the policy on its own (wrapped, per-agent) view,
+    # the rules on the env's joint one
+    n_eval = min(16, eval_episodes)
+    eval_seed = seed + EVAL_SEED_OFFSET
+    eval_env = make_sb3_env(env_id, n_eval, eval_seed)
+    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers)
+    rule_scores: dict[str, dict[str, Any]] = {}
+    if env_id in RULES:
+        rules = rules_for(env_id, env_params(eval_env), simulator_state(eval_env))
+        for rule, policy in rules.items():
+            rule_scores[rule] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
+
+    pretrain_loss = pretrain(model, env, imitation, seed) if imitation is not None else []
+    curve = None
+    if curve_points:
+        every = max(1, -(-run["n_timesteps"] // curve_points))
+        curve = LearningCurve(model_env, eval_episodes, eval_seed, every)
     name = run_dir_for(Path("."), env_id, algo, seed, agents)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
         model.learn(
             run["n_timesteps"],
-            callback=[RichProgress(bar, task), EpisodeInfoLogger(), *callbacks],
+            callback=[
+                RichProgress(bar, task),
+                EpisodeInfoLogger(),
+                *([curve] if curve is not None else []),
+                *callbacks,
+            ],
             tb_log_name=f"{name.parent.name}_{name.name}",
         )
     env.close()
@@ -196,18 +234,13 @@ def _train(
     }
     save_run(model, run_dir, config)  # weights + config.yaml: no pickle, see .models
 
-    n_eval = min(16, eval_episodes)
-    eval_seed = seed + EVAL_SEED_OFFSET
-    # the same scenarios for all: the trained policy on its own view, the rules on the joint one
-    eval_env = make_sb3_env(env_id, n_eval, eval_seed)
-    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=True) if agents else eval_env
-    evaluation = {"trained": evaluate(model, model_env, eval_episodes, eval_seed).as_dict()}
-    if env_id in RULES:
-        rules = rules_for(env_id, env_params(eval_env), simulator_state(eval_env))
-        for name, policy in rules.items():
-            evaluation[name] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
+    trained = evaluate(model, model_env, eval_episodes, eval_seed).as_dict()
+    evaluation = {"trained": trained, **rule_scores}
     model_env.close()
     eval_env.close()
     doc = {"episodes": eval_episodes, "seed": eval_seed, "results": evaluation}
     (run_dir / "evaluation.json").write_text(json.dumps(doc, indent=2) + "\n")
+    if curve is not None:
+        lines = {k: r["mean"] for k, r in rule_scores.items()}
+        write_curve(run_dir, f"{algo} on {env_id}, seed {seed}", curve.points, lines, pretrain_loss)
     return TrainResult(run_dir, evaluation, model)

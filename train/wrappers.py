@@ -1,0 +1,145 @@
+"""Observation and action wrappers a training run can name in its hyperparameters.
+
+A run's ``wrappers`` (a run key of ``hyperparams/<algo>.yml``, recorded in the run folder's
+``config.yaml``) is a list of ``{name: NAME, ...kwargs}``: SB3 ``VecEnvWrapper``s applied in
+order over the SB3 env (:func:`~.evaluation.make_sb3_env`) wherever the policy acts — training,
+the trainer's evaluation, ``sensorgym benchmark`` and ``sensorgym render --model``. The names are
+data, looked up in :data:`WRAPPERS`; no code is loaded from a run folder.
+
+A wrapper changes what the policy sees or how its action is expressed, never the scenarios or
+the reward: the episode return stays the env's accuracy measure, so a wrapped policy is scored
+against the rules on the same seeded scenarios.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from importlib import import_module
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack
+
+#: wrapper name → ``"sensorgym.<module>:<factory>"``, factory ``(venv: VecEnv, **kwargs) -> VecEnv``
+WRAPPERS: dict[str, str] = {
+    "frame-stack": "sensorgym.train.wrappers:frame_stack",
+    "time-feature": "sensorgym.train.wrappers:TimeFeature",
+}
+
+
+def frame_stack(venv: VecEnv, n_stack: int = 4) -> VecEnv:
+    """The last ``n_stack`` observations side by side (SB3's ``VecFrameStack``); the oldest
+    frames of a new episode are zeros."""
+    if not isinstance(n_stack, int) or n_stack < 1:
+        raise ValueError(f"frame-stack: n_stack must be an integer >= 1, got {n_stack!r}")
+    return VecFrameStack(venv, n_stack)
+
+
+class TimeFeature(VecEnvWrapper):
+    """Appends the remaining fraction of the episode, ``1 − t/T`` (1 at reset, 1/T on the last
+    step), to a flat ``Box`` observation: a policy of a finite-horizon task needs the time
+    left, which the env's observation does not hold (Pardo et al., "Time limits in
+    reinforcement learning", 2018).
+
+    ``T`` is ``max_episode_steps`` (default: the vector env's own time limit). Steps are counted
+    per slot and restart when the slot's episode ends.
+    """
+
+    def __init__(self, venv: VecEnv, max_episode_steps: int | None = None):
+        horizon = max_episode_steps or venv.get_attr("max_episode_steps")[0]
+        if not isinstance(horizon, int | np.integer) or horizon < 1:
+            raise ValueError(
+                "time-feature: needs an env with a time limit or max_episode_steps >= 1, "
+                f"got {horizon!r}"
+            )
+        box = venv.observation_space
+        if not isinstance(box, spaces.Box) or len(box.shape) != 1:
+            raise ValueError(f"time-feature: needs a flat Box observation, got {box}")
+        self.horizon = int(horizon)
+        low = np.append(box.low, np.float32(0.0)).astype(box.dtype)
+        high = np.append(box.high, np.float32(1.0)).astype(box.dtype)
+        super().__init__(venv, observation_space=spaces.Box(low, high, dtype=box.dtype))
+        self._t = np.zeros(venv.num_envs, dtype=np.int64)
+
+    def _with_time(self, obs: np.ndarray) -> np.ndarray:
+        remaining = 1.0 - np.minimum(self._t, self.horizon) / self.horizon
+        return np.concatenate([obs, remaining[:, None].astype(obs.dtype)], axis=1)
+
+    def reset(self) -> np.ndarray:
+        self._t[:] = 0
+        return self._with_time(self.venv.reset())
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self._t += 1
+        for i in np.flatnonzero(dones):  # the final observation still counts the last step
+            terminal = infos[i].get("terminal_observation")
+            if terminal is not None:
+                remaining = 1.0 - min(self._t[i], self.horizon) / self.horizon
+                infos[i]["terminal_observation"] = np.append(terminal, remaining).astype(
+                    terminal.dtype
+                )
+        self._t[dones] = 0
+        return self._with_time(obs), rewards, dones, infos
+
+
+def base_observation(env: VecEnv, obs: np.ndarray) -> np.ndarray:
+    """What the env under ``env``'s wrappers observed, recovered from ``obs``: the time feature
+    dropped, the newest of stacked frames kept; an env-specific wrapper that changes the
+    observation says how with a ``base_observation(obs)`` method."""
+    chain = []
+    while isinstance(env, VecEnvWrapper):
+        chain.append(env)
+        env = env.venv
+    for wrapper in chain:  # outermost first
+        if isinstance(wrapper, TimeFeature):
+            obs = obs[..., :-1]
+        elif isinstance(wrapper, VecFrameStack):
+            obs = obs[..., -wrapper.venv.observation_space.shape[-1] :]
+        elif hasattr(wrapper, "base_observation"):
+            obs = wrapper.base_observation(obs)
+    return obs
+
+
+def base_env(env: VecEnv) -> VecEnv:
+    """The innermost env of an SB3 wrapper chain."""
+    while isinstance(env, VecEnvWrapper):
+        env = env.venv
+    return env
+
+
+def wrapper_factory(name: str) -> Callable[..., VecEnv]:
+    """The factory registered as ``name`` in :data:`WRAPPERS`; ``KeyError`` lists the names."""
+    if name not in WRAPPERS:
+        raise KeyError(f"wrapper {name!r} is not one of {sorted(WRAPPERS)}")
+    module, _, attr = WRAPPERS[name].partition(":")
+    return getattr(import_module(module), attr)
+
+
+def check_wrappers(specs: Any) -> list[dict[str, Any]]:
+    """``specs`` as a list of ``{name, ...kwargs}`` mappings with registered names, or
+    ``ValueError`` saying what is wrong (a config's ``wrappers`` entry is data from a file)."""
+    if specs is None:
+        return []
+    if not isinstance(specs, Sequence) or isinstance(specs, str):
+        raise ValueError(f"wrappers: expected a list of {{name: ...}} mappings, got {specs!r}")
+    checked = []
+    for spec in specs:
+        if not isinstance(spec, Mapping) or not isinstance(spec.get("name"), str):
+            raise ValueError(f"wrappers: every entry needs a 'name', got {spec!r}")
+        if spec["name"] not in WRAPPERS:
+            raise ValueError(f"wrappers: {spec['name']!r} is not one of {sorted(WRAPPERS)}")
+        checked.append(dict(spec))
+    return checked
+
+
+def apply_wrappers(venv: VecEnv, specs: Any) -> VecEnv:
+    """``venv`` wrapped by each of ``specs`` in order (see :func:`check_wrappers`)."""
+    for spec in check_wrappers(specs):
+        kwargs = {k: v for k, v in spec.items() if k != "name"}
+        try:
+            venv = wrapper_factory(spec["name"])(venv, **kwargs)
+        except TypeError as exc:
+            raise ValueError(f"wrappers: {spec['name']!r} does not take {kwargs}: {exc}") from None
+    return venv
