@@ -156,4 +156,4 @@ class SharedPolicy:
     def predict(self, observation: Any, **kwargs: Any) -> tuple[Any, Any]:
         per_agent = self.core_env.core.observe_agents(self.core_env.simulator_state)[0]
         actions, state = self.model.predict(per_agent, **kwargs)
-        return actions.reshape(-1), state
+        return actions.reshape(1, -1), state  # one slot of the VecEnv: the joint action

@@ -47,7 +47,7 @@ class TimeFeature(VecEnvWrapper):
     """
 
     def __init__(self, venv: VecEnv, max_episode_steps: int | None = None):
-        horizon = max_episode_steps or venv.get_attr("max_episode_steps")[0]
+        horizon = max_episode_steps or _time_limit(venv)
         if not isinstance(horizon, int | np.integer) or horizon < 1:
             raise ValueError(
                 "time-feature: needs an env with a time limit or max_episode_steps >= 1, "
@@ -82,6 +82,16 @@ class TimeFeature(VecEnvWrapper):
                 )
         self._t[dones] = 0
         return self._with_time(obs), rewards, dones, infos
+
+
+def _time_limit(venv: VecEnv) -> int | None:
+    """The time limit of the env under ``venv``: the native vector env's ``max_episode_steps``,
+    or the registration's for single Gymnasium envs (SB3's ``DummyVecEnv``)."""
+    try:
+        return venv.get_attr("max_episode_steps")[0]
+    except AttributeError:
+        spec = venv.get_attr("spec")[0]
+        return None if spec is None else spec.max_episode_steps
 
 
 def base_observation(env: VecEnv, obs: np.ndarray) -> np.ndarray:

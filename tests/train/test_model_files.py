@@ -142,7 +142,8 @@ def test_trained_weights_reload_to_the_same_actions(tmp_path, algo):
         progress=False,
     )  # fmt: skip
     files = sorted(p.name for p in result.run_dir.iterdir())
-    assert files == [CONFIG_FILE, "evaluation.json", WEIGHTS_FILE]  # no pickle written
+    # no pickle written
+    assert files == [CONFIG_FILE, "curve.json", "curve.png", "evaluation.json", WEIGHTS_FILE]
     loaded = load_model(result.run_dir)
     assert type(loaded) is type(result.model) and loaded.get_env() is None
     obs = np.random.default_rng(0).uniform(-3, 3, (64, 10)).astype(np.float32)
