@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
             raise SystemExit(f"--model: {exc}") from None
         if trained_on not in env_ids:
             raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
-    console = Console()
+    console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
     settings = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
     scores: dict[str, dict[str, dict[str, float]]] = {}
     written: list[Path] = []
@@ -142,7 +143,7 @@ def _benchmark(
 
     best, paired = paired_to_best_rule(results)
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
-    columns = ("policy", "mean", "±95 %", "95 % interval", "length", f"− {best} (paired)")
+    columns = ("policy", "mean", "±95 %", "95 % interval", "length", f"paired − {best}")
     for column in columns:
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
