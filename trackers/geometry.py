@@ -55,11 +55,25 @@ def wrap_angle(angle: ArrayLike) -> FloatArray:
     return _wrap_angle_ufunc(angle)
 
 
+_TWO_PI = 2.0 * np.pi
+
+
 # wrap(a) = (a + π) mod 2π − π ∈ [−π, π)
 @njit(cache=True, nogil=True, error_model="numpy")
 def wrap_angle_scalar(a: float) -> float:
-    """:func:`wrap_angle` of one float, compiled (for the numba kernels)."""
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    """:func:`wrap_angle` of one float, compiled (for the numba kernels). Within one turn of
+    the range the floored ``mod`` is a single exact or once-rounded add (the bits of Python's
+    and numpy's ``%``, which round the same way), so the costly ``fmod`` runs only beyond."""
+    v = a + np.pi
+    if 0.0 <= v < _TWO_PI:
+        m = v
+    elif -_TWO_PI < v < 0.0:
+        m = v + _TWO_PI  # fmod(v) = v, then + 2π (rounded as % rounds it)
+    elif _TWO_PI <= v < 2.0 * _TWO_PI:
+        m = v - _TWO_PI  # exact (Sterbenz), as fmod is
+    else:
+        m = v % _TWO_PI
+    return m - np.pi
 
 
 #: :func:`wrap_angle_scalar` elementwise (the same bits as numpy's ``(a + π) % 2π − π``)

@@ -96,6 +96,7 @@ def step_kernel(
     A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     x = np.empty(STATE_DIM)
     Pe = np.empty((STATE_DIM, STATE_DIM))
+    w = np.empty(lw.shape[1])
     bad = 0
     for b in range(lo, hi):
         # 1. platforms fly the commanded arcs: (a₀ ω_max, a₁ Δv_max), a clipped to [−1, 1]
@@ -137,10 +138,9 @@ def step_kernel(
                 sigma,
                 bearing_noise[b, k],
             )
-        lw2[b] = lw[b]
-        X2[b] = X[b]
-        P2[b] = P[b]
-        bank_predict(X2[b], P2[b], dt, q_tilde)
+        for n in range(lw.shape[1]):
+            lw2[b, n] = lw[b, n]
+        bank_predict(X[b], P[b], dt, q_tilde, X2[b], P2[b])
         for k in range(K):
             bank_update(lw2[b], X2[b], P2[b], z2[b, k], pos2[b, k, 0], pos2[b, k, 1], sigma)
         # 3. the bound: P̄ = F P Fᵀ + Q, then each platform's bearing information, square root
@@ -179,7 +179,9 @@ def step_kernel(
                 end = True
         terminated[b] = end
         reward[b] = r - c[PENALTY] * (1.0 if end else 0.0)
-        derive(b, c, pos2, heading2, speed2, z2, target2, lw2, X2, P2, x, Pe, obs, nearest, error)
+        derive(
+            b, c, pos2, heading2, speed2, z2, target2, lw2, X2, P2, x, Pe, w, obs, nearest, error
+        )
     return bad
 
 
@@ -198,6 +200,7 @@ def reset_kernel(
     Pe = np.empty((STATE_DIM, STATE_DIM))
     L_in = np.empty((STATE_DIM, STATE_DIM))
     A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
+    w = np.empty(lw.shape[1])
     sigma = c[SIGMA]
     for b in range(z.shape[0]):
         for k in range(z.shape[1]):
@@ -221,7 +224,7 @@ def reset_kernel(
             P[b],
         )
         # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already holds platform 1's bearing
-        bank_estimate(lw[b], X[b], P[b], x, Pe)
+        bank_estimate(lw[b], X[b], P[b], x, Pe, w)
         psd_square_root(Pe, L[b])
         for k in range(1, z.shape[1]):
             bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
@@ -238,7 +241,7 @@ def reset_kernel(
             pos[b, 0, 1],
             c[FLOOR],
         )
-        derive(b, c, pos, heading, speed, z, target, lw, X, P, x, Pe, obs, nearest, error)
+        derive(b, c, pos, heading, speed, z, target, lw, X, P, x, Pe, w, obs, nearest, error)
 
 
 # a world vector v in the platform frame (starboard, ahead): (c v₀ − s v₁, s v₀ + c v₁)
@@ -254,9 +257,9 @@ def _put(out, b, k, i, value, clip):
 
 
 @njit(**_JIT)
-def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, obs, nearest, error):
+def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, nearest, error):
     """Row ``b``'s derived fields from the bank's moment-matched estimate ``x``, ``Pe``
-    (scratch): each platform's observation ``obs[b] (K, obs_dim)`` float32 (the table of
+    (scratch, with the weights ``w``): each platform's observation ``obs[b] (K, obs_dim)`` float32 (the table of
     :func:`.simulation.observe_agents`), the nearest platform's range
     ``min_k ‖x_t − p_k‖`` and the estimate's position error ``‖x̂ − x_t‖``."""
     K = heading.shape[1]
@@ -266,7 +269,7 @@ def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, obs, nea
         c[SPEED_SCALE],
         c[CLIP],
     )
-    bank_estimate(lw[b], X[b], P[b], x, Pe)
+    bank_estimate(lw[b], X[b], P[b], x, Pe, w)
     for k in range(K):
         psi = heading[b, k]
         s, co = math.sin(psi), math.cos(psi)
