@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import importlib
 import math
 from dataclasses import dataclass
@@ -163,38 +164,97 @@ def tree_where(mask: ArrayLike, new: Any, old: Any) -> Any:
     return pick(new, old, "state")
 
 
-def tree_scatter(mask: ArrayLike, fresh: Any, old: Any) -> Any:
+def tree_scatter(
+    mask: ArrayLike, fresh: Any, old: Any, *, in_place: bool = False, keep: Any = ()
+) -> Any:
     """``old`` with the scenarios where ``mask`` ``(B,)`` is True replaced, in order, by the
     ``k = mask.sum()`` scenarios of ``fresh`` (a batch of ``k``): autoreset draws only the
-    scenarios that ended. Shared scalar fields must be equal, as for :func:`tree_where`."""
+    scenarios that ended. Shared scalar fields must be equal, as for :func:`tree_where`.
+
+    ``in_place=True`` writes the fresh rows into ``old``'s own arrays instead of copying them
+    (what autoreset does with the state a step has just allocated: only ``k`` rows move). An
+    array of ``old`` that shares memory with anything in ``keep`` (states, observations or
+    infos already handed out: dataclasses, dicts, tuples and arrays, searched through) or is
+    read-only is copied as without ``in_place``, so nothing handed out changes. The merged
+    dataclasses are new objects that hold only their fields (nothing cached on ``old``).
+    """
     m = np.asarray(mask, dtype=bool)
     if m.ndim != 1:
         raise ValueError(f"mask: expected shape (B,), got {m.shape}")
-    k = int(m.sum())
+    rows = np.flatnonzero(m)
+    k = rows.shape[0]
+    kept = _memory_roots(keep) if in_place else set()
 
     def put(a: Any, b: Any, name: str) -> Any:
-        if dataclasses.is_dataclass(b):
+        names = _field_names(type(b))
+        if names is not None:
             if type(a) is not type(b):
                 raise ValueError(f"{name}: {type(a).__name__} vs {type(b).__name__}")
+            merged = {f: put(getattr(a, f), getattr(b, f), f"{name}.{f}") for f in names}
             # the merged value of valid states is valid: bypass the constructor's checks
+            if in_place and hasattr(b, "__dict__"):
+                # only the fields: a value cached on ``b`` (keyed by its fields' identity,
+                # which writing in place keeps) would be stale
+                out = object.__new__(type(b))
+                out.__dict__.update(merged)
+                return out
             out = copy.copy(b)
-            for f in dataclasses.fields(b):
-                merged = put(getattr(a, f.name), getattr(b, f.name), f"{name}.{f.name}")
-                object.__setattr__(out, f.name, merged)
+            for f, value in merged.items():
+                object.__setattr__(out, f, value)
             return out
         if isinstance(b, np.ndarray) and b.ndim >= 1:
             if b.shape[0] != m.shape[0]:
                 raise ValueError(f"mask: {m.shape[0]} entries for a batch of {b.shape[0]} ({name})")
             if a.shape != (k, *b.shape[1:]):
                 raise ValueError(f"{name}: fresh shape {a.shape}, expected {(k, *b.shape[1:])}")
-            out = b.copy()
-            out[m] = a
+            out = b
+            if not (in_place and b.flags.writeable and id(_memory_root(b)) not in kept):
+                out = b.copy()
+            out[rows] = a
             return out
-        if not np.array_equal(a, b):
+        if not (a is b or a == b if isinstance(b, float) else np.array_equal(a, b)):
             raise ValueError(f"{name}: shared value {a!r} differs from {b!r}")
         return b
 
     return put(fresh, old, "state")
+
+
+@functools.cache
+def _field_names(cls: type) -> tuple[str, ...] | None:
+    """The field names of a dataclass type, else ``None`` (cached: autoreset is a hot path)."""
+    if not dataclasses.is_dataclass(cls):
+        return None
+    return tuple(f.name for f in dataclasses.fields(cls))
+
+
+def _memory_root(a: np.ndarray) -> np.ndarray:
+    """The array that owns ``a``'s memory (``a`` itself unless it is a view)."""
+    while isinstance(a.base, np.ndarray):
+        a = a.base
+    return a
+
+
+def _memory_roots(tree: Any) -> set[int]:
+    """``id`` of the memory owner of every array in ``tree`` (dataclasses, dicts, tuples,
+    lists and arrays, searched through)."""
+    roots: set[int] = set()
+
+    def visit(x: Any) -> None:
+        if isinstance(x, np.ndarray):
+            roots.add(id(_memory_root(x)))
+        elif isinstance(x, dict):
+            for v in x.values():
+                visit(v)
+        elif isinstance(x, (tuple, list)):
+            for v in x:
+                visit(v)
+        else:
+            names = _field_names(type(x))
+            for f in names or ():
+                visit(getattr(x, f))
+
+    visit(tree)
+    return roots
 
 
 def resolve_params(params_type: type[ParamsT], params: ParamsT | None, **fields: Any) -> ParamsT:
@@ -310,9 +370,11 @@ class Core:
         return tree_where(mask, new, old)
 
     @staticmethod
-    def scatter(mask: BoolArray, fresh: Any, old: Any) -> Any:
+    def scatter(
+        mask: BoolArray, fresh: Any, old: Any, *, in_place: bool = False, keep: Any = ()
+    ) -> Any:
         """``old`` with the masked scenarios replaced by ``fresh`` (:func:`tree_scatter`)."""
-        return tree_scatter(mask, fresh, old)
+        return tree_scatter(mask, fresh, old, in_place=in_place, keep=keep)
 
 
 def _core_from_module_name(name: str, params: Any) -> Core:

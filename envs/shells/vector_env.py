@@ -125,13 +125,15 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
             return self._step_same(a)
         return self._step_next(a)
 
-    def _restart(self, done: BoolArray, state: Any) -> Any:
+    def _restart(self, done: BoolArray, state: Any, keep: Any = ()) -> Any:
         """Fresh scenarios where ``done``, drawn only for those (all of them when every
-        scenario restarts)."""
+        scenario restarts). ``state`` is one a step has just returned: the fresh rows are
+        written into its arrays, except those it shares with the previous state or with
+        ``keep`` (observations and infos handed out), which are copied."""
         if done.all():
             return self.core.reset(self.np_random, self.num_envs)
         fresh = self.core.reset(self.np_random, int(done.sum()), like=state)
-        return self.core.scatter(done, fresh, state)
+        return self.core.scatter(done, fresh, state, in_place=True, keep=(self._state, keep))
 
     def _truncated(self) -> BoolArray:
         if self.max_episode_steps is None:
@@ -143,7 +145,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         reward = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         if done.all():
-            new = self._restart(done, self._state)
+            new = self.core.reset(self.np_random, self.num_envs)
         else:
             new, reward, terminated = self.core.step(self._state, a, self.np_random)
             if done.any():
@@ -164,7 +166,8 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         obs, infos = self._observe(new), self._infos(new)
         if done.any():
             final = {"final_obs": obs, "_final_obs": done, "final_info": infos, "_final_info": done}
-            new = self._restart(done, new)
+            # the final observation and info keep the pre-reset values
+            new = self._restart(done, new, keep=(obs, infos))
             self._steps = np.where(done, 0, self._steps)
             obs, infos = self._observe(new), {**self._infos(new), **final}
         self._state = new
