@@ -46,6 +46,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "track-nearest": lambda params, _: pointing.TrackNearest(params),
         "orthogonal-pairs": lambda params, _: pointing.OrthogonalPairs(params),
         "greedy-information": lambda params, _: pointing.GreedyPointing(params),
+        "plan-estimate": lambda params, _: pointing.PlanEstimate(params),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {

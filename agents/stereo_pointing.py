@@ -67,6 +67,8 @@ class _View:
     """(N, m, 3) predicted drone positions, m."""
     sigma: FloatArray
     """(N, m) predicted position RMS, m."""
+    velocity: FloatArray
+    """(N, m, 3) estimated drone velocities, m/s."""
     los: FloatArray
     """(N, n, m, 3) unit lines of sight from the receivers to the predicted positions."""
     ranges: FloatArray
@@ -88,6 +90,7 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
         aimed=np.maximum(pairs[..., 2], inside),
         position=position,
         sigma=np.exp(drones[..., 3]) * params.sigma_ref,
+        velocity=drones[..., 4:7] * params.velocity_scale,
         los=los,
         ranges=np.where(r > MIN_RANGE, np.maximum(r, MIN_RANGE), np.inf),
     )
@@ -286,28 +289,82 @@ class OraclePlan(MemorylessRule):
 
     def values(self, state: PointingState) -> FloatArray:
         """Planned return ``(B, C)`` of every candidate of :func:`_assignments` from ``state``."""
-        p = self.params
-        n, m, B = p.n_receivers, p.n_drones, state.batch_size
-        cand = _assignments(p)  # (C, n)
-        step = max(p.slew_rate * p.dt, 1e-12)
-        # future steps s = 1, 1 + stride, …; remaining steps of each scenario
-        s = np.arange(1, self.episode_steps + 1, self.stride, dtype=np.float64)  # (S,)
-        left = self.episode_steps - np.rint(state.t / p.dt)  # (B,)
-        weight = np.where(s[None, :] <= left[:, None], float(self.stride), 0.0)  # (B, S)
-        dt = (s * p.dt)[None, :, None, None]
-        q = state.drone_position[:, None] + state.drone_velocity[:, None] * dt  # (B, S, m, 3)
-        u, r = lines_of_sight(p, q.reshape(B * len(s), m, 3))
-        u = u.reshape(B, len(s), n, m, 3).transpose(0, 1, 3, 2, 4)  # (B, S, m, n, 3)
-        r = r.reshape(B, len(s), n, m).transpose(0, 1, 3, 2)  # (B, S, m, n)
-        # steps until receiver k's boresight reaches drone j (half a field of view counts)
-        off = np.abs(pointing_offsets(p, state.azimuth, state.elevation, q[:, 0]))  # (B, n, m, 2)
-        reach = np.maximum(np.ceil((off.max(axis=-1) - 0.5 * p.fov) / step), 1.0)  # (B, n, m)
-        ready = s[None, :, None, None] >= reach.transpose(0, 2, 1)[:, None]  # (B, S, m, n)
-        # candidate c sends receiver k to drone c_k
-        sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
-        mask = sent[None, :, None] & ready[:, None]  # (B, C, S, m, n)
-        info = position_information(u[:, None], np.maximum(r, MIN_RANGE)[:, None], p.sigma_ang
-                                    if p.sigma_ang > 0 else 1e-9, mask)  # fmt: skip
-        sigma = position_sigma(info, observable(info, mask))
-        reward = log_ratio_reward(sigma, p.sigma_ref, p.reward_clip).mean(axis=-1)  # (B, C, S)
-        return np.einsum("bcs,bs->bc", reward, weight)
+        left = self.episode_steps - np.rint(state.t / self.params.dt)
+        return plan_values(
+            self.params,
+            state.azimuth,
+            state.elevation,
+            state.drone_position,
+            state.drone_velocity,
+            left,
+            self.stride,
+        )
+
+
+def plan_values(
+    params: PointingParams,
+    azimuth: FloatArray,
+    elevation: FloatArray,
+    position: FloatArray,
+    velocity: FloatArray,
+    left: FloatArray,
+    stride: int,
+) -> FloatArray:
+    """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` for the
+    next ``left (B,)`` steps, for drones flying straight from ``position`` with ``velocity``
+    ``(B, m, 3)`` and boresights at ``azimuth``/``elevation (B, n)``: the env's reward of the
+    receivers assigned to each drone, each counted from the step its gimbal, slewing at full
+    rate, is within half a field of view of its drone; scored on every ``stride``-th step."""
+    p = params
+    n, m, B = p.n_receivers, p.n_drones, azimuth.shape[0]
+    cand = _assignments(p)  # (C, n)
+    step = max(p.slew_rate * p.dt, 1e-12)
+    # future steps s = 1, 1 + stride, …, weighted by stride where s ≤ left
+    s = np.arange(1, max(int(np.max(left)), 1) + 1, stride, dtype=np.float64)  # (S,)
+    weight = np.where(s[None, :] <= left[:, None], float(stride), 0.0)  # (B, S)
+    dt = (s * p.dt)[None, :, None, None]
+    q = position[:, None] + velocity[:, None] * dt  # (B, S, m, 3)
+    u, r = lines_of_sight(p, q.reshape(B * len(s), m, 3))
+    u = u.reshape(B, len(s), n, m, 3).transpose(0, 1, 3, 2, 4)  # (B, S, m, n, 3)
+    r = r.reshape(B, len(s), n, m).transpose(0, 1, 3, 2)  # (B, S, m, n)
+    # steps until receiver k's boresight reaches drone j (half a field of view counts)
+    off = np.abs(pointing_offsets(p, azimuth, elevation, q[:, 0]))  # (B, n, m, 2)
+    reach = np.maximum(np.ceil((off.max(axis=-1) - 0.5 * p.fov) / step), 1.0)  # (B, n, m)
+    ready = s[None, :, None, None] >= reach.transpose(0, 2, 1)[:, None]  # (B, S, m, n)
+    # candidate c sends receiver k to drone c_k
+    sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
+    mask = sent[None, :, None] & ready[:, None]  # (B, C, S, m, n)
+    sigma_ang = p.sigma_ang if p.sigma_ang > 0.0 else 1e-9
+    info = position_information(u[:, None], np.maximum(r, MIN_RANGE)[:, None], sigma_ang, mask)
+    sigma = position_sigma(info, observable(info, mask))
+    reward = log_ratio_reward(sigma, p.sigma_ref, p.reward_clip).mean(axis=-1)  # (B, C, S)
+    return np.einsum("bcs,bs->bc", reward, weight)
+
+
+@dataclass(frozen=True)
+class PlanEstimate(_AssignAndSlew):
+    """The oracle's planner on the tracker's estimate (a fieldable rule): hold the assignment
+    whose planned return over the next ``horizon`` steps (:func:`plan_values`, the drones
+    flying straight from their predicted positions with their estimated velocities) is best,
+    re-planned every step. The observation carries no clock, so the horizon recedes."""
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (receiver layout, noise, slew limit, reward, observation layout)."""
+    horizon: int = 50
+    """Planning horizon, steps."""
+    stride: int = 3
+    """Planning grid: every ``stride``-th future step is scored."""
+
+    def choose(self, view: _View) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)``."""
+        N = view.azimuth.shape[0]
+        values = plan_values(
+            self.params,
+            view.azimuth,
+            view.elevation,
+            view.position,
+            view.velocity,
+            np.full(N, float(self.horizon)),
+            self.stride,
+        )
+        return _assignments(self.params)[np.argmax(values, axis=-1)]

@@ -121,6 +121,11 @@ def orthogonal_pairs_expert(env: VecEnv) -> AssignmentExpert:
     return _rule_expert(env, "orthogonal-pairs")
 
 
+def plan_estimate_expert(env: VecEnv) -> AssignmentExpert:
+    """The ``plan-estimate`` rule (the planner on the tracker's estimate) as a teacher."""
+    return _rule_expert(env, "plan-estimate")
+
+
 def greedy_expert(env: VecEnv) -> AssignmentExpert:
     """The ``greedy-information`` rule as an assignment teacher."""
     return _rule_expert(env, "greedy-information")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import HoldCue, OraclePlan, OrthogonalPairs
+from sensorgym.agents.stereo_pointing import HoldCue, OraclePlan, OrthogonalPairs, PlanEstimate
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
 from sensorgym.envs.stereo_pointing.wrappers import (
     AssignmentAction,
@@ -102,3 +102,16 @@ def test_the_oracle_plan_is_a_ceiling_of_the_hold_cue_rule():
     expert = oracle_plan_expert(wrapped)
     obs = wrapped.reset()
     assert expert.predict(obs)[0].shape == (8, 4)
+
+
+def test_the_estimate_planner_on_an_exact_cue_plans_as_the_oracle():
+    """With a near-exact cue the tracker's estimate is the truth: at the start, planning over
+    the whole episode on the estimate picks the oracle's assignment (the same planner)."""
+    params = PointingParams(cue_sigma=(1e-6, 1e-6))
+    env = make_sb3_env(ENV_ID, 16, 0, cue_sigma=(1e-6, 1e-6))
+    env.seed(4)
+    obs = env.reset()
+    oracle = OraclePlan(simulator_state(env), params, stride=1)
+    planner = PlanEstimate(params, horizon=150, stride=1)
+    agree = (oracle.assign(obs) == planner.assign(obs)).all(axis=1).mean()
+    assert agree >= 0.9
