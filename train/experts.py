@@ -50,7 +50,11 @@ from stable_baselines3.common.vec_env import VecEnv
 from sensorgym.train.wrappers import base_env, base_observation
 
 #: expert name → ``"sensorgym.<module>:<factory>"``, factory ``(env: VecEnv) -> predictor``
-EXPERTS: dict[str, str] = {}
+EXPERTS: dict[str, str] = {
+    "pointing-oracle-plan": "sensorgym.envs.stereo_pointing.wrappers:oracle_plan_expert",
+    "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
+    "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
+}
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env
 RULE_PREFIX = "rule:"

@@ -25,6 +25,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStac
 WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
+    "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
 }
 
 
