@@ -10,7 +10,8 @@ rule (oracles, which see the truth, excluded): the mean and 95 % interval of the
 difference on the same scenarios. The JSON also holds the standard deviation, every policy's
 per-episode ``returns`` and the paired differences (``paired``); the numbers go to
 ``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
-``OUT/benchmark.png``.
+``OUT/benchmark.png``. ``--param NAME=VALUE`` scores the env at another size or setting
+(every rule; a trained policy only if it was trained with the same params).
 
 The default seed 10000 is held out: no training run draws its scenarios from it (``sensorgym
 train`` trains on its ``--seed`` and evaluates on seed + 10000), so a shipped policy scores here
@@ -24,6 +25,8 @@ import json
 import sys
 from pathlib import Path
 from typing import Any
+
+from sensorgym.cli.params import add_param_argument, params_from
 
 HELP = "Score every rule and trained policy on every env (seeded, same scenarios), with a chart."
 
@@ -62,6 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--no-chart", action="store_true", help="write no PNG chart")
     parser.add_argument("--out", type=Path, default=Path("results/benchmark"))
+    add_param_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -79,6 +83,9 @@ def run(args: argparse.Namespace) -> int:
     unknown = [e for e in env_ids if e not in known]
     if unknown:
         raise SystemExit(f"--env: not a registered env: {unknown}; known: {known}")
+    if args.param and not args.env:
+        raise SystemExit("--param: name the env(s) it sets with --env")
+    args.params = {env_id: params_from(env_id, args.param) for env_id in env_ids}
     for path in args.model:
         try:
             trained_on = check_run_folder(path, args.unsafe_pickle)["env"]
@@ -87,7 +94,7 @@ def run(args: argparse.Namespace) -> int:
         if trained_on not in env_ids:
             raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
     console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
-    settings = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
+    settings: dict[str, Any] = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
     scores: dict[str, dict[str, dict[str, float]]] = {}
     written: list[Path] = []
     for env_id in env_ids:
@@ -98,8 +105,9 @@ def run(args: argparse.Namespace) -> int:
         args.out.mkdir(parents=True, exist_ok=True)
         path = args.out / f"{env_id.replace('/', '__')}.json"
         best, paired = paired_to_best_rule(results)
+        params = {k: list(v) if isinstance(v, tuple) else v for k, v in args.params[env_id].items()}
         doc = {
-            "settings": {"env": env_id, **settings},
+            "settings": {"env": env_id, **settings, **({"params": params} if params else {})},
             "results": results,
             "best_rule": best,
             "paired": paired,
@@ -124,10 +132,21 @@ def _benchmark(
     """Score every policy of ``env_id`` and print its table; ``None`` when it has none."""
     from rich.table import Table
 
-    from sensorgym.train.benchmark import paired_to_best_rule, policies_for, score
-    from sensorgym.train.models import RunFolderError
+    from sensorgym.train.benchmark import NotApplicable, paired_to_best_rule, policies_for, score
+    from sensorgym.train.models import RunFolderError, check_model_params, read_config, run_dir_of
 
+    params = args.params[env_id]
     specs = policies_for(env_id, args.model, shipped=not args.no_shipped)
+    for name, spec in list(specs.items()):
+        if spec.kind != "model":
+            continue
+        try:
+            check_model_params(read_config(run_dir_of(Path(spec.name))), params)
+        except RunFolderError as exc:
+            if not spec.shipped:
+                raise SystemExit(f"--model {spec.name}: {exc}") from None
+            console.print(f"{env_id}: {name} left out: {exc}")
+            del specs[name]
     if not specs:
         console.print(f"{env_id}: no rule registered and no trained policy: skipped")
         return None
@@ -136,10 +155,18 @@ def _benchmark(
         for name, spec in specs.items():
             try:
                 results[name] = score(
-                    env_id, spec, args.episodes, args.n_envs, args.seed, args.unsafe_pickle
+                    env_id,
+                    spec,
+                    args.episodes,
+                    args.n_envs,
+                    args.seed,
+                    args.unsafe_pickle,
+                    params,
                 )
             except RunFolderError as exc:
                 raise SystemExit(f"--model: {exc}") from None
+            except NotApplicable as exc:  # a rule that does not apply to these params
+                console.print(f"{env_id}: rule left out: {exc}")
 
     best, paired = paired_to_best_rule(results)
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")

@@ -17,6 +17,7 @@ import gymnasium as gym
 import numpy as np
 
 from sensorgym.cli.benchmark import UNSAFE_PICKLE_HELP
+from sensorgym.cli.params import add_param_argument, params_from
 
 HELP = "Play one seeded episode with a rule or trained model and save it as GIF or PNG."
 
@@ -36,6 +37,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--every", type=int, default=1, help="keep every N-th frame in the GIF")
     parser.add_argument("--fps", type=float, default=5.0)
     parser.add_argument("--out", type=Path, default=Path("results/render/episode.gif"))
+    add_param_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,7 +47,13 @@ def run(args: argparse.Namespace) -> int:
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
     from sensorgym.agents.registry import rules_for
-    from sensorgym.train.models import RunFolderError, check_run_folder, load_model, wrappers_of
+    from sensorgym.train.models import (
+        RunFolderError,
+        check_model_params,
+        check_run_folder,
+        load_model,
+        wrappers_of,
+    )
     from sensorgym.train.wrappers import apply_wrappers
 
     if args.out.suffix.lower() not in (".gif", ".png"):
@@ -54,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit("--every must be >= 1 and --fps > 0")
     if args.env not in gym.registry:
         raise SystemExit(f"--env: {args.env!r} is not a registered id")
+    params = params_from(args.env, args.param)
     wrappers: list[dict[str, Any]] = []
     if args.model is not None:
         args.model = _model_folder(args.model, args.env)
@@ -65,7 +74,11 @@ def run(args: argparse.Namespace) -> int:
         trained_on = config["env"]
         if trained_on != args.env:
             raise SystemExit(f"--model {args.model}: trained on {trained_on}, not on {args.env}")
-    env = _Frames(gym.make(args.env, render_mode="rgb_array"), args.every)
+        try:
+            check_model_params(config, params)
+        except RunFolderError as exc:
+            raise SystemExit(f"--model {args.model}: {exc}") from None
+    env = _Frames(gym.make(args.env, render_mode="rgb_array", **params), args.every)
     core_env = env.unwrapped
     if args.model is not None:
         try:

@@ -5,13 +5,16 @@ Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--t
 only: loading them runs no code), the resolved ``config.yaml``, ``evaluation.json`` (the
 trained policy beside the heuristic rules, same seed and scenarios) and the learning curve
 ``curve.json``/``curve.png`` (evaluation return against samples, the rules as lines); ``sensorgym benchmark
---model RUN_FOLDER`` scores it again later. ``--tensorboard DIR`` logs the run for TensorBoard.
+--model RUN_FOLDER`` scores it again later. ``--param NAME=VALUE`` trains at another size or
+setting of the env (recorded in ``config.yaml``; the policy then refuses other settings). ``--tensorboard DIR`` logs the run for TensorBoard.
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+
+from sensorgym.cli.params import add_param_argument, params_from
 
 HELP = "Train an SB3 policy (PPO or SAC) on an environment and score it beside the rules."
 
@@ -53,6 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="evaluations during learning for curve.json/curve.png (default 10; 0: none)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_param_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -66,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
         load_hyperparams(args.algo, args.env)
     except KeyError as exc:
         raise SystemExit(f"--env/--algo: {exc.args[0]}") from None
+    params = params_from(args.env, args.param)
     result = train(
         args.env,
         args.algo,
@@ -79,6 +84,7 @@ def run(args: argparse.Namespace) -> int:
         torch_threads=args.torch_threads,
         tensorboard=args.tensorboard,
         curve_points=args.curve_points,
+        params=params,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):

@@ -31,6 +31,10 @@ class PolicySpec:
     """A model shipped with sensorgym (:mod:`.shipped`) rather than given by the user."""
 
 
+class NotApplicable(ValueError):
+    """A rule that does not apply to the env's params (e.g. one planning for one platform)."""
+
+
 def registered_envs() -> list[str]:
     """Every env id registered under ``sensorgym/``, in registration order."""
     import gymnasium as gym
@@ -68,22 +72,37 @@ def score(
     n_envs: int,
     seed: int,
     unsafe_pickle: bool = False,
+    params: dict[str, Any] | None = None,
 ) -> dict[str, float]:
     """Episode-return statistics (:class:`~.evaluation.EpisodeStats` as a dict) of one policy
     over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
     with one seed meets the same scenarios. Parameter-sharing models act on the per-agent view
-    of those scenarios."""
+    of those scenarios. ``params``: params fields of the env (``--param``); a model trained
+    with other ones is refused (:class:`~.models.RunFolderError` saying which differ)."""
     from sensorgym.agents.registry import RULES
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-    from sensorgym.train.models import load_model, read_config, run_dir_of, wrappers_of
+    from sensorgym.train.models import (
+        check_model_params,
+        load_model,
+        read_config,
+        run_dir_of,
+        wrappers_of,
+    )
 
+    params = params or {}
     if spec.kind == "rule":
-        env = make_sb3_env(env_id, n_envs, seed)
-        policy: Any = RULES[env_id][spec.name](env_params(env), simulator_state(env))
+        env = make_sb3_env(env_id, n_envs, seed, **params)
+        try:
+            policy: Any = RULES[env_id][spec.name](env_params(env), simulator_state(env))
+        except ValueError as exc:
+            env.close()
+            raise NotApplicable(f"{spec.name}: {exc}") from None
     elif spec.kind == "model":
         config = read_config(run_dir_of(Path(spec.name)))
+        check_model_params(config, params)
         agents = bool(config.get("agents", False))
-        env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers_of(config))
+        wrappers = wrappers_of(config)
+        env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers, **params)
         policy = load_model(Path(spec.name), env, unsafe_pickle=unsafe_pickle)
     else:
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")

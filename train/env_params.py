@@ -46,7 +46,9 @@ def _value(text: str, default: Any) -> Any:
         value = float(value)
     if isinstance(default, tuple) and isinstance(value, tuple) and default:
         if all(isinstance(d, float) for d in default):
-            value = tuple(float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value)
+            value = tuple(
+                float(v) if isinstance(v, int) and not isinstance(v, bool) else v for v in value
+            )
     return value
 
 

@@ -116,6 +116,26 @@ def save_run(model: BaseAlgorithm, run_dir: Path, config: dict[str, Any]) -> Non
     (run_dir / SB3_ZIP_FILE).unlink(missing_ok=True)
 
 
+def params_of(config: dict[str, Any]) -> dict[str, Any]:
+    """The env params fields a run was trained with (``--param``; empty: the defaults)."""
+    params = config.get("params") or {}
+    if not isinstance(params, dict):
+        raise RunFolderError(f"{CONFIG_FILE}, params: expected a mapping, got {params!r}")
+    # YAML has no tuples: a sequence field comes back as a list
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in params.items()}
+
+
+def check_model_params(config: dict[str, Any], params: dict[str, Any] | None) -> None:
+    """:class:`RunFolderError` naming every differing field when a run trained with
+    ``params_of(config)`` is asked to act in its env with ``params``."""
+    from sensorgym.train.env_params import check_same_env
+
+    try:
+        check_same_env(config["env"], params_of(config), params, "the model")
+    except ValueError as exc:
+        raise RunFolderError(str(exc)) from None
+
+
 def wrappers_of(config: dict[str, Any]) -> list[dict[str, Any]]:
     """The wrapper list (:mod:`.wrappers`) a run's policy acts through; :class:`RunFolderError`
     when ``config.yaml`` names an unknown one."""

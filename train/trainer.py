@@ -23,7 +23,7 @@ from rich.progress import Progress
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sensorgym.agents.registry import RULES, rules_for
+from sensorgym.agents.registry import RULES
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
 from sensorgym.train.curves import LearningCurve, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
@@ -97,6 +97,7 @@ def train(
     tensorboard: Path | None = None,
     callbacks: Sequence[BaseCallback] = (),
     curve_points: int = 10,
+    params: dict[str, Any] | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
     override them), save the run and evaluate it beside the rules.
@@ -118,6 +119,10 @@ def train(
     ``curve_points``: evaluations of the policy during learning (evenly spaced, plus one
     before it), each over the ``eval_episodes`` evaluation scenarios; written with the rules'
     scores as ``curve.json``/``curve.png`` (0: no curve).
+
+    ``params``: env params fields (``--param NAME=VALUE``, e.g. ``{"n_drones": 4}``) for
+    training and evaluation; recorded in ``config.yaml`` so the saved policy refuses an env
+    with other ones.
     """
     import torch
 
@@ -140,6 +145,7 @@ def train(
             tensorboard,
             list(callbacks),
             curve_points,
+            dict(params or {}),
         )
     finally:
         torch.set_num_threads(previous_threads)
@@ -159,6 +165,7 @@ def _train(
     tensorboard: Path | None,
     callbacks: list[BaseCallback],
     curve_points: int,
+    params: dict[str, Any],
 ) -> TrainResult:
     hp = load_hyperparams(algo, env_id)
     hp.update(overrides)
@@ -173,7 +180,7 @@ def _train(
         raise ValueError(f"curve_points: must be >= 0, got {curve_points}")
     wrappers = run.get("wrappers", [])
     imitation = Pretrain.from_config(run["pretrain"]) if "pretrain" in run else None
-    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents, wrappers=wrappers)
+    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents, wrappers=wrappers, **params)
     tb_log = None if tensorboard is None else str(Path(tensorboard).resolve())
     model = ALGORITHMS[algo](
         run["policy"],
@@ -189,13 +196,15 @@ def _train(
     # the rules on the env's joint one
     n_eval = min(16, eval_episodes)
     eval_seed = seed + EVAL_SEED_OFFSET
-    eval_env = make_sb3_env(env_id, n_eval, eval_seed)
-    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers)
+    eval_env = make_sb3_env(env_id, n_eval, eval_seed, **params)
+    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers, **params)
     rule_scores: dict[str, dict[str, Any]] = {}
-    if env_id in RULES:
-        rules = rules_for(env_id, env_params(eval_env), simulator_state(eval_env))
-        for rule, policy in rules.items():
-            rule_scores[rule] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
+    for rule, make in RULES.get(env_id, {}).items():
+        try:
+            policy = make(env_params(eval_env), simulator_state(eval_env))
+        except ValueError:  # a rule that does not apply to these params (e.g. one platform)
+            continue
+        rule_scores[rule] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
 
     pretrain_loss = pretrain(model, env, imitation, seed) if imitation is not None else []
     curve = None
@@ -223,6 +232,7 @@ def _train(
         "algo": algo,
         "seed": seed,
         "agents": agents,
+        "params": {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()},
         "hyperparams": hp,
         "versions": {
             "sensorgym": version("sensorgym"),
