@@ -1,0 +1,182 @@
+"""Scaling: one env step and one decision of every rule against the number of sensors and targets.
+
+Run: ``.venv/bin/python benchmarks/scaling.py [--batch 256] [--steps 5] [--repeat 3]``; writes
+``benchmarks/results/scaling.json`` and ``benchmarks/results/scaling.png`` (log-log).
+
+For every env, sizes are set through the env's own params (what ``--param`` sets on the
+command line): receivers × drones for StereoPointing, receivers (evenly spaced azimuths, staggered
+scan offsets) × drones for StereoScanning, receiver vehicles for StereoPlacement, platforms for
+BearingsManeuver. At each size the native vector env of ``--batch`` scenarios is stepped with
+random actions (µs per scenario-step) and every registered rule decides on its observations
+(µs per scenario-decision), best of ``--repeat``. A rule or env that refuses a size, or fails
+on it, is recorded with its error message — that is a result too. The growth exponent is the
+least-squares slope of log time against log(receivers × drones) (or platforms) over the sizes
+that ran. Target (issue 15): at 16 receivers × 10 drones every decision ≤ 1 ms per scenario at
+256 scenarios and the step ≤ 50 µs per scenario.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from typing import Any
+
+import numpy as np
+from timing import RESULTS, write_results
+
+import sensorgym.envs  # noqa: F401  (registers the ids)
+from sensorgym.agents.registry import RULES
+from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
+
+
+def _scanning(n: int, m: int) -> dict[str, Any]:
+    azimuths = tuple(float(a) for a in np.linspace(0.0, 2 * np.pi, n, endpoint=False))
+    offsets = tuple(float(o) for o in np.linspace(0.0, 0.5, n))
+    return {"receiver_azimuths": azimuths, "scan_offsets": offsets, "n_drones": m}
+
+
+#: env id → [(size label, receivers·drones (or platforms), params fields)]
+SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
+    "sensorgym/StereoPointing-v0": [
+        (f"{n} receivers × {m} drones", n * m, {"n_receivers": n, "n_drones": m})
+        for n, m in ((4, 2), (4, 4), (6, 3), (8, 4), (16, 10))
+    ],
+    "sensorgym/StereoScanning-v0": [
+        (f"{n} receivers × {m} drones", n * m, _scanning(n, m))
+        for n, m in ((3, 4), (4, 4), (8, 6), (16, 10))
+    ],
+    "sensorgym/StereoPlacement-v0": [
+        (f"{n} receivers", n, {"delays": tuple(float(d) for d in np.linspace(0.0, 0.6, n))})
+        for n in (3, 4, 6, 8)
+    ],
+    "sensorgym/BearingsManeuver-v0": [
+        (f"{k} platforms", k, {"platforms": k}) for k in (1, 2, 4, 16)
+    ],
+}
+
+
+def _error(exc: BaseException) -> str:
+    text = " ".join(f"{type(exc).__name__}: {exc}".split())
+    return text if len(text) <= 160 else text[:159] + "…"
+
+
+def measure(env_id: str, fields: dict[str, Any], batch: int, steps: int, repeat: int) -> dict:
+    """µs per scenario of a step and of every rule's decision at one size."""
+    row: dict[str, Any] = {"step_us": None, "rules": {}}
+    try:
+        env = make_sb3_env(env_id, batch, seed=0, **fields)
+    except Exception as exc:
+        row["error"] = _error(exc)
+        return row
+    obs = env.reset()
+    actions = [np.stack([env.action_space.sample() for _ in range(batch)]) for _ in range(steps)]
+    try:
+        best = np.inf
+        for _ in range(repeat + 1):  # the first round compiles
+            t0 = time.perf_counter()
+            for a in actions:
+                obs = env.step(a)[0]
+            best = min(best, time.perf_counter() - t0)
+        row["step_us"] = best / (steps * batch) * 1e6
+    except Exception as exc:
+        row["error"] = _error(exc)
+        return row
+    for name, make in RULES.get(env_id, {}).items():
+        try:
+            rule = make(env_params(env), simulator_state(env))
+            start = np.ones(batch, dtype=bool)
+            best = np.inf
+            for _ in range(repeat + 1):
+                t0 = time.perf_counter()
+                rule.predict(obs, episode_start=start, deterministic=True)
+                best = min(best, time.perf_counter() - t0)
+            row["rules"][name] = {"decision_us": best / batch * 1e6}
+        except Exception as exc:
+            row["rules"][name] = {"error": _error(exc)}
+    env.close()
+    return row
+
+
+def exponent(xs: list[float], ys: list[float]) -> float | None:
+    """Least-squares slope of log y on log x (None with fewer than two distinct sizes)."""
+    if len(set(xs)) < 2:
+        return None
+    return float(np.polyfit(np.log(xs), np.log(ys), 1)[0])
+
+
+def plot(results: list[dict], path: Any) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    envs = list(SIZES)
+    fig, axes = plt.subplots(1, len(envs), figsize=(4.2 * len(envs), 3.8), squeeze=False)
+    for ax, env_id in zip(axes[0], envs, strict=True):
+        rows = [r for r in results if r["env"] == env_id]
+        series: dict[str, list[tuple[int, float]]] = {}
+        for r in rows:
+            if r.get("step_us") is not None:
+                series.setdefault("env step", []).append((r["size"], r["step_us"]))
+            for name, t in r.get("rules", {}).items():
+                if "decision_us" in t:
+                    series.setdefault(name, []).append((r["size"], t["decision_us"]))
+        for name, pts in series.items():
+            x, y = zip(*pts, strict=True)
+            style = "k-o" if name == "env step" else "-o"
+            ax.loglog(x, y, style, markersize=3, label=name, linewidth=1.2)
+        ax.set_title(env_id.split("/")[1], fontsize=9)
+        ax.set_xlabel("receivers × drones" if "Stereo" in env_id else "platforms", fontsize=8)
+        ax.grid(alpha=0.3, which="both")
+        if series:
+            ax.legend(fontsize=6)
+    axes[0, 0].set_ylabel("µs per scenario (batch of 256)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--batch", type=int, default=256)
+    parser.add_argument("--steps", type=int, default=5)
+    parser.add_argument("--repeat", type=int, default=3)
+    parser.add_argument("--env", action="append", default=None, help="env id; repeatable")
+    args = parser.parse_args()
+    results = []
+    for env_id in args.env or list(SIZES):
+        for label, size, fields in SIZES[env_id]:
+            row = measure(env_id, fields, args.batch, args.steps, args.repeat)
+            results.append({"env": env_id, "case": label, "size": size, **row})
+            step = "—" if row.get("step_us") is None else f"{row['step_us']:.1f}"
+            print(f"{env_id:32s} {label:24s} step {step:>8s} µs", row.get("error", ""))
+            for name, t in row.get("rules", {}).items():
+                value = f"{t['decision_us']:.1f} µs" if "decision_us" in t else t["error"]
+                print(f"{'':58s} {name:24s} {value}")
+    slopes: dict[str, dict[str, float | None]] = {}
+    for env_id in args.env or list(SIZES):
+        rows = [r for r in results if r["env"] == env_id and r.get("step_us") is not None]
+        slopes[env_id] = {
+            "env step": exponent([r["size"] for r in rows], [r["step_us"] for r in rows])
+        }
+        for name in RULES.get(env_id, {}):
+            pts = [(r["size"], r["rules"][name]["decision_us"]) for r in rows
+                   if "decision_us" in r["rules"].get(name, {})]  # fmt: skip
+            slopes[env_id][name] = exponent(*map(list, zip(*pts, strict=True))) if pts else None
+    print("\ngrowth exponent (slope of log time on log size):")
+    for env_id, s in slopes.items():
+        for name, k in s.items():
+            print(f"  {env_id:32s} {name:24s} {'—' if k is None else f'{k:.2f}'}")
+    write_results(
+        RESULTS / "scaling.json",
+        {"rows": results, "exponents": slopes},
+        batch=args.batch,
+        steps=args.steps,
+        repeat=args.repeat,
+    )
+    plot(results, RESULTS / "scaling.png")
+    print(f"wrote {RESULTS / 'scaling.json'} and {RESULTS / 'scaling.png'}")
+
+
+if __name__ == "__main__":
+    main()
