@@ -26,6 +26,7 @@ WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
     "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
+    "placement-target": "sensorgym.envs.stereo_placement.wrappers:plan_target",
 }
 
 

@@ -94,6 +94,14 @@ class StereoPlacementEnv(CoreEnv):
       over threads), bit for bit the same episodes; a receiver within ``MIN_RANGE`` (1 nm) of
       the drone or the estimate now has no line of sight (zero, as the stereo tracker kernels'
       ``line_of_sight``) instead of a scaled one.
+    * v0, issue 13 (in place; scenarios, observations and rewards unchanged, golden episodes
+      unchanged): ``greedy-information`` maximises the env's own reward predicted one period
+      ahead instead of ``ln det`` of the information; ``lookahead-information`` (its sum over
+      3 periods) and ``oracle-lookahead`` (the same on the true drone: a ceiling) are
+      registered. Trained policies act through
+      :class:`~sensorgym.envs.stereo_placement.wrappers.PlanTargetAction` (a correction of
+      the tracker's one-period prediction that the greedy search plans on) with 8 stacked
+      observations, imitating the oracle target before PPO.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
