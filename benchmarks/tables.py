@@ -86,6 +86,19 @@ GREEDY_LABELS = {
 }
 
 
+#: labels of rules whose registered name another env uses for a different rule
+ENV_LABELS = {
+    (
+        "StereoPlacement-v0",
+        "oracle-lookahead",
+    ): "`OracleGreedyPlacement` (ceiling: knows the truth; `GreedyPlacement`'s search over 3 periods on the true drone)",
+    (
+        "StereoPlacement-v0",
+        "lookahead-information",
+    ): "`GreedyPlacement(horizon=3)` (the greedy search summed over 3 periods of straight drives)",
+}
+
+
 def scores(env: str) -> str:
     """Mean return ± 95 % of every policy of ``docs/scores/<env>.json``, best first."""
     doc = json.loads((SCORES / f"sensorgym__{env}.json").read_text())
@@ -101,6 +114,7 @@ def scores(env: str) -> str:
         label = (
             GREEDY_LABELS[env] if name == "greedy-information" else POLICY_LABELS.get(name, name)
         )
+        label = ENV_LABELS.get((env, name), label)
         if ":" in name:
             label = f"trained (`{name}`; `train/hyperparams/`)"
         lines.append(f"| {label} | {r['mean']:.3f} | {r['ci95']:.3f} |")
