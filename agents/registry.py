@@ -39,6 +39,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
+        "oracle-open-loop": lambda params, _: book.optimised_open_loop(),
     },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),

@@ -18,6 +18,7 @@ trajectories the policy flew. Policies:
 * perpendicular to the bearing (the registered ``paper002`` rule: along the bearing for two
   steps, then the target abeam);
 * greedy information (the registered ``greedy-information`` rule, on the tracker's estimate);
+* the registered ``lookahead-estimate`` rule (the oracle's planner on the tracker's estimate);
 * the registered ``oracle-lookahead`` rule (sees the truth: a ceiling, not a rival);
 * our numerically optimised open-loop manoeuvre on the true target (a ceiling):
   ``scipy.optimize.minimize`` (SLSQP) over the 32 heading-rate commands in ``[−1, 1]``
@@ -286,8 +287,10 @@ def _book_env(runs: int, seed: int, config: dict[str, Any] | None = None) -> Any
     """The book env as SB3 sees it, without a time limit (the 32 steps are counted here), with
     a trained run's wrappers when ``config`` (its config.yaml) names any."""
     from sensorgym.train.evaluation import make_sb3_env
+    from sensorgym.train.models import wrappers_of
 
-    return make_sb3_env(BOOK_ENV_ID, runs, seed, max_episode_steps=None)
+    wrappers = wrappers_of(config) if config is not None else ()
+    return make_sb3_env(BOOK_ENV_ID, runs, seed, wrappers=wrappers, max_episode_steps=None)
 
 
 def run_bot_control(runs: int = 256, seed: int = 10000, restarts: int = 8) -> BotControlResult:
@@ -311,12 +314,13 @@ def run_bot_control(runs: int = 256, seed: int = 10000, restarts: int = 8) -> Bo
         ("book leg change 140->20 deg, min 13-16", "rule", rules["book-leg-change"](params, None)),
         ("perpendicular to the bearing", "rule", rules["paper002"](params, None)),
         ("greedy information", "rule", rules["greedy-information"](params, None)),
+        ("lookahead on the estimate", "rule", rules["lookahead-estimate"](params, None)),
         (
-            "oracle lookahead (sees the truth)",
+            "oracle lookahead",
             "ceiling",
             rules["oracle-lookahead"](params, simulator_state(env)),
         ),
-        ("optimised open loop (ceiling)", "ceiling", OpenLoop(tuple(res.optimised.turns))),
+        ("optimised open loop", "ceiling", OpenLoop(tuple(res.optimised.turns))),
     ]
     for name, kind, policy in plan:
         res.policies.append(_summarise(name, kind, fly(policy, env, runs, seed)))

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from sensorgym.agents.book_maneuver import OpenLoop, book_leg_change
+from sensorgym.agents.book_maneuver import BOOK_OPTIMISED_TURNS, OpenLoop, book_leg_change
 from sensorgym.envs.bearings_maneuver import BookManeuverParams, ManeuverParams
 from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID
 from sensorgym.envs.worlds.platform import rollout
@@ -93,6 +93,12 @@ def test_optimised_open_loop_beats_the_leg_change_and_keeps_the_standoff():
     assert np.all(np.abs(opt.turns) <= 1.0)
 
 
+def test_the_shipped_optimised_turns_are_the_ceiling_they_claim():
+    log_bound, ranges = bot_control._final_log_bound(np.asarray([BOOK_OPTIMISED_TURNS]))
+    assert np.exp(log_bound[0]) == pytest.approx(48.5, abs=0.1)
+    assert ranges.min() >= STANDOFF + bot_control.STANDOFF_MARGIN - 1.0
+
+
 def test_bot_control_runs_and_lists_a_missing_trained_policy(monkeypatch):
     monkeypatch.setattr("sensorgym.train.shipped.shipped_policies", lambda env_id: {})
     res = bot_control.run_bot_control(runs=4, seed=1, restarts=0)
@@ -104,4 +110,4 @@ def test_bot_control_runs_and_lists_a_missing_trained_policy(monkeypatch):
     by = {p.name: p.pcrlb_32min for p in res.policies}
     # without a manoeuvre range stays poorly observed; the ceiling beats the book's turn
     assert by["no manoeuvre"] > by["book leg change 140->20 deg, min 13-16"]
-    assert by["optimised open loop (ceiling)"] < by["book leg change 140->20 deg, min 13-16"]
+    assert by["optimised open loop"] < by["book leg change 140->20 deg, min 13-16"]
