@@ -1,8 +1,9 @@
 """The docs' speed tables, generated from the committed benchmark results (so they cannot drift).
 
 ``python benchmarks/tables.py`` rewrites every block between ``<!-- table:NAME -->`` and
-``<!-- /table:NAME -->`` in README.md, docs/environments.md and docs/results.md from
-``benchmarks/results/*.json`` and ``docs/scores/*.json``; ``--check`` only reports (exit 1) blocks that differ — what
+``<!-- /table:NAME -->`` in README.md, docs/environments.md, docs/results.md and
+docs/reproduction/bot-control.md from ``benchmarks/results/*.json``, ``docs/scores/*.json`` and
+``docs/reproduction/bot_control.json``; ``--check`` only reports (exit 1) blocks that differ — what
 ``tests/test_docs_tables.py`` runs.
 """
 
@@ -16,7 +17,13 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
-DOCS = (ROOT / "README.md", ROOT / "docs" / "environments.md", ROOT / "docs" / "results.md")
+REPRODUCTION = ROOT / "docs" / "reproduction"
+DOCS = (
+    ROOT / "README.md",
+    ROOT / "docs" / "environments.md",
+    ROOT / "docs" / "results.md",
+    REPRODUCTION / "bot-control.md",
+)
 ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement", "stereo_scanning")
 
 
@@ -64,6 +71,8 @@ SCORES = ROOT / "docs" / "scores"
 #: what each scored policy is, for the score tables (``model:…`` rows are the PPO runs)
 POLICY_LABELS = {
     "oracle-lookahead": "`OracleLookahead` (ceiling: knows the truth; best constant action over 5 steps on the true bound, receding horizon)",
+    "book-leg-change": "`book_leg_change` (the book's manoeuvre: 140° → 20° at 30°/min in minutes 13–16, open loop)",
+    "oracle-open-loop": "`optimised_open_loop` (ceiling: the turn sequence optimised on the true target by `reproduce bot-control`)",
     "paper002": "`Paper002Maneuver` (theory §10.5 OC-5: run along the bearing, then turn abeam at full speed)",
     "straight-course": "`StraightCourse` (no manoeuvre: range unobservable)",
     "orthogonal-pairs": "`OrthogonalPairs` (theory §10.1 OC-1: pair the receivers whose lines of sight are closest to 90°)",
@@ -80,6 +89,7 @@ POLICY_LABELS = {
 
 GREEDY_LABELS = {
     "BearingsManeuver-v0": "`GreedyManeuver` (one-step D-optimal, from the tracker's estimate)",
+    "BearingsManeuverBook-v0": "`GreedyManeuver` (one-step D-optimal, from the tracker's estimate)",
     "StereoPointing-v0": "`GreedyPointing` (assignment maximising Σ ln det of the predicted position information)",
     "StereoPlacement-v0": "`GreedyPlacement` (one-step move of every receiver maximising the env's reward predicted one period ahead)",
     "StereoScanning-v0": "`GreedyInformation` (the common width and centres maximising the expected covariance reward of the tracks)",
@@ -220,7 +230,44 @@ def cold_start() -> str:
     return "\n".join(lines)
 
 
+def bot_control() -> str:
+    """PCRLB at 16 and 32 min of every policy of ``sensorgym reproduce bot-control``
+    (``docs/reproduction/bot_control.json``)."""
+    doc = json.loads((REPRODUCTION / "bot_control.json").read_text())
+    lines = [
+        f"`{doc['env_id']}`, {doc['runs']} runs, seed {doc['seed']} "
+        "(`docs/reproduction/bot_control.json`):",
+        "",
+        "| policy | PCRLB at 16 min (m) | PCRLB at 32 min (m) | per-run PCRLB at 32 min, "
+        "RMS (m) | env return | ± 95 % | broke the 1 km stand-off | closest (m) |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for p in doc["policies"]:
+        lines.append(
+            f"| {p['name']} ({p['kind']}) | {p['pcrlb'][16]:.0f} | {p['pcrlb_32min']:.0f} "
+            f"| {p['per_run_32min']:.0f} "
+            f"| {p['env_return']:.3f} | {p['env_return_ci95']:.3f} | {p['standoff_broken']} "
+            f"| {p['min_range']:.0f} |"
+        )
+    if doc["missing_trained"]:
+        lines.append("| trained policy: missing (none shipped) | | | | | | | |")
+    opt = doc["optimised"]
+    finals = ", ".join("infeasible" if v != v else f"{v:.0f}" for v in opt["restarts"])
+    lines += [
+        "",
+        f"Optimised open loop on the noise-free target path: PCRLB at 32 min "
+        f"{opt['pcrlb_noise_free']:.0f} m, closest approach {opt['min_range']:.0f} m; "
+        f"the {len(opt['restarts'])} starts (the leg change first) ended at {finals} m. "
+        "Turn rate per minute (°/min, + = to starboard): "
+        + " ".join(f"{30.0 * u:+.0f}" for u in opt["turns"])
+        + ".",
+    ]
+    return "\n".join(lines)
+
+
 TABLES = {
+    "bot-control": bot_control,
+    "scores-book": lambda: scores("BearingsManeuverBook-v0"),
     "env-speed": env_speed,
     "cold-start": cold_start,
     "training-speed": training_speed,
