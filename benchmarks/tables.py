@@ -73,6 +73,7 @@ POLICY_LABELS = {
     "oracle-lookahead": "`OracleLookahead` (ceiling: knows the truth; best constant action over 5 steps on the true bound, receding horizon)",
     "book-leg-change": "`book_leg_change` (the book's manoeuvre: 140° → 20° at 30°/min in minutes 13–16, open loop)",
     "oracle-open-loop": "`optimised_open_loop` (ceiling: the turn sequence optimised on the true target by `reproduce bot-control`)",
+    "lookahead-estimate": "`EstimateLookahead` (the oracle's 8-step planner on the tracker's estimate instead of the truth)",
     "paper002": "`Paper002Maneuver` (theory §10.5 OC-5: run along the bearing, then turn abeam at full speed)",
     "straight-course": "`StraightCourse` (no manoeuvre: range unobservable)",
     "orthogonal-pairs": "`OrthogonalPairs` (theory §10.1 OC-1: pair the receivers whose lines of sight are closest to 90°)",

@@ -55,6 +55,8 @@ EXPERTS: dict[str, str] = {
     "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
     "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
     "placement-oracle-target": "sensorgym.envs.stereo_placement.wrappers:oracle_target",
+    "lookahead-estimate": "sensorgym.envs.bearings_maneuver.teacher:estimate_teacher",
+    "oracle-lookahead": "sensorgym.envs.bearings_maneuver.teacher:oracle_teacher",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

@@ -94,7 +94,10 @@ class BearingsManeuverEnv(CoreEnv):
       on the recorded seeded episodes (re-recorded). Issue 13 added the params fields
       ``initial_heading``, ``initial_bearing`` and ``target_course`` (ranges of the uniform
       draws; the defaults are the former full circle, so seeded episodes are bit-identical);
-      ``sensorgym/BearingsManeuverBook-v0`` fixes them to the textbook scenario.
+      ``sensorgym/BearingsManeuverBook-v0`` fixes them to the textbook scenario. Issue 13 also
+      added the ``lookahead-estimate`` rule and shipped PPO policies that observe the time left
+      through the ``time-feature`` wrapper (:mod:`sensorgym.train.wrappers`), imitate that rule
+      before RL, and beat it (observation, dynamics and rewards unchanged).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

@@ -146,7 +146,8 @@ def test_trained_weights_reload_to_the_same_actions(tmp_path, algo):
     assert files == [CONFIG_FILE, "curve.json", "curve.png", "evaluation.json", WEIGHTS_FILE]
     loaded = load_model(result.run_dir)
     assert type(loaded) is type(result.model) and loaded.get_env() is None
-    obs = np.random.default_rng(0).uniform(-3, 3, (64, 10)).astype(np.float32)
+    size = loaded.observation_space.shape[0]  # the env's 10 and what the run's wrappers add
+    obs = np.random.default_rng(0).uniform(-3, 3, (64, size)).astype(np.float32)
     expected = result.model.predict(obs, deterministic=True)[0]
     np.testing.assert_array_equal(loaded.predict(obs, deterministic=True)[0], expected)
     trained = result.model.policy.state_dict()

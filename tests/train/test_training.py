@@ -67,7 +67,8 @@ def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
     evaluation = json.loads((result.run_dir / "evaluation.json").read_text())["results"]
     assert {"trained", "straight-course", "paper002", "greedy-information"} <= set(evaluation)
     model = load_model(result.run_dir)
-    obs = np.random.default_rng(0).uniform(-1, 1, (5, 10)).astype(np.float32)
+    size = model.observation_space.shape[0]  # the env's 10 and what the run's wrappers add
+    obs = np.random.default_rng(0).uniform(-1, 1, (5, size)).astype(np.float32)
     again = load_model(result.run_dir / WEIGHTS_FILE)
     action = model.predict(obs, deterministic=True)[0]
     np.testing.assert_array_equal(action, again.predict(obs, deterministic=True)[0])
