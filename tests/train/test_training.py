@@ -16,6 +16,7 @@ from sensorgym.train.config import load_hyperparams, split_run_settings
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.models import WEIGHTS_FILE, load_model, read_config
 from sensorgym.train.sb3_vec_env import SB3VecEnv
+from sensorgym.train.shipped import shipped_policies
 from sensorgym.train.trainer import train
 
 ENV_ID = "sensorgym/BearingsManeuver-v0"
@@ -86,6 +87,8 @@ def test_benchmark_command_scores_every_rule(tmp_path, capsys):
         "greedy-information",
         "lookahead-estimate",
         "oracle-lookahead",
+        # the shipped policies, scored by default
+        *(f"shipped:{run}" for run in shipped_policies(ENV_ID)),
     }
     assert results["oracle-lookahead"]["mean"] > results["greedy-information"]["mean"]
     assert results["greedy-information"]["mean"] > results["straight-course"]["mean"]
