@@ -235,13 +235,18 @@ def _memory_root(a: np.ndarray) -> np.ndarray:
 
 
 def _memory_roots(tree: Any) -> set[int]:
-    """``id`` of the memory owner of every array in ``tree`` (dataclasses, dicts, tuples,
-    lists and arrays, searched through)."""
-    roots: set[int] = set()
+    """``id`` of the memory owner of every array in ``tree`` (:func:`tree_arrays`)."""
+    return {id(_memory_root(a)) for a in tree_arrays(tree)}
+
+
+def tree_arrays(tree: Any) -> list[np.ndarray]:
+    """Every array in ``tree`` (dataclasses, dicts, tuples and lists, searched through), in
+    field order."""
+    found: list[np.ndarray] = []
 
     def visit(x: Any) -> None:
         if isinstance(x, np.ndarray):
-            roots.add(id(_memory_root(x)))
+            found.append(x)
         elif isinstance(x, dict):
             for v in x.values():
                 visit(v)
@@ -249,12 +254,11 @@ def _memory_roots(tree: Any) -> set[int]:
             for v in x:
                 visit(v)
         else:
-            names = _field_names(type(x))
-            for f in names or ():
+            for f in _field_names(type(x)) or ():
                 visit(getattr(x, f))
 
     visit(tree)
-    return roots
+    return found
 
 
 def resolve_params(params_type: type[ParamsT], params: ParamsT | None, **fields: Any) -> ParamsT:

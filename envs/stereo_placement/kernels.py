@@ -215,12 +215,12 @@ def systems_row(
             for c in range(3):
                 P[s, k - 1, j, c] = Pk[c][j]
     if n == 3:
-        code = triple_velocity_kernel(a1, ak, P, b, dt, 1.0, True, s, s + 1, X, J, Q, kappa,
+        code = triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
                                       position)  # fmt: skip
         if code != 0:
             return code
         if noisy:
-            code = triple_velocity_kernel(e1, ek, P, b, dt, 1.0, True, s, s + 1, Xe, J, Qe,
+            code = triple_velocity_kernel(e1, ek, P, b, dt, 1.0, np.bool_(True), s, s + 1, Xe, J, Qe,
                                           kappa_e, position)  # fmt: skip
             if code != 0:
                 return code

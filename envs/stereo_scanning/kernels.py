@@ -28,6 +28,9 @@ from sensorgym.trackers.stereo.kernels import log_ratio_reward
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
+# Constant arguments of the shared primitives are passed as ``np.int64(…)`` / ``np.bool_(…)``:
+# a bare literal (``0``, ``False``) makes numba compile one more specialisation per value.
+
 #: track status codes of the table
 EMPTY, TENTATIVE, CONFIRMED = 0, 1, 2
 #: tracker codes
@@ -189,7 +192,9 @@ def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, g
                 for y in range(3):
                     pP[npair, 0, x, y] = P[k - 1, x, y]
             npair += 1
-    pair_kernel(pa1, pa2, pP, pb, ones, 1.0, False, 0, npair, pX, pJ, pQ, pk, pM)
+    pair_kernel(
+        pa1, pa2, pP, pb, ones, 1.0, np.bool_(False), np.int64(0), npair, pX, pJ, pQ, pk, pM
+    )
     e = 0
     for j1 in range(count1):
         for jk in range(countk):
@@ -328,9 +333,9 @@ def step_rows(
         c2 = fix_count[i, 1]
         c3 = fix_count[i, 2] if used_n == 3 else 1
         if used_n == 3:
-            _pair_gates(i, 1, la, fix_time, c1, c2, P, b, sig, position_sigma, gate_q, max_speed,
+            _pair_gates(i, np.int64(1), la, fix_time, c1, c2, P, b, sig, position_sigma, gate_q, max_speed,
                         pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g12)  # fmt: skip
-            _pair_gates(i, 2, la, fix_time, c1, c3, P, b, sig, position_sigma, gate_q, max_speed,
+            _pair_gates(i, np.int64(2), la, fix_time, c1, c3, P, b, sig, position_sigma, gate_q, max_speed,
                         pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g13)  # fmt: skip
         for j1 in range(c1):
             for j2 in range(c2):
@@ -358,9 +363,13 @@ def step_rows(
                     ctime[nc] = fix_time[i, 0, j1]
                     nc += 1
         if used_n == 3:
-            triple_velocity_kernel(a1, ak, Pc, bc, dt, 1.0, False, 0, nc, X, J, Q, kap, M1)
+            triple_velocity_kernel(
+                a1, ak, Pc, bc, dt, 1.0, np.bool_(False), np.int64(0), nc, X, J, Q, kap, M1
+            )
         else:
-            pair_kernel(a1, ak, Pc, bc, ones, 1.0, False, 0, nc, X, J, Q, kap, M1)
+            pair_kernel(
+                a1, ak, Pc, bc, ones, 1.0, np.bool_(False), np.int64(0), nc, X, J, Q, kap, M1
+            )
         for c in range(nc):
             ok = kap[c] <= cond_max
             for k in range(used_n):
@@ -670,7 +679,9 @@ def _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b, cdt, c
         pb[0, 0, x] = b[0, x] - v1[x] * cdt[c]
         for y in range(3):
             pP[0, 0, x, y] = P[0, x, y]
-    pair_kernel(pa1, pa2, pP, pb, pones, 1.0, False, 0, 1, pX, pJ, pQ, pk, pM)
+    pair_kernel(
+        pa1, pa2, pP, pb, pones, 1.0, np.bool_(False), np.int64(0), np.int64(1), pX, pJ, pQ, pk, pM
+    )
     if not (pX[0, 0] > 0.0 and pX[0, 1] > 0.0):
         return np.inf
     mw = _world(R, 0, (pM[0, 0], pM[0, 1], pM[0, 2]))

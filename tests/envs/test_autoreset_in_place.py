@@ -41,32 +41,12 @@ def _run(env_id: str, mode: str, steps: int) -> list:
     return out
 
 
-def _leaves(tree) -> list[np.ndarray]:
-    found = []
-
-    def visit(x):
-        if isinstance(x, np.ndarray):
-            found.append(x)
-        elif isinstance(x, dict):
-            for v in x.values():
-                visit(v)
-        elif isinstance(x, (tuple, list)):
-            for v in x:
-                visit(v)
-        elif hasattr(x, "__dataclass_fields__"):
-            for f in x.__dataclass_fields__:
-                visit(getattr(x, f))
-
-    visit(tree)
-    return found
-
-
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_in_place_autoreset_changes_nothing_handed_out(env_id, mode, monkeypatch):
     steps = 9
     in_place = _run(env_id, mode, steps)
-    snapshots = [copy.deepcopy(_leaves(step)) for step in in_place]
+    snapshots = [copy.deepcopy(contract.tree_arrays(step)) for step in in_place]
     # the same seeded run with every autoreset copying the state (the reference)
     real = contract.tree_scatter
     monkeypatch.setattr(
@@ -76,7 +56,7 @@ def test_in_place_autoreset_changes_nothing_handed_out(env_id, mode, monkeypatch
     )
     copied = _run(env_id, mode, steps)
     for i, (step, snapshot, ref) in enumerate(zip(in_place, snapshots, copied, strict=True)):
-        now, expected = _leaves(step), _leaves(ref)
+        now, expected = contract.tree_arrays(step), contract.tree_arrays(ref)
         assert len(now) == len(snapshot) == len(expected)
         for a, b, c in zip(now, snapshot, expected, strict=True):
             # what step i returned is what it was then (later autoresets did not touch it)
