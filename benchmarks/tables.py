@@ -217,7 +217,13 @@ def results_env(env: str) -> str:
     return "\n".join(lines)
 
 
-SCORE_ENVS = ("BearingsManeuver-v0", "StereoPointing-v0", "StereoPlacement-v0", "StereoScanning-v0")
+SCORE_ENVS = (
+    "BearingsManeuver-v0",
+    "BearingsManeuverBook-v0",
+    "StereoPointing-v0",
+    "StereoPlacement-v0",
+    "StereoScanning-v0",
+)
 
 
 def cold_start() -> str:

@@ -14,11 +14,18 @@ from typing import Any
 
 
 def add_common_arguments(
-    parser: argparse.ArgumentParser, name: str, runs: int, runs_help: str, *, plots: bool = False
+    parser: argparse.ArgumentParser,
+    name: str,
+    runs: int,
+    runs_help: str,
+    *,
+    plots: bool = False,
+    seed: int = 0,
 ) -> None:
-    """``--runs``, ``--seed``, ``--out`` (default ``results/NAME``) and, with plots, ``--no-plots``."""
+    """``--runs``, ``--seed`` (default ``seed``), ``--out`` (default ``results/NAME``) and, with
+    plots, ``--no-plots``."""
     parser.add_argument("--runs", type=int, default=runs, help=f"{runs_help} (default {runs})")
-    parser.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    parser.add_argument("--seed", type=int, default=seed, help=f"root seed (default {seed})")
     parser.add_argument(
         "--out",
         type=Path,
