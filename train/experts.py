@@ -57,6 +57,7 @@ EXPERTS: dict[str, str] = {
     "placement-oracle-target": "sensorgym.envs.stereo_placement.wrappers:oracle_target",
     "lookahead-estimate": "sensorgym.envs.bearings_maneuver.teacher:estimate_teacher",
     "oracle-lookahead": "sensorgym.envs.bearings_maneuver.teacher:oracle_teacher",
+    "scan-entry-search": "sensorgym.envs.stereo_scanning.wrappers:entry_search_expert",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

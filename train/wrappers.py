@@ -27,6 +27,7 @@ WRAPPERS: dict[str, str] = {
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
     "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
     "placement-target": "sensorgym.envs.stereo_placement.wrappers:plan_target",
+    "scan-modes": "sensorgym.envs.stereo_scanning.wrappers:scan_modes",
 }
 
 

@@ -89,9 +89,52 @@ class ScanModes(VecEnvWrapper):
         return obs, rewards, dones, infos
 
 
+class EntrySearchModes:
+    """The ``cue-entry-search`` rule in :class:`ScanModes`' actions — ``entry`` on the first
+    ``sweep_periods`` of every ``sweep_every`` periods, ``cue`` otherwise — with SB3's
+    ``predict`` (its period counters are the state): the expert a policy imitates before RL."""
+
+    def __init__(
+        self,
+        sweep_every: int = rules.SWEEP_EVERY,
+        sweep_periods: int = rules.SWEEP_PERIODS,
+    ):
+        self.sweep_every = sweep_every
+        self.sweep_periods = sweep_periods
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: Any = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        N = len(observation)
+        count = np.zeros(N, np.int64) if state is None else np.asarray(state, np.int64).copy()
+        if episode_start is not None:
+            count[np.asarray(episode_start, bool).reshape(-1)[:N]] = 0
+        search = count % self.sweep_every < self.sweep_periods
+        return np.where(search, MODES.index("entry"), MODES.index("cue")), count + 1
+
+
+def entry_search_expert(env: VecEnv) -> EntrySearchModes:
+    """The ``scan-entry-search`` expert factory (:class:`EntrySearchModes`; ``env`` must act
+    through :class:`ScanModes`)."""
+    if not isinstance(env.action_space, spaces.Discrete) or env.action_space.n != len(MODES):
+        raise ValueError("scan-entry-search: the training env must act through scan-modes")
+    return EntrySearchModes()
+
+
 def scan_modes(venv: VecEnv) -> VecEnv:
     """The ``scan-modes`` wrapper factory (:class:`ScanModes`)."""
     return ScanModes(venv)
 
 
-__all__ = ["MODES", "ScanModes", "mode_sectors", "scan_modes"]
+__all__ = [
+    "MODES",
+    "EntrySearchModes",
+    "ScanModes",
+    "entry_search_expert",
+    "mode_sectors",
+    "scan_modes",
+]

@@ -13,7 +13,13 @@ from sensorgym.envs.stereo_scanning.simulation import (
     sector_action,
     split_observation,
 )
-from sensorgym.envs.stereo_scanning.wrappers import MODES, ScanModes, mode_sectors
+from sensorgym.envs.stereo_scanning.wrappers import (
+    MODES,
+    EntrySearchModes,
+    ScanModes,
+    entry_search_expert,
+    mode_sectors,
+)
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 
 ENV_ID = "sensorgym/StereoScanning-v0"
@@ -134,3 +140,27 @@ def test_scan_modes_keeps_the_scenarios_and_rewards():
 def test_scan_modes_refuses_other_envs():
     with pytest.raises(ValueError, match="StereoScanning"):
         ScanModes(make_sb3_env("sensorgym/StereoPlacement-v0", 2, 0))
+
+
+def test_the_entry_search_expert_is_the_rule_in_scan_modes_actions():
+    """The imitation expert acting through scan-modes scores exactly what cue-entry-search
+    scores on the raw env (same seed, same scenarios)."""
+    wrapped = ScanModes(make_sb3_env(ENV_ID, 8, 9))
+    raw = make_sb3_env(ENV_ID, 8, 9)
+    a = evaluate(entry_search_expert(wrapped), wrapped, 16, 9)
+    b = evaluate(rules.CueFollowing(PARAMS, search="entry"), raw, 16, 9)
+    assert a.mean == pytest.approx(b.mean, abs=1e-9)
+    with pytest.raises(ValueError, match="scan-modes"):
+        entry_search_expert(raw)
+    wrapped.close()
+    raw.close()
+
+
+def test_scan_modes_and_its_expert_are_registered_for_training():
+    from sensorgym.train.experts import expert_factory
+    from sensorgym.train.wrappers import apply_wrappers
+
+    env = apply_wrappers(make_sb3_env(ENV_ID, 2, 0), [{"name": "scan-modes"}])
+    assert isinstance(env, ScanModes)
+    assert isinstance(expert_factory("scan-entry-search")(env), EntrySearchModes)
+    env.close()
