@@ -82,7 +82,9 @@ POLICY_LABELS = {
     "circle-placement": "`CirclePlacement` (theory §10.3 OC-3: circle of radius √2·ĥ around the estimated ground point)",
     "hold-position": "`HoldPosition` (stay in the 15 m start cluster)",
     "oracle-sectors": "`OracleSectors` (ceiling: the greedy sectors on the true drones)",
-    "cue-following": "`CueFollowing` (sectors just covering the predicted tracks; a full sweep every fifth period)",
+    "cue-following": "`CueFollowing` (sectors just covering the predicted tracks; a search of two full sweeps every tenth period)",
+    "cue-entry-search": '`CueFollowing(search="entry")` (the same, searching the region where drones enter with 53° sectors)',
+    "cue-no-search": "`CueFollowing(sweep_every=NEVER)` (the same sectors, no search after the first two sweeps)",
     "orthogonal-sectors": "`OrthogonalSectors` (theory §10.1 OC-1: narrow sectors on the tracks with the most orthogonal lines of sight)",
     "full-sweep": "`FullSweep` (the papers' fixed sweep of the whole field of regard)",
 }
