@@ -13,7 +13,7 @@ from pathlib import Path
 
 from sensorgym.agents.registry import rules_for
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
-from sensorgym.train.models import load_model
+from sensorgym.train.models import load_model, read_config
 from sensorgym.train.trainer import train
 
 ENV_ID = "sensorgym/BearingsManeuver-v0"
@@ -35,14 +35,19 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     # reload it (no pickle) and score it beside the rules on held-out scenarios
     eval_seed = 10_000 + args.seed
     env = make_sb3_env(ENV_ID, n_envs=min(16, args.episodes), seed=eval_seed)
-    policies = {"ppo (ours)": load_model(result.run_dir, env)}
-    policies |= rules_for(ENV_ID, env_params(env), simulator_state(env))
+    # the policy sees the env through the run's wrappers (e.g. the time left): same scenarios
+    wrappers = read_config(result.run_dir)["hyperparams"].get("wrappers")
+    model_env = make_sb3_env(ENV_ID, n_envs=env.num_envs, seed=eval_seed, wrappers=wrappers)
+    policies = {"ppo (ours)": (load_model(result.run_dir, model_env), model_env)}
+    rules = rules_for(ENV_ID, env_params(env), simulator_state(env))
+    policies |= {name: (rule, env) for name, rule in rules.items()}
     scores = {}
-    for name, policy in policies.items():
-        stats = evaluate(policy, env, args.episodes, eval_seed)
+    for name, (policy, venv) in policies.items():
+        stats = evaluate(policy, venv, args.episodes, eval_seed)
         scores[name] = stats.mean
         print(f"{name:20s} {stats.mean:7.3f} ± {stats.ci95:.3f}")
     env.close()
+    model_env.close()
     return scores
 
 
