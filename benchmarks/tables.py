@@ -228,6 +228,21 @@ SCORE_ENVS = (
 )
 
 
+def results_curves() -> str:
+    """Every shipped run's learning curve (``curve.png`` in its run folder), per env."""
+    policies = ROOT / "train" / "policies"
+    lines = []
+    for env in SCORE_ENVS:
+        runs = sorted((policies / f"sensorgym__{env}").glob("*/curve.png"))
+        if not runs:
+            continue
+        lines.append(f"**{env}**: " + ", ".join(f"`{p.parent.name}`" for p in runs))
+        lines.append("")
+        lines += [f"![{env} {p.parent.name}](../{p.relative_to(ROOT).as_posix()})" for p in runs]
+        lines.append("")
+    return "\n".join(lines).rstrip()
+
+
 def cold_start() -> str:
     """Seconds from a fresh interpreter to every env's first steps, with an empty and a warm
     numba cache (``benchmarks/cold_start.py``)."""
@@ -285,6 +300,7 @@ TABLES = {
     "scores-placement": lambda: scores("StereoPlacement-v0"),
     "scores-scanning": lambda: scores("StereoScanning-v0"),
     "results-summary": results_summary,
+    "results-curves": results_curves,
     **{f"results-{env.split('-')[0]}": (lambda e=env: results_env(e)) for env in SCORE_ENVS},
 }
 

@@ -33,6 +33,6 @@ def test_readme_opens_with_an_animated_episode_and_the_benchmark_chart():
 
     head = (ROOT / "README.md").read_text().split("## ", 1)[0]
     gif = re.search(r'src="(docs/assets/[^"]+\.gif)"', head)
-    assert gif and "docs/assets/benchmark/benchmark.png" in head
+    assert gif and "docs/scores/benchmark.png" in head
     with Image.open(ROOT / gif.group(1)) as im:
         assert im.n_frames > 10

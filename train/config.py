@@ -41,6 +41,27 @@ def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
     return hp
 
 
+#: a hyperparameter set's key holding what differs for parameter-sharing (``--agents``) runs
+AGENTS_KEY = "agents"
+
+
+def for_mode(hp: dict[str, Any], agents: bool) -> dict[str, Any]:
+    """``hp`` for a single-policy run, or for a parameter-sharing run (``agents``) with the
+    entries of its ``agents:`` mapping applied (a ``null`` entry removes the key): a recipe's
+    wrappers and imitation act on the env's joint action, one agent's policy on its own."""
+    hp = dict(hp)
+    overrides = hp.pop(AGENTS_KEY, None) or {}
+    if not isinstance(overrides, dict):
+        raise KeyError(f"{AGENTS_KEY}: expected a mapping of overrides, got {overrides!r}")
+    if agents:
+        for key, value in overrides.items():
+            if value is None:
+                hp.pop(key, None)
+            else:
+                hp[key] = value
+    return hp
+
+
 def split_run_settings(hp: dict[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(run settings, algorithm keyword arguments)`` of a hyperparameter set."""
     run = {k: hp[k] for k in RUN_KEYS}

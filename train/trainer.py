@@ -24,7 +24,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES
-from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
+from sensorgym.train.config import ALGORITHMS, for_mode, load_hyperparams, split_run_settings
 from sensorgym.train.curves import LearningCurve, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
 from sensorgym.train.experts import Pretrain, pretrain
@@ -167,7 +167,7 @@ def _train(
     curve_points: int,
     params: dict[str, Any],
 ) -> TrainResult:
-    hp = load_hyperparams(algo, env_id)
+    hp = for_mode(load_hyperparams(algo, env_id), agents)
     hp.update(overrides)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps

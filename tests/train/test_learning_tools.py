@@ -166,3 +166,15 @@ def test_train_with_wrappers_pretraining_and_a_learning_curve(tmp_path):
     gif = tmp_path / "play.gif"
     assert main(["render", "--env", ENV_ID, "--model", str(result.run_dir), "--out", str(gif)]) == 0
     assert gif.stat().st_size > 0
+
+
+def test_parameter_sharing_runs_take_their_own_recipe():
+    from sensorgym.train.config import for_mode, load_hyperparams
+
+    hp = load_hyperparams("ppo", "sensorgym/StereoPlacement-v0")
+    single, shared = for_mode(hp, agents=False), for_mode(hp, agents=True)
+    assert "agents" not in single and "agents" not in shared
+    assert single["wrappers"][0]["name"] == "placement-target" and "pretrain" in single
+    assert "wrappers" not in shared and "pretrain" not in shared
+    assert shared["policy_kwargs"] == {"net_arch": [128, 128]}
+    assert single["gamma"] == shared["gamma"]
