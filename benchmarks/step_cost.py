@@ -5,8 +5,9 @@ more than the CPU time a step consumes, so this measures the simulation's ``step
 compiled kernel and its Python wrapper, no autoreset) at ``--batch`` scenarios on one thread
 (``SENSORGYM_THREADS=1``, set here) by the thread's CPU clock, best of ``--repeat`` steps,
 chained from one seeded reset under one random action. Also the vector env's whole step (autoreset,
-observation, infos) at the same batch, on one thread. Prints a table; writes nothing (the
-throughput files quote wall-clock ratios against CartPole-v1).
+observation, infos) at the same batch, on one thread. Prints a table and writes
+``benchmarks/results/step_cost.json`` (the throughput files quote wall-clock ratios against
+CartPole-v1).
 
 Run: ``.venv/bin/python benchmarks/step_cost.py [--batch 1024] [--repeat 200]``.
 """
@@ -22,6 +23,7 @@ import time
 
 import gymnasium as gym
 import numpy as np
+from timing import RESULTS, write_results
 
 import sensorgym.envs as envs
 
@@ -59,11 +61,16 @@ def main() -> None:
     B = args.batch
     print(f"{'env':<36} {'core step, us/scen':>19} {'vector step, us/scen':>21}")
     print("-" * 78)
+    rows = []
     for env_id in envs.ENV_IDS:
         c, v = env_costs(env_id, B, args.repeat)
         print(f"{env_id:<36} {c / B * 1e6:>19.3f} {v / B * 1e6:>21.3f}")
+        rows.append({"env": env_id, "core_step_us": c / B * 1e6, "vector_step_us": v / B * 1e6})
     print(f"one thread, CPU time, best of {args.repeat} steps at {B} scenarios; 1-min load "
           f"{os.getloadavg()[0]:.1f}")  # fmt: skip
+    write_results(
+        RESULTS / "step_cost.json", rows, batch=B, repeat=args.repeat, threads=1, clock="thread CPU"
+    )
 
 
 if __name__ == "__main__":
