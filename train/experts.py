@@ -55,8 +55,6 @@ EXPERTS: dict[str, str] = {
     "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
     "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
     "placement-oracle-target": "sensorgym.envs.stereo_placement.wrappers:oracle_target",
-    "lookahead-estimate": "sensorgym.envs.bearings_maneuver.teacher:estimate_teacher",
-    "oracle-lookahead": "sensorgym.envs.bearings_maneuver.teacher:oracle_teacher",
     "scan-entry-search": "sensorgym.envs.stereo_scanning.wrappers:entry_search_expert",
 }
 

@@ -31,6 +31,38 @@ WRAPPERS: dict[str, str] = {
 }
 
 
+class ObservedActionWrapper(VecEnvWrapper):
+    """An action re-parameterisation that turns the policy's action into the env's own through
+    the env's latest observation (which track a receiver watches → gimbal rates slewing onto that
+    track's prediction, a scan mode → sectors, …). Subclasses give :meth:`env_action`; this class
+    keeps :attr:`last_obs`. Observations, rewards and episodes are the env's."""
+
+    def __init__(self, venv: VecEnv, action_space: spaces.Space):
+        super().__init__(venv, action_space=action_space)
+        self.last_obs: np.ndarray | None = None
+        """The env's latest observation (with SAME_STEP autoreset, a finished scenario's is
+        already its next episode's first): what the next action is mapped through."""
+
+    def env_action(self, actions: np.ndarray, obs: np.ndarray) -> np.ndarray:
+        """The env's own action for the policy's ``actions`` given the observation ``obs``."""
+        raise NotImplementedError(f"{type(self).__name__} must define env_action")
+
+    def reset(self) -> np.ndarray:
+        self.last_obs = np.asarray(self.venv.reset())
+        return self.last_obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        if self.last_obs is None:
+            raise RuntimeError(f"{type(self).__name__}: call reset() first")
+        action = self.env_action(np.asarray(actions), self.last_obs)
+        self.venv.step_async(np.asarray(action, dtype=np.float32))
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self.last_obs = np.asarray(obs)
+        return obs, rewards, dones, infos
+
+
 def frame_stack(venv: VecEnv, n_stack: int = 4) -> VecEnv:
     """The last ``n_stack`` observations side by side (SB3's ``VecFrameStack``); the oldest
     frames of a new episode are zeros."""

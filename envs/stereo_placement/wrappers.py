@@ -21,10 +21,11 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
-from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents.stereo_placement import GreedyPlacement
 from sensorgym.envs.stereo_placement.simulation import PlacementParams, split_observation
+from sensorgym.train.wrappers import ObservedActionWrapper
 
 FloatArray = NDArray[np.float64]
 
@@ -40,7 +41,7 @@ def predicted_target(params: PlacementParams, obs: NDArray[Any]) -> FloatArray:
     return view["position"] + params.period * view["velocity"]
 
 
-class PlanTargetAction(VecEnvWrapper):
+class PlanTargetAction(ObservedActionWrapper):
     """Action ``a ∈ [−1, 1]³``: the planning target ``q = p̂ + τ v̂ + s ⊙ a ⊙ |a|`` (``s`` =
     ``scale`` m per world axis); each receiver then takes the move of the greedy one-period
     search (:meth:`GreedyPlacement.plan`) that maximises the predicted reward at ``q``."""
@@ -49,32 +50,19 @@ class PlanTargetAction(VecEnvWrapper):
         s = np.asarray(scale, dtype=np.float64)
         if s.shape != (3,) or not np.all(np.isfinite(s) & (s > 0.0)):
             raise ValueError(f"scale: need three positive lengths, got {scale}")
-        super().__init__(venv, action_space=spaces.Box(-1.0, 1.0, (3,), np.float32))
+        super().__init__(venv, spaces.Box(-1.0, 1.0, (3,), np.float32))
         self.params: PlacementParams = venv.get_attr("params")[0]
         self.scale = s
         self.rule = GreedyPlacement(self.params)
-        self._obs: NDArray[Any] | None = None
 
-    def reset(self) -> NDArray[Any]:
-        self._obs = self.venv.reset()
-        return self._obs
-
-    def step_async(self, actions: NDArray[Any]) -> None:
-        if self._obs is None:
-            raise RuntimeError("step_async: reset the env first")
+    def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
         a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, 3)
         if not np.all(np.isfinite(a)):
             raise ValueError("actions: contain NaN or infinite values")
         a = np.clip(a, -1.0, 1.0)
-        q = predicted_target(self.params, self._obs) + self.scale * a * np.abs(a)
-        view = split_observation(self.params, self._obs)
-        base = self.rule.plan(view["receivers"], q, np.zeros_like(q))
-        self.venv.step_async(base.astype(np.float32))
-
-    def step_wait(self) -> Any:
-        obs, rewards, dones, infos = self.venv.step_wait()
-        self._obs = obs
-        return obs, rewards, dones, infos
+        q = predicted_target(self.params, obs) + self.scale * a * np.abs(a)
+        view = split_observation(self.params, obs)
+        return self.rule.plan(view["receivers"], q, np.zeros_like(q))
 
 
 def plan_target(venv: VecEnv, **kwargs: Any) -> VecEnv:

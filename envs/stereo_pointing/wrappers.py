@@ -18,12 +18,12 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
-from stable_baselines3.common.vec_env.base_vec_env import VecEnvStepReturn
 
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
+from sensorgym.train.wrappers import ObservedActionWrapper
 
 
-class AssignmentAction(VecEnvWrapper):
+class AssignmentAction(ObservedActionWrapper):
     """``MultiDiscrete([m] * n)`` actions over an SB3 vector env of StereoPointing: action
     ``i`` is the drone receiver ``i`` watches; the wrapper slews it onto the tracker's predicted
     position of that drone (:func:`~sensorgym.envs.stereo_pointing.simulation.assignment_actions`
@@ -39,27 +39,12 @@ class AssignmentAction(VecEnvWrapper):
                 f"venv: expected the joint observation ({p.obs_dim},), got {shape}"
                 " (the assignment action drives all receivers of a scenario at once)"
             )
-        super().__init__(venv, action_space=spaces.MultiDiscrete([p.n_drones] * p.n_receivers))
+        super().__init__(venv, spaces.MultiDiscrete([p.n_drones] * p.n_receivers))
         self.params = p
-        self.last_obs: NDArray[np.float32] | None = None
-        """The base env's latest observation (what the next assignment is slewed from)."""
 
-    def reset(self) -> NDArray[Any]:
-        self.last_obs = np.asarray(self.venv.reset())
-        return self.last_obs
-
-    def step_async(self, actions: NDArray[Any]) -> None:
-        if self.last_obs is None:
-            raise RuntimeError("step_async: call reset() first")
-        target = np.asarray(actions).reshape(self.num_envs, self.params.n_receivers)
-        rates = assignment_actions(self.params, self.last_obs, target)
-        self.venv.step_async(rates.astype(np.float32))
-
-    def step_wait(self) -> VecEnvStepReturn:
-        obs, reward, done, infos = self.venv.step_wait()
-        # SAME_STEP autoreset: a finished scenario's observation is already its next start's
-        self.last_obs = np.asarray(obs)
-        return obs, reward, done, infos
+    def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
+        target = actions.reshape(self.num_envs, self.params.n_receivers)
+        return assignment_actions(self.params, obs, target)
 
 
 def assignment_wrapper(venv: VecEnv) -> VecEnv:

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
-from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents import stereo_scanning as rules
 from sensorgym.envs.stereo_scanning.simulation import (
@@ -25,6 +25,7 @@ from sensorgym.envs.stereo_scanning.simulation import (
     sector_action,
     split_observation,
 )
+from sensorgym.train.wrappers import ObservedActionWrapper
 
 #: the plans of :class:`ScanModes`, in action order
 MODES = ("sweep", "cue", "cue-wide", "entry")
@@ -60,7 +61,7 @@ def mode_sectors(
     return out
 
 
-class ScanModes(VecEnvWrapper):
+class ScanModes(ObservedActionWrapper):
     """``Discrete(4)`` actions over the env's sector action: 0 sweep, 1 cue, 2 cue-wide, 3 entry
     (:func:`mode_sectors`, planned on the observation the policy acted on)."""
 
@@ -69,24 +70,11 @@ class ScanModes(VecEnvWrapper):
         if not isinstance(params, ScanningParams):
             raise ValueError(f"scan-modes: needs a StereoScanning env, got {type(params).__name__}")
         self.params = params
-        super().__init__(venv, action_space=spaces.Discrete(len(MODES)))
-        self._obs: NDArray[Any] | None = None
+        super().__init__(venv, spaces.Discrete(len(MODES)))
 
-    def reset(self) -> NDArray[Any]:
-        self._obs = self.venv.reset()
-        return self._obs
-
-    def step_async(self, actions: NDArray[Any]) -> None:
-        if self._obs is None:
-            raise RuntimeError("scan-modes: step before reset")
-        sectors = mode_sectors(self.params, self._obs, np.asarray(actions).reshape(-1))
-        raw = sector_action(self.params, sectors).reshape(self.num_envs, -1)
-        self.venv.step_async(raw.astype(np.float32))
-
-    def step_wait(self) -> Any:
-        obs, rewards, dones, infos = self.venv.step_wait()
-        self._obs = obs
-        return obs, rewards, dones, infos
+    def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
+        sectors = mode_sectors(self.params, obs, actions.reshape(-1))
+        return sector_action(self.params, sectors).reshape(self.num_envs, -1)
 
 
 class EntrySearchModes:
