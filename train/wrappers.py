@@ -26,6 +26,8 @@ WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
     "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
+    "pointing-plan": "sensorgym.envs.stereo_pointing.wrappers:plan_wrapper",
+    "plan-features": "sensorgym.envs.stereo_pointing.wrappers:plan_features",
     "placement-target": "sensorgym.envs.stereo_placement.wrappers:plan_target",
     "scan-modes": "sensorgym.envs.stereo_scanning.wrappers:scan_modes",
 }

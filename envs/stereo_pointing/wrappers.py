@@ -1,4 +1,5 @@
-"""Action re-parameterisations of ``sensorgym/StereoPointing-v0`` for training, as SB3 wrappers.
+"""Action and observation re-parameterisations of ``sensorgym/StereoPointing-v0`` for training,
+as SB3 wrappers.
 
 :class:`AssignmentAction` replaces the gimbal-rate action by an *assignment*: for each receiver,
 which drone's track it watches. The env's own slew controller
@@ -8,6 +9,15 @@ its drone. The scenarios and rewards are the base env's, so the episode return s
 accuracy measure and a policy acting through the wrapper is scored beside the rules on the same
 seed. ``sensorgym.train.wrappers.WRAPPERS["pointing-assignment"]`` builds it from a
 hyperparameter set's ``wrappers:`` list.
+
+:class:`PlanAction` (``pointing-plan``) indexes the same choice by one number: ``Discrete(m^n)``
+over the candidate assignments the assignment rules enumerate, in their order.
+:class:`PlanFeatures` (``plan-features``) appends the planner's own evidence to the
+observation: :func:`~sensorgym.agents.stereo_pointing.plan_values` of every candidate on the
+tracker's estimate for a few horizons and for the time left, so that a policy can reproduce the
+``plan-estimate`` rule by an argmax and learn when to deviate from it. Everything it computes
+comes from the observation and the step count of the episode (fieldable), never from the
+simulator state.
 """
 
 from __future__ import annotations
@@ -19,8 +29,9 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from sensorgym.agents.stereo_pointing import _assignments, _keep_bonus, _view, plan_values
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
-from sensorgym.train.wrappers import ObservedActionWrapper
+from sensorgym.train.wrappers import ObservedActionWrapper, _time_limit
 
 
 class AssignmentAction(ObservedActionWrapper):
@@ -30,9 +41,7 @@ class AssignmentAction(ObservedActionWrapper):
     of the latest observation). Observations, rewards and episodes are the base env's."""
 
     def __init__(self, venv: VecEnv, params: PointingParams | None = None):
-        p = params if params is not None else venv.get_attr("params")[0]
-        if not isinstance(p, PointingParams):
-            raise TypeError(f"venv: expected a StereoPointing env, its params are {type(p)!r}")
+        p = _pointing_params(venv, params)
         shape = venv.observation_space.shape
         if shape != (p.obs_dim,):
             raise ValueError(
@@ -52,16 +61,178 @@ def assignment_wrapper(venv: VecEnv) -> VecEnv:
     return AssignmentAction(venv)
 
 
-def find_assignment(env: VecEnv) -> AssignmentAction:
-    """The :class:`AssignmentAction` in an SB3 wrapper stack (outer wrappers such as frame
-    stacks or a time feature may lie over it); ``ValueError`` if there is none."""
+def _pointing_params(venv: VecEnv, params: PointingParams | None) -> PointingParams:
+    """``params`` or the StereoPointing params of ``venv``; ``TypeError``/``ValueError`` when
+    ``venv`` is not a joint StereoPointing env."""
+    p = params if params is not None else venv.get_attr("params")[0]
+    if not isinstance(p, PointingParams):
+        raise TypeError(f"venv: expected a StereoPointing env, its params are {type(p)!r}")
+    return p
+
+
+class PlanAction(ObservedActionWrapper):
+    """``Discrete(m^n)`` actions over an SB3 vector env of StereoPointing: action ``c`` is the
+    ``c``-th candidate assignment of the assignment rules (:attr:`candidates`, every map of
+    receivers to drones in lexicographic order), slewed onto as by :class:`AssignmentAction`.
+    Observations, rewards and episodes are the base env's."""
+
+    def __init__(self, venv: VecEnv, params: PointingParams | None = None):
+        p = _pointing_params(venv, params)
+        if venv.observation_space.shape != (p.obs_dim,):
+            raise ValueError(
+                f"venv: expected the joint observation ({p.obs_dim},), got "
+                f"{venv.observation_space.shape} (pointing-plan must lie under observation wrappers)"
+            )
+        self.candidates = _assignments(p)
+        """``(m^n, n)``: candidate ``c`` sends receiver ``k`` to drone ``candidates[c, k]``."""
+        super().__init__(venv, spaces.Discrete(len(self.candidates)))
+        self.params = p
+
+    def index(self, assignment: NDArray[Any]) -> NDArray[np.int64]:
+        """The candidate index ``(N,)`` of assignments ``(N, n)`` (drone per receiver)."""
+        a = np.asarray(assignment, dtype=np.int64)
+        return np.ravel_multi_index(tuple(a.T), (self.params.n_drones,) * self.params.n_receivers)
+
+    def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
+        choice = np.asarray(actions, dtype=np.int64).reshape(self.num_envs)
+        if np.any((choice < 0) | (choice >= len(self.candidates))):
+            raise ValueError(f"actions: candidate indices must lie in [0, {len(self.candidates)})")
+        return assignment_actions(self.params, obs, self.candidates[choice])
+
+
+def plan_wrapper(venv: VecEnv) -> VecEnv:
+    """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry)."""
+    return PlanAction(venv)
+
+
+class PlanFeatures(VecEnvWrapper):
+    """Appends the planner's evidence to the joint observation of StereoPointing.
+
+    For each horizon ``h`` of :attr:`horizons` (steps) and, with ``time_left``, for the steps
+    left in the episode (``max_episode_steps − t``, at least 1), the planned return ``v_c`` of
+    holding each candidate assignment ``c`` for ``h`` steps on the tracker's estimate
+    (:func:`~sensorgym.agents.stereo_pointing.plan_values`, the ``plan-estimate`` rule's
+    evidence; the rule is the argmax at ``h = 100``):
+
+    | feature (per candidate, in the rules' candidate order) | range |
+    |---|---|
+    | ``max(−10, (v_c − max_c' v_c') / h)``: the per-step loss against the best plan | [−10, 0] |
+    | 1 for the best candidate (first on ties), else 0 | {0, 1} |
+
+    followed by, per candidate, the fraction of receivers it leaves on the drone they are
+    aimed at (the hysteresis count of the assignment rules). Size
+    ``obs_dim + m^n (2H + 1)``, ``H`` the number of horizons (with the time left). The base
+    observation comes first (:meth:`base_observation` recovers it).
+    """
+
+    def __init__(
+        self,
+        venv: VecEnv,
+        horizons: tuple[int, ...] | list[int] = (15, 50, 100),
+        time_left: bool = True,
+        stride: int = 3,
+        max_episode_steps: int | None = None,
+        params: PointingParams | None = None,
+    ):
+        p = _pointing_params(venv, params)
+        if venv.observation_space.shape != (p.obs_dim,):
+            raise ValueError(
+                f"venv: expected the joint observation ({p.obs_dim},), got "
+                f"{venv.observation_space.shape} (plan-features must lie directly over the env "
+                "or an action wrapper)"
+            )
+        if not all(isinstance(h, int) and h >= 1 for h in horizons) or not (horizons or time_left):
+            raise ValueError(f"plan-features: horizons must be integers >= 1, got {horizons!r}")
+        if not isinstance(stride, int) or stride < 1:
+            raise ValueError(f"plan-features: stride must be an integer >= 1, got {stride!r}")
+        limit = max_episode_steps or _time_limit(venv)
+        if time_left and not (isinstance(limit, int | np.integer) and limit >= 1):
+            raise ValueError(f"plan-features: time_left needs a time limit, got {limit!r}")
+        self.params = p
+        self.horizons = tuple(int(h) for h in horizons)
+        self.time_left = bool(time_left)
+        self.stride = stride
+        self.max_episode_steps = int(limit) if limit else 0
+        self.candidates = _assignments(p)
+        C = len(self.candidates)
+        H = len(self.horizons) + int(self.time_left)
+        extra = C * (2 * H + 1)
+        box = venv.observation_space
+        low = np.concatenate([box.low, np.full(extra, -10.0, np.float32)]).astype(np.float32)
+        high = np.concatenate([box.high, np.ones(extra, np.float32)]).astype(np.float32)
+        super().__init__(venv, observation_space=spaces.Box(low, high, dtype=np.float32))
+        self._t = np.zeros(venv.num_envs, dtype=np.int64)
+
+    def features(self, obs: NDArray[Any], t: NDArray[np.int64]) -> NDArray[np.float32]:
+        """The appended features ``(N, m^n (2H + 1))`` of base observations ``(N, obs_dim)``
+        at episode steps ``t (N,)``."""
+        view = _view(self.params, np.asarray(obs, dtype=np.float64))
+        N, C = len(t), len(self.candidates)
+        horizons = [np.full(N, float(h)) for h in self.horizons]
+        if self.time_left:
+            horizons.append(np.maximum(self.max_episode_steps - t, 1).astype(np.float64))
+        parts = []
+        for h in horizons:
+            v = plan_values(
+                self.params,
+                view.azimuth,
+                view.elevation,
+                view.position,
+                view.velocity,
+                h,
+                self.stride,
+            )
+            parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
+            parts.append(np.eye(C)[np.argmax(v, axis=1)])
+        parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
+        return np.concatenate(parts, axis=1).astype(np.float32)
+
+    def base_observation(self, obs: NDArray[Any]) -> NDArray[Any]:
+        """The env's own observation in ``obs`` (the features dropped)."""
+        return obs[..., : self.params.obs_dim]
+
+    def _with_features(self, obs: NDArray[Any]) -> NDArray[np.float32]:
+        return np.concatenate([obs, self.features(obs, self._t)], axis=1).astype(np.float32)
+
+    def reset(self) -> NDArray[np.float32]:
+        self._t[:] = 0
+        return self._with_features(np.asarray(self.venv.reset()))
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        self._t += 1
+        for i in np.flatnonzero(dones):  # the final observation, at its own step count
+            terminal = infos[i].get("terminal_observation")
+            if terminal is not None:
+                f = self.features(terminal[None], self._t[i : i + 1])[0]
+                infos[i]["terminal_observation"] = np.concatenate([terminal, f]).astype(np.float32)
+        self._t[dones] = 0
+        return self._with_features(np.asarray(obs)), rewards, dones, infos
+
+
+def plan_features(venv: VecEnv, **kwargs: Any) -> VecEnv:
+    """Factory of the ``plan-features`` wrapper (``WRAPPERS`` registry); keywords as
+    :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``)."""
+    if "horizons" in kwargs:
+        kwargs["horizons"] = tuple(kwargs["horizons"])
+    return PlanFeatures(venv, **kwargs)
+
+
+def _find(env: VecEnv, kind: type, name: str) -> Any:
+    """The ``kind`` wrapper in an SB3 wrapper stack (outer wrappers such as frame stacks or a
+    time feature may lie over it); ``ValueError`` if there is none."""
     e: Any = env
     while True:
-        if isinstance(e, AssignmentAction):
+        if isinstance(e, kind):
             return e
         if not isinstance(e, VecEnvWrapper):
-            raise ValueError("env: no pointing-assignment wrapper in the stack")
+            raise ValueError(f"env: no {name} wrapper in the stack")
         e = e.venv
+
+
+def find_assignment(env: VecEnv) -> AssignmentAction:
+    """The :class:`AssignmentAction` in an SB3 wrapper stack; ``ValueError`` if there is none."""
+    return _find(env, AssignmentAction, "pointing-assignment")
 
 
 class AssignmentExpert:
@@ -94,6 +265,38 @@ def _rule_expert(env: VecEnv, name: str) -> AssignmentExpert:
     wrapper = find_assignment(env)
     rule = rules_for("sensorgym/StereoPointing-v0", wrapper.params, lambda: None)[name]
     return AssignmentExpert(env, rule.assign)  # type: ignore[attr-defined]
+
+
+class PlanExpert:
+    """A teacher in :class:`PlanAction`'s space: SB3's ``predict``, answering with the index of
+    the candidate a rule's ``assign`` picks on the base env's latest observation."""
+
+    def __init__(self, env: VecEnv, choose: Any):
+        self.wrapper: PlanAction = _find(env, PlanAction, "pointing-plan")
+        self.choose = choose
+        """``(N, obs_dim)`` base observations → ``(N, n)`` drone per receiver."""
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: Any = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.int64], None]:
+        obs = self.wrapper.last_obs
+        if obs is None or len(obs) != len(np.atleast_2d(observation)):
+            raise ValueError("observation: the expert acts on the wrapped env's own batch")
+        return self.wrapper.index(self.choose(obs)), None
+
+
+def plan_choice_expert(env: VecEnv) -> PlanExpert:
+    """The ``plan-estimate`` rule as a teacher in :class:`PlanAction`'s candidate indices
+    (``EXPERTS["plan-choice-estimate"]``)."""
+    from sensorgym.agents.registry import rules_for
+
+    wrapper: PlanAction = _find(env, PlanAction, "pointing-plan")
+    rule = rules_for("sensorgym/StereoPointing-v0", wrapper.params, lambda: None)["plan-estimate"]
+    return PlanExpert(env, rule.assign)  # type: ignore[attr-defined]
 
 
 def hold_cue_expert(env: VecEnv) -> AssignmentExpert:
