@@ -22,8 +22,16 @@ from sensorgym.envs.stereo_placement.simulation import PlacementParams, split_ob
 
 FloatArray = NDArray[np.float64]
 
-#: GreedyPlacement refuses layouts with more joint candidate moves than this
+#: GreedyPlacement's exhaustive search takes layouts with at most this many joint candidate
+#: moves (``solver="auto"`` switches to the coordinate-wise search beyond)
 MAX_CANDIDATES = 10_000
+
+#: CirclePlacement tries every assignment of receivers to slots up to this many receivers
+#: (``n!`` of them); beyond, the rotations of the receivers' order around the circle
+MAX_PERMUTED = 6
+
+#: the joint-move searches of GreedyPlacement
+SOLVERS = ("auto", "exhaustive", "coordinate")
 
 
 def _drive_to(params: PlacementParams, receivers: FloatArray, goal: FloatArray) -> FloatArray:
@@ -61,7 +69,10 @@ class CirclePlacement(MemorylessRule):
     OC-1's fixed-baseline caveat; ``σ_pos`` 23 % lower there): :class:`GreedyPlacement`
     follows the bound instead. The circle leads the drone by one period of its estimated
     velocity; the slot assignment (which receiver goes where, and the circle's phase) is the
-    one that minimises the longest drive; slots outside the permitted disc are pulled inside.
+    one that minimises the longest drive — over every assignment up to ``MAX_PERMUTED``
+    receivers, beyond over the ``n`` rotations of the receivers' own order of bearing around
+    the centre (``n!`` assignments would not fit: 40320 at n = 8); slots outside the
+    permitted disc are pulled inside.
     """
 
     params: PlacementParams = field(default_factory=PlacementParams)
@@ -71,8 +82,12 @@ class CirclePlacement(MemorylessRule):
 
     @functools.cached_property
     def _perms(self) -> NDArray[np.int64]:
-        """Every assignment of receivers to slots ``(n!, n)``: the slot of receiver ``k``."""
-        return np.array(list(itertools.permutations(range(self.params.n_receivers))))
+        """Every assignment of receivers to slots ``(n!, n)``: the slot of receiver ``k``
+        (none beyond ``MAX_PERMUTED`` receivers: the search then rotates their order)."""
+        n = self.params.n_receivers
+        if n > MAX_PERMUTED:
+            return np.zeros((0, n), np.int64)
+        return np.array(list(itertools.permutations(range(n))))
 
     def targets(self, observation: NDArray[Any]) -> FloatArray:
         """The slot ``(N, n, 3)`` each receiver is driven to (the search is compiled:
@@ -84,7 +99,10 @@ class CirclePlacement(MemorylessRule):
         centre[:, 1] = 0.0
         rho = self.radius_factor * np.maximum(p[:, 1], 1.0)  # (N,)
         goal = np.empty_like(o)
-        kernels.circle_search(o, centre, rho, self._perms, self.params.arena_radius, 1.0, goal)
+        cyclic = self.params.n_receivers > MAX_PERMUTED
+        kernels.circle_search(
+            o, centre, rho, self._perms, self.params.arena_radius, 1.0, goal, cyclic
+        )
         return goal
 
     def act(self, obs: FloatArray) -> FloatArray:
@@ -106,7 +124,18 @@ class GreedyPlacement(MemorylessRule):
     ``horizon = 1`` is the one-step greedy rule; ``horizon = H > 1`` scores the sum of the
     next ``H`` periods' rewards with every receiver keeping its move (an open-loop lookahead
     over straight drives: it sees that the drone flies on, the one-step rule does not; on the
-    tracker's noisy estimate it scores no better, 35.1–35.6 for H = 2–5)."""
+    tracker's noisy estimate it scores no better, 35.1–35.6 for H = 2–5).
+
+    The search over joint moves (``solver``): ``"exhaustive"`` scores all ``(headings + 1)^n``
+    of them (:func:`~sensorgym.envs.stereo_placement.kernels.plan_search`), exponential in the
+    number of receivers; ``"coordinate"`` is coordinate-wise improvement
+    (:func:`~sensorgym.envs.stereo_placement.kernels.coordinate_search`, the same score):
+    start from every receiver's best move with the others standing still, then re-optimise
+    one receiver's move at a time, the others fixed, sweeping until no receiver improves or
+    after ``max_sweeps`` — ``O(sweeps · n · (headings + 1) · n)`` per scenario, a local optimum
+    never worse than its start; ``"auto"`` is exhaustive while ``(headings + 1)^n ≤
+    MAX_CANDIDATES`` (n ≤ 4 at 8 headings: the registered 3 receivers search as before),
+    coordinate-wise beyond."""
 
     params: PlacementParams = field(default_factory=PlacementParams)
     """Env settings (speed limit, permitted disc, delays, noise, reward)."""
@@ -114,14 +143,38 @@ class GreedyPlacement(MemorylessRule):
     """Number of full-speed headings per receiver (plus standing still)."""
     horizon: int = 1
     """Periods the candidate moves are scored over (1: one-step greedy)."""
+    solver: str = "auto"
+    """Search over the joint moves: ``"exhaustive"``, ``"coordinate"`` (coordinate-wise
+    improvement) or ``"auto"`` (exhaustive up to ``MAX_CANDIDATES`` joint moves)."""
+    max_sweeps: int = 8
+    """Coordinate-wise search: most sweeps over the receivers after the start."""
 
     def __post_init__(self) -> None:
         if self.headings < 1:
             raise ValueError(f"headings: need at least 1, got {self.headings}")
-        if (self.headings + 1) ** self.params.n_receivers > MAX_CANDIDATES:
-            raise ValueError(f"headings: (headings + 1)^n exceeds {MAX_CANDIDATES} candidates")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver: must be one of {SOLVERS}, got {self.solver!r}")
+        if self.solver == "exhaustive" and self.candidates > MAX_CANDIDATES:
+            raise ValueError(
+                f"headings: (headings + 1)^n = {self.candidates} exceeds {MAX_CANDIDATES} "
+                'candidates for the exhaustive search (solver="coordinate" or "auto" scales)'
+            )
         if self.horizon < 1:
             raise ValueError(f"horizon: need at least 1 period, got {self.horizon}")
+        if self.max_sweeps < 1:
+            raise ValueError(f"max_sweeps: need at least 1, got {self.max_sweeps}")
+
+    @property
+    def candidates(self) -> int:
+        """Number of joint moves ``(headings + 1)^n``."""
+        return (self.headings + 1) ** self.params.n_receivers
+
+    @property
+    def exhaustive(self) -> bool:
+        """Whether :meth:`plan` scores every joint move (else coordinate-wise)."""
+        if self.solver == "auto":
+            return self.candidates <= MAX_CANDIDATES
+        return self.solver == "exhaustive"
 
     @property
     def moves(self) -> FloatArray:
@@ -130,28 +183,53 @@ class GreedyPlacement(MemorylessRule):
         return np.concatenate([np.zeros((1, 2)), np.stack([np.sin(angle), np.cos(angle)], -1)])
 
     @functools.cached_property
-    def _candidates(self) -> tuple[FloatArray, NDArray[np.int64], FloatArray]:
-        """``(shifts (M, 3), joint (C, n), actions (C, 2n))``: each move's displacement over one
-        period, the joint candidates as move indices, and their normalised actions."""
-        moves = self.moves
-        joint = np.array(list(itertools.product(range(len(moves)), repeat=self.params.n_receivers)))
-        step = self.params.max_speed * self.params.period * moves
-        shifts = np.stack([step[:, 0], np.zeros(len(moves)), step[:, 1]], -1)
-        return shifts, joint, moves[joint].reshape(len(joint), -1)
+    def _shifts(self) -> FloatArray:
+        """Each move's displacement over one period ``(M, 3)``."""
+        step = self.params.max_speed * self.params.period * self.moves
+        return np.stack([step[:, 0], np.zeros(len(step)), step[:, 1]], -1)
+
+    @functools.cached_property
+    def _joint(self) -> NDArray[np.int64]:
+        """The exhaustive search's joint candidates ``(C, n)`` as move indices."""
+        M = self.headings + 1
+        return np.array(list(itertools.product(range(M), repeat=self.params.n_receivers)))
+
+    def search(
+        self, receivers: FloatArray, position: FloatArray, velocity: FloatArray, solver: str
+    ) -> tuple[NDArray[np.int64], FloatArray, FloatArray]:
+        """The joint move of ``solver`` (``"exhaustive"`` or ``"coordinate"``) for receivers
+        ``(N, n, 3)`` and a drone at ``position``, ``velocity`` ``(N, 3)``: ``(moves (N, n)``
+        indices into :attr:`moves`, ``value (N,)`` its predicted score, ``start (N,)`` the
+        score the search started from``)`` (the exhaustive search's start: its optimum). The
+        searches are compiled: :func:`~sensorgym.envs.stereo_placement.kernels.plan_search`,
+        :func:`~sensorgym.envs.stereo_placement.kernels.coordinate_search`."""
+        p = self.params
+        N = receivers.shape[0]
+        scalars = (p.period, p.sigma_ang, p.sigma_ref, p.reward_clip, p.arena_radius)
+        arrays = tuple(np.ascontiguousarray(x, np.float64) for x in (receivers, position, velocity))
+        value = np.empty(N)
+        if solver == "exhaustive":
+            if self.candidates > MAX_CANDIDATES:
+                raise ValueError(f"solver: {self.candidates} joint moves exceed {MAX_CANDIDATES}")
+            best = np.empty(N, np.int64)
+            kernels.plan_search(
+                *arrays, self._shifts, self._joint, scalars, self.horizon, best, value
+            )
+            return self._joint[best], value, value
+        if solver != "coordinate":
+            raise ValueError(f"solver: must be 'exhaustive' or 'coordinate', got {solver!r}")
+        moves, start = np.empty((N, p.n_receivers), np.int64), np.empty(N)
+        kernels.coordinate_search(
+            *arrays, self._shifts, scalars, self.horizon, self.max_sweeps, moves, value, start
+        )
+        return moves, value, start
 
     def plan(self, receivers: FloatArray, position: FloatArray, velocity: FloatArray) -> FloatArray:
         """Actions ``(N, 2n)`` for receivers ``(N, n, 3)`` and a drone at ``position``,
-        ``velocity`` ``(N, 3)`` (the search is compiled:
-        :func:`sensorgym.envs.stereo_placement.kernels.plan_search`)."""
-        p = self.params
-        shifts, joint, actions = self._candidates
-        best = np.empty(receivers.shape[0], np.int64)
-        scalars = (p.period, p.sigma_ang, p.sigma_ref, p.reward_clip, p.arena_radius)
-        kernels.plan_search(
-            np.ascontiguousarray(receivers), np.ascontiguousarray(position),
-            np.ascontiguousarray(velocity), shifts, joint, scalars, self.horizon, best,
-        )  # fmt: skip
-        return actions[best]
+        ``velocity`` ``(N, 3)``: the joint move of the rule's search."""
+        solver = "exhaustive" if self.exhaustive else "coordinate"
+        moves, _, _ = self.search(receivers, position, velocity, solver)
+        return self.moves[moves].reshape(moves.shape[0], -1)
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``: :meth:`plan` on

@@ -23,14 +23,14 @@ class StereoPlacementEnv(CoreEnv):
 
     ## Description
 
-    ``n = 3`` passive receivers ride ground vehicles (speed limit ``max_speed``) inside a
-    permitted disc of radius ``arena_radius``. They start clustered within ``cluster_radius``
+    ``n`` passive receivers (``n_receivers``: 3 registered, any n ≥ 3) ride ground vehicles
+    (speed limit ``max_speed``) inside a permitted disc of radius ``arena_radius``. They start clustered within ``cluster_radius``
     of the origin — the layout theory §10.3 OC-3 calls unsatisfactory (baseline small against the
     range). One drone flies a straight level line. Each step is one scan period ``τ``: receiver
     ``k`` fixes the drone at its own delay ``d_k`` (theory §6.4, §10.4 OC-4) with angular noise
     ``σ_ang``, in its own frame (looking at the predicted drone), and the velocity-aware
-    conjugation tracker (theory §3.5, n = 3 closed form) solves the period for the ranges, the
-    position and the velocity. The agent drives the receivers; it is rewarded for the accuracy
+    conjugation tracker (theory §3.5: the n = 3 closed form, compiled normal equations for more
+    receivers) solves the period for the ranges, the position and the velocity. The agent drives the receivers; it is rewarded for the accuracy
     their geometry allows: best with near-orthogonal lines of sight (OC-1) from receivers
     spread around the drone (OC-3). Simulation core: :mod:`sensorgym.envs.stereo_placement.simulation`.
 
@@ -102,6 +102,13 @@ class StereoPlacementEnv(CoreEnv):
       :class:`~sensorgym.envs.stereo_placement.wrappers.PlanTargetAction` (a correction of
       the tracker's one-period prediction that the greedy search plans on) with 8 stacked
       observations, imitating the oracle target before PPO.
+    * v0, issue 15 (in place; the registered 3-receiver env, its rules and golden episodes
+      unchanged): ``n_receivers`` sets the number of receiver vehicles (``--param
+      n_receivers=16``), the delays then spread evenly over ``[0, 0.6]`` s unless given; the
+      step solves n ≥ 4 receivers' conjugation with compiled normal equations (it took the
+      SVD path before: the same fixes to rounding, some 1e-9 relative); the greedy rules
+      search joint moves coordinate-wise beyond 10⁴ of them, ``circle-placement`` rotates
+      the receivers' order around the circle beyond 6 receivers.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

@@ -3,13 +3,13 @@
 The maths is that of :mod:`.scan` and :mod:`.simulation` (theory §3, §11.4); each formula is a
 primitive of the module that owns it — :mod:`sensorgym.trackers.geometry_kernels` (look-at
 rotation, relative poses, angular noise, angles between lines of sight),
-:mod:`sensorgym.trackers.stereo.conjugation_kernels` (the n = 3 order-1 conjugation, called per
-scenario) and :mod:`sensorgym.trackers.stereo.kernels` (information, bound, reward) — and
+:mod:`sensorgym.trackers.stereo.conjugation_kernels` (the order-1 conjugation: the n = 3 closed form,
+the normal equations for more receivers; called per scenario) and :mod:`sensorgym.trackers.stereo.kernels` (information, bound, reward) — and
 these kernels only chain them per scenario. Each stage is a row function (scenario ``i``):
 
 * :func:`drive` — the action's velocities and the receivers' new positions held in the disc;
 * :func:`systems_row` (:func:`period_systems`) — one scan period's true geometry, the receivers'
-  frames, the noisy and the exact conjugation systems and (n = 3) their closed-form solves;
+  frames, the noisy and the exact conjugation systems and their compiled solves;
 * :func:`finish_row` (:func:`period_finish`) — the covariance mapping, the fix in the world
   frame, the estimate (or the coasted one), the Cramér–Rao bound and the reward;
 * :func:`observe_row`, :func:`info_row` — the observation blocks (clipped, float32) and the
@@ -38,7 +38,7 @@ from sensorgym.trackers.geometry_kernels import (
     to_world3,
     unit_from_angles3,
 )
-from sensorgym.trackers.stereo.conjugation_kernels import triple_velocity_kernel
+from sensorgym.trackers.stereo.conjugation_kernels import triple_velocity_kernel, velocity_kernel
 from sensorgym.trackers.stereo.kernels import (
     MIN_RANGE,
     line_of_sight,
@@ -155,8 +155,9 @@ def systems_row(
     """Scenario ``i`` of :func:`period_systems`: its inputs and the true geometry ``truth =
     (origins, los, ranges)`` at row ``i``, the frames, systems and solves at row ``s`` of their
     (scratch) arrays (``J`` and ``position`` serve both solves); ``scalars = (τ, σ_ang,
-    max_elevation)``, ``sight (3,)`` scratch. ``κ_F`` is left at ``inf`` where not solved here
-    (n ≠ 3)."""
+    max_elevation)``, ``sight (3,)`` scratch. The solves: the closed form for n = 3, the
+    normal equations for n ≥ 4 (:func:`velocity_kernel`); ``κ_F`` is ``inf`` where they leave
+    a system to the SVD path."""
     origins, los, ranges = truth
     period, sigma_ang, max_elevation = scalars
     n = start.shape[1]
@@ -224,6 +225,16 @@ def systems_row(
                                           kappa_e, position)  # fmt: skip
             if code != 0:
                 return code
+    else:
+        code = velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
+                               position)  # fmt: skip
+        if code != 0:
+            return code
+        if noisy:
+            code = velocity_kernel(e1, ek, P, b, dt, 1.0, np.bool_(True), s, s + 1, Xe, J, Qe,
+                                   kappa_e, position)  # fmt: skip
+            if code != 0:
+                return code
     return 0
 
 
@@ -239,9 +250,9 @@ def period_systems(
     at the period end; the frames look at the coasted ``previous (B, 6)`` estimate's mid-period
     point; ``normals (B, n, 3)`` are the noise draws (unused when ``sigma_ang = 0``). Fills the
     true ``origins``, ``los``, ``ranges``, rotations ``R (B, n, 3, 3)``, the noisy system
-    ``(a1, ak, P, b, dt)`` and the exact one ``(e1, ek)``; for n = 3 also their solves
-    ``(X, J, Q, κ, M̂_1)`` and ``(Xe, Qe, κ_e)`` (``κ_F`` > ``cond_max``, and ``inf`` for n ≠ 3, left
-    to the caller). Returns 0 or the input-check code of :func:`triple_velocity_kernel` (a zero
+    ``(a1, ak, P, b, dt)`` and the exact one ``(e1, ek)``, and their solves
+    ``(X, J, Q, κ, M̂_1)`` and ``(Xe, Qe, κ_e)`` (``κ_F`` > ``cond_max``, or ``inf`` where the
+    compiled solve leaves the system, for the caller). Returns 0 or the input-check code of :func:`triple_velocity_kernel` (a zero
     line of sight).
     """
     sight = np.empty(3)
@@ -439,8 +450,8 @@ def info_kernel(rows, receivers, estimate, drone_position, pairs, error, min_ang
 
 #: flags returned by :func:`period_rows` (or-ed over its scenarios)
 SLOW = 1
-"""some scenarios are left to the caller (``slow``): ``κ_F > cond_max``, n ≠ 3 or a zero line
-of sight."""
+"""some scenarios are left to the caller (``slow``): ``κ_F > cond_max`` (or left by the compiled
+solve), or a zero line of sight."""
 BAD_ACTION = 2
 """an action holds NaN or infinite values (the kernel stopped there)."""
 
@@ -465,7 +476,7 @@ def period_rows(
     on from ``drone`` (a step); else ``end``, ``drone_end`` and ``t_out`` copy ``receivers``,
     ``drone`` and ``t`` (the first fix of :func:`.simulation.start`). ``constants`` holds the
     params' scalars (``C_*``). A scenario whose conjugation the closed form does not settle
-    (``κ_F > cond_max`` in either system, n ≠ 3, a zero line of sight) is marked in ``slow``
+    (``κ_F > cond_max`` in either system, or left by the compiled solve, a zero line of sight) is marked in ``slow``
     and left unfinished: the caller solves it on the generic path. Returns the or-ed flags
     :data:`SLOW`, :data:`BAD_ACTION` (checked before anything of that scenario is written).
     """
@@ -540,24 +551,67 @@ def in_disc_batch(positions, radius, out):
         )
 
 
+@njit(inline="always")
+def _move_views(receivers, i, position, velocity, shifts, period, radius, horizon, U, Rm, sight):
+    """Scenario ``i``'s lines of sight ``U (H, n, M, 3)`` and ranges ``Rm (H, n, M)``: receiver
+    ``k`` after ``h + 1`` periods of move ``m`` (held in the disc after each, as :func:`drive`)
+    to the drone at ``p̂ + (h + 1)τ v̂``."""
+    for k in range(receivers.shape[1]):
+        for m in range(shifts.shape[0]):
+            o = _row3(receivers, i, k)
+            for h in range(horizon):
+                # the receiver at the end of its h+1-th move, the drone at p̂ + (h+1)τ v̂
+                o = _in_disc(o[0] + shifts[m, 0], o[1] + shifts[m, 1], o[2] + shifts[m, 2],
+                             radius)  # fmt: skip
+                at = (h + 1) * period
+                Rm[h, k, m] = line_of_sight(
+                    o,
+                    (position[i, 0] + at * velocity[i, 0],
+                     position[i, 1] + at * velocity[i, 1],
+                     position[i, 2] + at * velocity[i, 2]),
+                    sight,
+                )  # fmt: skip
+                for j in range(3):
+                    U[h, k, m, j] = sight[j]
+
+
+@njit(inline="always")
+def _joint_score(U, Rm, choice, scalars, u, r, unit, every, G, LU, piv, inv):
+    """The predicted reward of the joint move ``choice (n,)`` (each receiver's move index)
+    summed over the periods of :func:`_move_views`: ``clip(ln(σ_ref/σ_pos), −R, R)``,
+    ``σ_pos = σ_ang √tr G⁻¹``, ``G = Σ_k Π_k/r_k²`` (the stereo tracker kernels' information,
+    test, bound and reward); ``u (n, 3)``, ``r (n,)`` and the rest scratch."""
+    _, sigma_ang, sigma_ref, clip_r, _ = scalars
+    n = U.shape[1]
+    score = 0.0
+    for h in range(U.shape[0]):
+        for k in range(n):
+            m = choice[k]
+            r[k] = Rm[h, k, m]
+            for j in range(3):
+                u[k, j] = U[h, k, m, j]
+        position_information(u, r, unit, every, G)
+        sigma_pos = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
+        score += log_ratio_reward(sigma_pos, sigma_ref, clip_r)
+    return score
+
+
 @njit(**_JIT)
-def plan_search(receivers, position, velocity, shifts, joint, scalars, horizon, best):
-    """:class:`~sensorgym.agents.stereo_placement.GreedyPlacement`'s choice for each row:
-    ``best[i]`` the joint candidate ``c`` (row of ``joint (C, n)``, indices into
+def plan_search(receivers, position, velocity, shifts, joint, scalars, horizon, best, value):
+    """:class:`~sensorgym.agents.stereo_placement.GreedyPlacement`'s exhaustive choice for each
+    row: ``best[i]`` the joint candidate ``c`` (row of ``joint (C, n)``, indices into
     ``shifts (M, 3)``, each receiver's displacement over one period) that maximises the sum of
     the env's reward over the next ``horizon`` periods when every receiver keeps its move
     (held in the disc after each period, as :func:`drive`) and the drone flies on from
     ``position[i]`` at ``velocity[i]``: period ``h = 1 … H`` is scored at the receivers' ends
-    of their ``h``-th move and the drone at ``p̂ + hτ v̂``, ``clip(ln(σ_ref/σ_pos), −R, R)``
-    with ``σ_pos = σ_ang √tr G⁻¹``, ``G = Σ_k Π_k/r_k²`` (the stereo tracker kernels'
-    information, test, bound and reward). ``scalars = (τ, σ_ang, σ_ref, R, radius)``; the
-    first best on ties.
+    of their ``h``-th move and the drone at ``p̂ + hτ v̂`` (:func:`_joint_score`);
+    ``value[i]`` its score. ``scalars = (τ, σ_ang, σ_ref, R, radius)``; the first best on ties.
 
     Why the period's end and not the fix times ``d_k``: the receiver fixing at ``d_1 = 0``
     has not moved yet at its fix, so a one-period search at the fix times never moves it
     (it scores 24 against 36 on 128 scenarios); the end of the move stands for where the
     receiver will fix from next."""
-    period, sigma_ang, sigma_ref, clip_r, radius = scalars
+    period, radius = scalars[0], scalars[4]
     n, M = receivers.shape[1], shifts.shape[0]
     u, r = np.empty((n, 3)), np.empty(n)
     U, Rm = np.empty((horizon, n, M, 3)), np.empty((horizon, n, M))  # per period, receiver, move
@@ -566,87 +620,148 @@ def plan_search(receivers, position, velocity, shifts, joint, scalars, horizon, 
     piv = np.empty(3, np.int64)
     sight = np.empty(3)
     for i in range(receivers.shape[0]):
-        for k in range(n):
-            for m in range(M):
-                o = _row3(receivers, i, k)
-                for h in range(horizon):
-                    # the receiver at the end of its h+1-th move, the drone at p̂ + (h+1)τ v̂
-                    o = _in_disc(o[0] + shifts[m, 0], o[1] + shifts[m, 1], o[2] + shifts[m, 2],
-                                 radius)  # fmt: skip
-                    at = (h + 1) * period
-                    Rm[h, k, m] = line_of_sight(
-                        o,
-                        (position[i, 0] + at * velocity[i, 0],
-                         position[i, 1] + at * velocity[i, 1],
-                         position[i, 2] + at * velocity[i, 2]),
-                        sight,
-                    )  # fmt: skip
-                    for j in range(3):
-                        U[h, k, m, j] = sight[j]
+        _move_views(receivers, i, position, velocity, shifts, period, radius, horizon, U, Rm, sight)
         top, pick = -np.inf, 0
         for c in range(joint.shape[0]):
-            score = 0.0
-            for h in range(horizon):
-                for k in range(n):
-                    m = joint[c, k]
-                    r[k] = Rm[h, k, m]
-                    for j in range(3):
-                        u[k, j] = U[h, k, m, j]
-                position_information(u, r, unit, every, G)
-                sigma_pos = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
-                score += log_ratio_reward(sigma_pos, sigma_ref, clip_r)
+            score = _joint_score(U, Rm, joint[c], scalars, u, r, unit, every, G, LU, piv, inv)
             if score > top:
                 top, pick = score, c
         best[i] = pick
+        value[i] = top
 
 
 @njit(**_JIT)
-def circle_search(receivers, centre, rho, perms, radius, margin, goal):
-    """:class:`~sensorgym.agents.stereo_placement.CirclePlacement`'s slots for each row:
-    ``n`` points ``360°/n`` apart on the circle of radius ``rho[i]`` around ``centre[i]``
-    (held ``margin`` inside the disc), the circle's phase the bearing of one of the receivers
-    from the centre and the assignment a row of ``perms (P, n)`` (slot of receiver ``k``); the
-    phase and assignment minimising the longest drive (plus ``10⁻³`` × the total) win, the
-    first on ties. ``goal (N, n, 3)`` gets each receiver's slot."""
-    n = receivers.shape[1]
-    pts = np.empty((n, 3))
+def coordinate_search(
+    receivers, position, velocity, shifts, scalars, horizon, max_sweeps, best, value, start
+):  # fmt: skip
+    """:class:`~sensorgym.agents.stereo_placement.GreedyPlacement`'s coordinate-wise choice for
+    each row, the objective of :func:`plan_search` (:func:`_joint_score`) at polynomial cost.
+
+    Start: every receiver's best single move while the others stand still (move 0), all taken
+    together; ``start[i]`` that joint move's score. Then sweeps over the receivers: each in
+    turn takes its best move with the others fixed (a strictly better score, else it keeps its
+    move), until a sweep changes nothing or after ``max_sweeps`` sweeps. ``best (N, n)`` the
+    move of each receiver, ``value[i]`` its score: never below ``start[i]``, never above the
+    exhaustive optimum. Cost ``O((1 + sweeps) · n · M · H · n)`` per row (``M`` moves,
+    ``H = horizon``)."""
+    period, radius = scalars[0], scalars[4]
+    n, M = receivers.shape[1], shifts.shape[0]
+    u, r = np.empty((n, 3)), np.empty(n)
+    U, Rm = np.empty((horizon, n, M, 3)), np.empty((horizon, n, M))
+    unit, every = np.ones(n), np.ones(n, np.bool_)
+    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    piv = np.empty(3, np.int64)
+    sight = np.empty(3)
+    choice, alone = np.zeros(n, np.int64), np.zeros(n, np.int64)
     for i in range(receivers.shape[0]):
-        top, pick_phase, pick_perm = np.inf, 0, 0
-        for q in range(n):
-            phase = np.arctan2(receivers[i, q, 0] - centre[i, 0], receivers[i, q, 2] - centre[i, 2])
-            for j in range(n):
-                slot = phase + 2.0 * np.pi * j / n
-                pts[j, 0], pts[j, 1], pts[j, 2] = _in_disc(
-                    centre[i, 0] + rho[i] * np.sin(slot),
-                    centre[i, 1] + rho[i] * 0.0,
-                    centre[i, 2] + rho[i] * np.cos(slot),
-                    radius - margin,
-                )
-            for c in range(perms.shape[0]):
-                longest, total = 0.0, 0.0
-                for k in range(n):
-                    j = perms[c, k]
-                    dist = norm3(
-                        (
-                            pts[j, 0] - receivers[i, k, 0],
-                            pts[j, 1] - receivers[i, k, 1],
-                            pts[j, 2] - receivers[i, k, 2],
-                        )
-                    )
-                    longest = max(longest, dist)
-                    total += dist
-                cost = longest + 1e-3 * total
-                if cost < top:
-                    top, pick_phase, pick_perm = cost, q, c
-        # the winning slots, recomputed
-        phase = np.arctan2(
-            receivers[i, pick_phase, 0] - centre[i, 0], receivers[i, pick_phase, 2] - centre[i, 2]
-        )
+        _move_views(receivers, i, position, velocity, shifts, period, radius, horizon, U, Rm, sight)
+        # the start: each receiver's best move with the others standing still
         for k in range(n):
-            slot = phase + 2.0 * np.pi * perms[pick_perm, k] / n
-            goal[i, k, 0], goal[i, k, 1], goal[i, k, 2] = _in_disc(
+            alone[k] = 0
+        for k in range(n):
+            top, pick = -np.inf, 0
+            for m in range(M):
+                alone[k] = m
+                score = _joint_score(U, Rm, alone, scalars, u, r, unit, every, G, LU, piv, inv)
+                if score > top:
+                    top, pick = score, m
+            alone[k] = 0
+            choice[k] = pick
+        current = _joint_score(U, Rm, choice, scalars, u, r, unit, every, G, LU, piv, inv)
+        start[i] = current
+        for _ in range(max_sweeps):
+            changed = False
+            for k in range(n):
+                keep = choice[k]
+                pick = keep
+                for m in range(M):
+                    if m == keep:
+                        continue
+                    choice[k] = m
+                    score = _joint_score(U, Rm, choice, scalars, u, r, unit, every, G, LU, piv, inv)
+                    if score > current:
+                        current, pick = score, m
+                choice[k] = pick
+                changed = changed or pick != keep
+            if not changed:
+                break
+        for k in range(n):
+            best[i, k] = choice[k]
+        value[i] = current
+
+
+@njit(inline="always")
+def _circle_row(receivers, i, centre, rho, perms, radius, margin, goal, pts):
+    """Row ``i`` of :func:`circle_search` over the assignments ``perms (P, n)``; ``pts (n, 3)``
+    scratch."""
+    n = receivers.shape[1]
+    top, pick_phase, pick_perm = np.inf, 0, 0
+    for q in range(n):
+        phase = np.arctan2(receivers[i, q, 0] - centre[i, 0], receivers[i, q, 2] - centre[i, 2])
+        for j in range(n):
+            slot = phase + 2.0 * np.pi * j / n
+            pts[j, 0], pts[j, 1], pts[j, 2] = _in_disc(
                 centre[i, 0] + rho[i] * np.sin(slot),
                 centre[i, 1] + rho[i] * 0.0,
                 centre[i, 2] + rho[i] * np.cos(slot),
                 radius - margin,
             )
+        for c in range(perms.shape[0]):
+            longest, total = 0.0, 0.0
+            for k in range(n):
+                j = perms[c, k]
+                dist = norm3(
+                    (
+                        pts[j, 0] - receivers[i, k, 0],
+                        pts[j, 1] - receivers[i, k, 1],
+                        pts[j, 2] - receivers[i, k, 2],
+                    )
+                )
+                longest = max(longest, dist)
+                total += dist
+            cost = longest + 1e-3 * total
+            if cost < top:
+                top, pick_phase, pick_perm = cost, q, c
+    # the winning slots, recomputed
+    phase = np.arctan2(
+        receivers[i, pick_phase, 0] - centre[i, 0], receivers[i, pick_phase, 2] - centre[i, 2]
+    )
+    for k in range(n):
+        slot = phase + 2.0 * np.pi * perms[pick_perm, k] / n
+        goal[i, k, 0], goal[i, k, 1], goal[i, k, 2] = _in_disc(
+            centre[i, 0] + rho[i] * np.sin(slot),
+            centre[i, 1] + rho[i] * 0.0,
+            centre[i, 2] + rho[i] * np.cos(slot),
+            radius - margin,
+        )
+
+
+@njit(**_JIT)
+def circle_search(receivers, centre, rho, perms, radius, margin, goal, cyclic):
+    """:class:`~sensorgym.agents.stereo_placement.CirclePlacement`'s slots for each row:
+    ``n`` points ``360°/n`` apart on the circle of radius ``rho[i]`` around ``centre[i]``
+    (held ``margin`` inside the disc), the circle's phase the bearing of one of the receivers
+    from the centre and the assignment (slot of receiver ``k``) a row of ``perms (P, n)`` — or,
+    with ``cyclic``, one of the ``n`` rotations of the receivers' own order of bearing around
+    the centre (``perms`` unused; ``O(n³)`` instead of ``O(n² n!)``). The phase and assignment
+    minimising the longest drive (plus ``10⁻³`` × the total) win, the first on ties.
+    ``goal (N, n, 3)`` gets each receiver's slot."""
+    n = receivers.shape[1]
+    pts = np.empty((n, 3))
+    rotations = np.empty((n, n), np.int64)
+    bearing, rank = np.empty(n), np.empty(n, np.int64)
+    for i in range(receivers.shape[0]):
+        if not cyclic:
+            _circle_row(receivers, i, centre, rho, perms, radius, margin, goal, pts)
+            continue
+        for k in range(n):
+            bearing[k] = np.arctan2(
+                receivers[i, k, 0] - centre[i, 0], receivers[i, k, 2] - centre[i, 2]
+            )
+        order = np.argsort(bearing)
+        for j in range(n):
+            rank[order[j]] = j
+        for c in range(n):
+            for k in range(n):
+                rotations[c, k] = (rank[k] + c) % n
+        _circle_row(receivers, i, centre, rho, rotations, radius, margin, goal, pts)

@@ -11,7 +11,7 @@ with the base vectors taken *at the fix times*::
     P_k = R_1ᵀ R_k ,   b_k = R_1ᵀ (O_k(d_k) − O_1(d_1))                        (theory §2.1)
 
 solved for ``(r_1, …, r_n, V)`` by :func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation`
-(``order=1``; for n = 3 its compiled closed form). Each receiver's frame looks at the aim point
+(``order=1``; compiled: the closed form for n = 3, the normal equations for more). Each receiver's frame looks at the aim point
 (the tracker's predicted drone position), so ``P_k ≠ I`` in general.
 
 Covariance mapping. The solver's ``Q = σ_e² (AᵀA)⁻¹`` assumes i.i.d. errors of ``σ_e`` (m) on

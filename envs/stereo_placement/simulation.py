@@ -57,14 +57,32 @@ FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
+#: the 3-receiver delays, s (and the span of the default delays of more receivers)
+DEFAULT_DELAYS = (0.0, 0.25, 0.6)
+
+
+def default_delays(n: int) -> tuple[float, ...]:
+    """The fix delays ``(n,)`` of ``n`` receivers when none are given, s: ``(0, 0.25, 0.6)`` for
+    n = 3 (the registered env), else ``d_k = 0.6 k/(n − 1)``, ``k = 0 … n−1`` — the same span,
+    evenly spread (distinct, so the velocity stays observable)."""
+    if n == 3:
+        return DEFAULT_DELAYS
+    return tuple(float(x) for x in np.linspace(0.0, DEFAULT_DELAYS[-1], n))
+
+
 @dataclass(frozen=True)
 class PlacementParams:
     """Receivers, drone, scan timing, noise and reward of the receiver-placement environments."""
 
-    delays: tuple[float, ...] = (0.0, 0.25, 0.6)
-    """Fix time of each receiver after the period start, s; their number is ``n`` (≥ 3). Keep
-    them distinct (theory §10.3 OC-3): equal delays make the velocity unobservable (a degenerate
-    conjugation, reward ``−R``)."""
+    n_receivers: int | None = None
+    """Number of receiver vehicles ``n`` (≥ 3: the velocity-aware conjugation needs three).
+    ``None``: one per given delay, else 3."""
+    delays: tuple[float, ...] | None = None
+    """Fix time of each receiver after the period start, s, one per receiver. Keep them
+    distinct (theory §10.3 OC-3): equal delays make the velocity unobservable (a degenerate
+    conjugation, reward ``−R``). ``None``: :func:`default_delays` — ``(0, 0.25, 0.6)`` for
+    n = 3, for larger n the same span ``[0, 0.6]`` s evenly spread (stored as ``None`` when
+    given equal to those; the values in use are :attr:`delays_array`)."""
     period: float = 1.0
     """Scan period ``τ`` = one step, s."""
     max_speed: float = 5.0
@@ -92,11 +110,34 @@ class PlacementParams:
     """``R``: the reward ``ln(σ_ref/σ_pos)`` is clipped to ``[−R, R]``; ``−R`` when degenerate."""
 
     def __post_init__(self) -> None:
-        d = np.asarray(self.delays, dtype=np.float64)
-        if d.ndim != 1 or d.size < 3:
-            raise ValueError(f"delays: need at least 3 (velocity-aware n ≥ 3), got {self.delays}")
+        n = self.n_receivers
+        if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))):
+            raise ValueError(f"n_receivers: must be an integer, got {n!r}")
+        if n is not None and n < 3:
+            raise ValueError(f"n_receivers: need at least 3 (velocity-aware conjugation), got {n}")
+        if self.delays is None:
+            n = 3 if n is None else int(n)
+            d = np.array(default_delays(n))
+        else:
+            d = np.asarray(self.delays, dtype=np.float64)
+            if d.ndim != 1 or d.size < 3:
+                raise ValueError(
+                    f"delays: need at least 3 (velocity-aware n ≥ 3), got {self.delays}"
+                )
+            if n is not None and d.size != n:
+                raise ValueError(
+                    f"delays: {d.size} values for n_receivers = {n} (give one per receiver, "
+                    "or leave delays unset for the default spread)"
+                )
+            n = d.size
         if not (np.all(np.isfinite(d)) and np.all(d >= 0.0) and np.all(d <= self.period)):
-            raise ValueError(f"delays: must lie in [0, period], got {self.delays}")
+            raise ValueError(f"delays: must lie in [0, period], got {tuple(d.tolist())}")
+        # normalised, so that equal settings compare equal: n_receivers always the count,
+        # delays None where they are the default spread (dataclasses.replace(params,
+        # n_receivers=6) then spreads the default delays over the new count)
+        explicit = tuple(float(x) for x in d)
+        object.__setattr__(self, "n_receivers", n)
+        object.__setattr__(self, "delays", None if explicit == default_delays(n) else explicit)
         for name in ("period", "max_speed", "arena_radius", "cluster_radius"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0.0):
@@ -123,11 +164,6 @@ class PlacementParams:
             )
 
     @property
-    def n_receivers(self) -> int:
-        """Number of receivers ``n`` (one per delay)."""
-        return len(self.delays)
-
-    @property
     def length_scale(self) -> float:
         """Length (m) that normalises observed positions: half the permitted radius."""
         return 0.5 * self.arena_radius
@@ -149,8 +185,9 @@ class PlacementParams:
 
     @functools.cached_property
     def delays_array(self) -> FloatArray:
-        """:attr:`delays` as a float array ``(n,)``."""
-        return np.array(self.delays, dtype=np.float64)
+        """The fix delays in use ``(n,)``, s: :attr:`delays`, or :func:`default_delays`."""
+        d = default_delays(self.n_receivers) if self.delays is None else self.delays
+        return np.array(d, dtype=np.float64)
 
     @functools.cached_property
     def constants(self) -> FloatArray:
@@ -239,7 +276,7 @@ def _advance(
     fix, or ``previous`` coasted by ``τ`` where degenerate), bound ``σ_pos = σ_ang √tr G⁻¹`` of
     the true geometry (``G = Σ_k Π_k / r_k²``) and reward ``clip(ln(σ_ref/σ_pos), −R, R)``
     (``−R`` where degenerate) are those of :func:`.scan.scan_period`; the scenarios the closed
-    form leaves (``κ_F > cond_max``, n ≠ 3) go through its generic path. Returns
+    form or the normal equations leave (``κ_F > cond_max``) go through its generic path. Returns
     ``(state, reward)``.
     """
     B, n = receivers.shape[0], params.n_receivers

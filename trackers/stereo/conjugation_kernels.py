@@ -1,8 +1,13 @@
-"""Compiled closed forms of the two conjugation systems the papers solve (theory §3.2).
+"""Compiled closed forms of the two conjugation systems the papers solve (theory §3.2), and
+the velocity-aware system of any n.
 
 n = 2 order 0 (000 eq. 7–9, 12) and n = 3 order 1 (000 eq. 10–11, 003 eq. 4) are solved
 element by element in registers by numba kernels: no temporaries, no transposing copies, the
-input checks fused into the same pass. Each kernel works on a half-open range ``[lo, hi)`` of a
+input checks fused into the same pass. :func:`velocity_kernel` solves order 1 for any n ≥ 3
+through the normal equations with the ranges ``r_2 … r_n`` eliminated (``O(n)`` per solve):
+the receiver-placement env's step at more than three receivers; the generic solver
+:func:`~.conjugation.solve_conjugation` keeps its SVD path for those sizes (no squared
+condition number). Each kernel works on a half-open range ``[lo, hi)`` of a
 flat batch and releases the GIL (callers may run parts of a batch on their own threads). At
 batch 1e5 on one core of the 2-core reference machine they solve about 38 M two-receiver and
 13 M three-receiver velocity problems per second (``benchmarks/triangulation.py``).
@@ -265,5 +270,201 @@ def triple_velocity_kernel(
         kappa[i] = np.sqrt((4.0 + 3.0 * delta2) * (delta2 * frob_mi + (3.0 + frob_h) / delta2))
         X[i, 0], X[i, 1], X[i, 2] = r1, r2, r3
         X[i, 3], X[i, 4], X[i, 5] = V[0], V[1], V[2]
+        position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
+    return 0
+
+
+#: :func:`velocity_kernel` solves the normal equations, which square the condition number; an
+#: element whose ``κ_F`` exceeds this is left to the caller's SVD path (``κ_F = inf``), where the
+#: normal equations would lose more than some 8 of the 16 digits
+NORMAL_EQUATIONS_COND = 1e4
+
+
+@njit(inline="always")
+def _cholesky_inverse4(S, L, out):
+    """``out = S⁻¹`` of a symmetric ``(4, 4)`` ``S`` through its Cholesky factor ``L``; False
+    where ``S`` is not positive definite to rounding (a pivot ≤ 1e-14 of its diagonal)."""
+    for j in range(4):
+        d = S[j, j]
+        for k in range(j):
+            d -= L[j, k] * L[j, k]
+        if not d > 1e-14 * abs(S[j, j]):
+            return False
+        L[j, j] = np.sqrt(d)
+        for i in range(j + 1, 4):
+            x = S[i, j]
+            for k in range(j):
+                x -= L[i, k] * L[j, k]
+            L[i, j] = x / L[j, j]
+    # L⁻¹ in place of the upper triangle's mirror: W = L⁻¹ (lower), then S⁻¹ = Wᵀ W
+    for j in range(4):
+        out[j, j] = 1.0 / L[j, j]
+        for i in range(j + 1, 4):
+            x = 0.0
+            for k in range(j, i):
+                x -= L[i, k] * out[k, j]
+            out[i, j] = x / L[i, i]
+    for i in range(4):
+        for j in range(i, 4):
+            x = 0.0
+            for k in range(j, 4):
+                x += out[k, i] * out[k, j]
+            L[i, j] = x  # (S⁻¹)_ij, i ≤ j, kept in L's upper triangle
+    for i in range(4):
+        for j in range(i, 4):
+            out[i, j] = out[j, i] = L[i, j]
+    return True
+
+
+@njit(**_JIT)
+def velocity_kernel(
+    a1: Array,
+    ak: Array,
+    P: Array,
+    b: Array,
+    dt: Array,
+    sigma2: float,
+    check: bool,
+    lo: int,
+    hi: int,
+    X: Array,
+    J: Array,
+    Q: Array,
+    kappa: Array,
+    position: Array,
+) -> int:
+    """Any n ≥ 3, order 1 for elements ``lo..hi−1``: the normal equations, the ranges
+    ``r_2 … r_n`` eliminated (``O(n)`` per solve, ``O(n²)`` for ``Q``).
+
+    Inputs ``a1 (N, 3)``, ``ak (N, m, 3)``, ``P (N, m, 3, 3)``, ``b (N, m, 3)``, ``dt (N, m)``
+    (``m = n − 1``); outputs ``X (N, n+3)``, ``J (N,)``, ``Q (N, n+3, n+3)``, ``κ_F (N,)``,
+    ``M̂_1 (N, 3)``; arguments and return code as :func:`triple_velocity_kernel`.
+
+    ``AᵀA`` is an arrow matrix: ``r_k`` (k ≥ 2) meets only itself (``D_k = ‖c_k‖²``) and the
+    four shared unknowns ``y = (r_1, V)``, through ``g_k = (−a_1·c_k, −Δt_k c_k)``. With
+    ``S = E − Σ_k g_k g_kᵀ/D_k`` (``E = [[m‖a_1‖², Σ Δt_k a_1ᵀ], [Σ Δt_k a_1, Σ Δt_k² I]]``) the
+    Schur complement: ``y = S⁻¹ (h_y − Σ_k g_k h_k/D_k)``, ``r_k = (h_k − g_k·y)/D_k`` (``h = AᵀB``)
+    and ``(AᵀA)⁻¹`` has the blocks ``S⁻¹``, ``−S⁻¹g_k/D_k`` and
+    ``δ_kl/D_k + g_kᵀS⁻¹g_l/(D_k D_l)``; ``κ_F = √(tr AᵀA · tr (AᵀA)⁻¹)``. Elements with
+    ``κ_F > NORMAL_EQUATIONS_COND`` (or a singular ``S``) get ``κ_F = inf``: the caller's SVD
+    path solves them.
+    """
+    m = ak.shape[1]
+    n = m + 1
+    c = np.empty((m, 3))
+    g = np.empty((m, 4))
+    D = np.empty(m)
+    hr = np.empty(m)
+    S, L, Si = np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4))
+    hy, y, sg = np.empty(4), np.empty(4), np.empty((m, 4))
+    for i in range(lo, hi):
+        a = _vec(a1, i)
+        if check and _not_unit(a):
+            return 1
+        aa = _dot(a, a)
+        for k in range(m):
+            x = (ak[i, k, 0], ak[i, k, 1], ak[i, k, 2])
+            ck = _rotate(P, i, k, x)
+            bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
+            if check:
+                if _not_unit(x):
+                    return 2
+                if _not_unit(ck):
+                    return 3
+                if _not_finite(bk):
+                    return 4
+                if not np.isfinite(dt[i, k]):
+                    return 5
+            c[k, 0], c[k, 1], c[k, 2] = ck
+        # E, h_y and the trace of AᵀA
+        for r in range(4):
+            hy[r] = 0.0
+            for q in range(4):
+                S[r, q] = 0.0
+        trace = 0.0
+        for k in range(m):
+            d = dt[i, k]
+            ck = (c[k, 0], c[k, 1], c[k, 2])
+            bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
+            D[k] = _dot(ck, ck)
+            hr[k] = -_dot(ck, bk)
+            g[k, 0] = -_dot(a, ck)
+            S[0, 0] += aa
+            hy[0] += _dot(a, bk)
+            for j in range(3):
+                g[k, 1 + j] = -d * ck[j]
+                S[0, 1 + j] += d * a[j]
+                S[1 + j, 1 + j] += d * d
+                hy[1 + j] += d * bk[j]
+            trace += aa + D[k] + 3.0 * d * d
+        for j in range(3):
+            S[1 + j, 0] = S[0, 1 + j]
+        # S = E − Σ_k g_k g_kᵀ / D_k ;  h_y − Σ_k g_k h_k / D_k
+        for k in range(m):
+            w = 1.0 / D[k]
+            for r in range(4):
+                hy[r] -= g[k, r] * hr[k] * w
+                for q in range(4):
+                    S[r, q] -= g[k, r] * g[k, q] * w
+        if not _cholesky_inverse4(S, L, Si):
+            kappa[i] = np.inf
+            continue
+        # tr (AᵀA)⁻¹ = tr S⁻¹ + Σ_k (1/D_k + g_kᵀ S⁻¹ g_k / D_k²)
+        inv_trace = Si[0, 0] + Si[1, 1] + Si[2, 2] + Si[3, 3]
+        for k in range(m):
+            quad = 0.0
+            for r in range(4):
+                x = 0.0
+                for q in range(4):
+                    x += Si[r, q] * g[k, q]
+                sg[k, r] = x  # S⁻¹ g_k
+                quad += g[k, r] * x
+            inv_trace += 1.0 / D[k] + quad / (D[k] * D[k])
+        kap = np.sqrt(trace * inv_trace)
+        if not kap <= NORMAL_EQUATIONS_COND:
+            kappa[i] = np.inf
+            continue
+        kappa[i] = kap
+        for r in range(4):
+            x = 0.0
+            for q in range(4):
+                x += Si[r, q] * hy[q]
+            y[r] = x
+        # X = (r_1, r_2 … r_n, V): y holds r_1 and V
+        X[i, 0] = y[0]
+        for j in range(3):
+            X[i, n + j] = y[1 + j]
+        for k in range(m):
+            X[i, 1 + k] = (hr[k] - (g[k, 0] * y[0] + g[k, 1] * y[1] + g[k, 2] * y[2]
+                                    + g[k, 3] * y[3])) / D[k]  # fmt: skip
+        # Q = σ_e² (AᵀA)⁻¹ in X's order (y ↦ columns 0, n, n+1, n+2)
+        for r in range(4):
+            ir = 0 if r == 0 else n + r - 1
+            for q in range(4):
+                iq = 0 if q == 0 else n + q - 1
+                Q[i, ir, iq] = sigma2 * Si[r, q]
+            for k in range(m):
+                Q[i, ir, 1 + k] = Q[i, 1 + k, ir] = -sigma2 * sg[k, r] / D[k]
+        for k in range(m):
+            for l in range(k, m):
+                x = (
+                    g[l, 0] * sg[k, 0]
+                    + g[l, 1] * sg[k, 1]
+                    + g[l, 2] * sg[k, 2]
+                    + g[l, 3] * sg[k, 3]
+                )
+                x /= D[k] * D[l]
+                if k == l:
+                    x += 1.0 / D[k]
+                Q[i, 1 + k, 1 + l] = Q[i, 1 + l, 1 + k] = sigma2 * x
+        # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = Σ_k ‖E_k‖²
+        total = 0.0
+        r1 = X[i, 0]
+        for k in range(m):
+            rk, d = X[i, 1 + k], dt[i, k]
+            for j in range(3):
+                e = r1 * a[j] - rk * c[k, j] + d * X[i, n + j] - b[i, k, j]
+                total += e * e
+        J[i] = total
         position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
     return 0
