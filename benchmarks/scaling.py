@@ -8,16 +8,22 @@ command line): receivers × drones for StereoPointing, receivers (evenly spaced 
 scan offsets) × drones for StereoScanning, receiver vehicles for StereoPlacement, platforms for
 BearingsManeuver. At each size the native vector env of ``--batch`` scenarios is stepped with
 random actions (µs per scenario-step) and every registered rule decides on its observations
-(µs per scenario-decision), best of ``--repeat``. A rule or env that refuses a size, or fails
+(µs per scenario-decision), best of ``--repeat``, in wall time and in this process's CPU time
+(``*_cpu_us``: all its threads, less sensitive to other work on the machine; each row also
+records the 1-min load average). A rule or env that refuses a size, or fails
 on it, is recorded with its error message — that is a result too. The growth exponent is the
 least-squares slope of log time against log(receivers × drones) (or platforms) over the sizes
-that ran. Target (issue 15): at 16 receivers × 10 drones every decision ≤ 1 ms per scenario at
-256 scenarios and the step ≤ 50 µs per scenario.
+that ran, and over the three largest (``exponents_largest``). Target (issue 15): at 16
+receivers × 10 drones every decision ≤ 1 ms per scenario at 256 scenarios and the step
+≤ 50 µs per scenario. With ``--env`` the rows of the other envs
+already in ``scaling.json`` are kept.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import time
 from typing import Any
 
@@ -46,8 +52,7 @@ SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
         for n, m in ((3, 4), (4, 4), (8, 6), (16, 10))
     ],
     "sensorgym/StereoPlacement-v0": [
-        (f"{n} receivers", n, {"delays": tuple(float(d) for d in np.linspace(0.0, 0.6, n))})
-        for n in (3, 4, 6, 8)
+        (f"{n} receivers", n, {"n_receivers": n}) for n in (3, 4, 6, 8, 16)
     ],
     "sensorgym/BearingsManeuver-v0": [
         (f"{k} platforms", k, {"platforms": k}) for k in (1, 2, 4, 16)
@@ -62,7 +67,7 @@ def _error(exc: BaseException) -> str:
 
 def measure(env_id: str, fields: dict[str, Any], batch: int, steps: int, repeat: int) -> dict:
     """µs per scenario of a step and of every rule's decision at one size."""
-    row: dict[str, Any] = {"step_us": None, "rules": {}}
+    row: dict[str, Any] = {"step_us": None, "rules": {}, "load_average_1min": os.getloadavg()[0]}
     try:
         env = make_sb3_env(env_id, batch, seed=0, **fields)
     except Exception as exc:
@@ -71,13 +76,15 @@ def measure(env_id: str, fields: dict[str, Any], batch: int, steps: int, repeat:
     obs = env.reset()
     actions = [np.stack([env.action_space.sample() for _ in range(batch)]) for _ in range(steps)]
     try:
-        best = np.inf
+        best, cpu = np.inf, np.inf
         for _ in range(repeat + 1):  # the first round compiles
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             for a in actions:
                 obs = env.step(a)[0]
             best = min(best, time.perf_counter() - t0)
+            cpu = min(cpu, time.process_time() - c0)
         row["step_us"] = best / (steps * batch) * 1e6
+        row["step_cpu_us"] = cpu / (steps * batch) * 1e6
     except Exception as exc:
         row["error"] = _error(exc)
         return row
@@ -85,12 +92,16 @@ def measure(env_id: str, fields: dict[str, Any], batch: int, steps: int, repeat:
         try:
             rule = make(env_params(env), simulator_state(env))
             start = np.ones(batch, dtype=bool)
-            best = np.inf
+            best, cpu = np.inf, np.inf
             for _ in range(repeat + 1):
-                t0 = time.perf_counter()
+                t0, c0 = time.perf_counter(), time.process_time()
                 rule.predict(obs, episode_start=start, deterministic=True)
                 best = min(best, time.perf_counter() - t0)
-            row["rules"][name] = {"decision_us": best / batch * 1e6}
+                cpu = min(cpu, time.process_time() - c0)
+            row["rules"][name] = {
+                "decision_us": best / batch * 1e6,
+                "decision_cpu_us": cpu / batch * 1e6,
+            }
         except Exception as exc:
             row["rules"][name] = {"error": _error(exc)}
     env.close()
@@ -102,6 +113,19 @@ def exponent(xs: list[float], ys: list[float]) -> float | None:
     if len(set(xs)) < 2:
         return None
     return float(np.polyfit(np.log(xs), np.log(ys), 1)[0])
+
+
+def growth(results: list[dict], env_id: str, largest: int | None = None) -> dict:
+    """Growth exponent of the env step and of every rule's decision for ``env_id`` over the
+    sizes that ran (only the ``largest`` sizes, if given)."""
+    rows = [r for r in results if r["env"] == env_id and r.get("step_us") is not None]
+    rows = sorted(rows, key=lambda r: r["size"])[-largest if largest else 0 :]
+    out = {"env step": exponent([r["size"] for r in rows], [r["step_us"] for r in rows])}
+    for name in RULES.get(env_id, {}):
+        pts = [(r["size"], r["rules"][name]["decision_us"]) for r in rows
+               if "decision_us" in r["rules"].get(name, {})]  # fmt: skip
+        out[name] = exponent(*map(list, zip(*pts, strict=True))) if pts else None
+    return out
 
 
 def plot(results: list[dict], path: Any) -> None:
@@ -149,27 +173,39 @@ def main() -> None:
             row = measure(env_id, fields, args.batch, args.steps, args.repeat)
             results.append({"env": env_id, "case": label, "size": size, **row})
             step = "—" if row.get("step_us") is None else f"{row['step_us']:.1f}"
-            print(f"{env_id:32s} {label:24s} step {step:>8s} µs", row.get("error", ""))
+            cpu = f" (CPU {row['step_cpu_us']:.1f})" if "step_cpu_us" in row else ""
+            print(f"{env_id:32s} {label:24s} step {step:>8s} µs{cpu}", row.get("error", ""))
             for name, t in row.get("rules", {}).items():
-                value = f"{t['decision_us']:.1f} µs" if "decision_us" in t else t["error"]
+                value = (
+                    f"{t['decision_us']:.1f} µs (CPU {t['decision_cpu_us']:.1f})"
+                    if "decision_us" in t
+                    else t["error"]
+                )
                 print(f"{'':58s} {name:24s} {value}")
-    slopes: dict[str, dict[str, float | None]] = {}
-    for env_id in args.env or list(SIZES):
-        rows = [r for r in results if r["env"] == env_id and r.get("step_us") is not None]
-        slopes[env_id] = {
-            "env step": exponent([r["size"] for r in rows], [r["step_us"] for r in rows])
-        }
-        for name in RULES.get(env_id, {}):
-            pts = [(r["size"], r["rules"][name]["decision_us"]) for r in rows
-                   if "decision_us" in r["rules"].get(name, {})]  # fmt: skip
-            slopes[env_id][name] = exponent(*map(list, zip(*pts, strict=True))) if pts else None
-    print("\ngrowth exponent (slope of log time on log size):")
+    envs = args.env or list(SIZES)
+    slopes = {env_id: growth(results, env_id) for env_id in envs}
+    # the growth at the largest sizes: where a rule's search switches method with the size
+    # (exhaustive at small sizes), the slope over all sizes says little about larger ones
+    tail = {env_id: growth(results, env_id, largest=3) for env_id in envs}
+    print("\ngrowth exponent (slope of log time on log size; all sizes, three largest):")
     for env_id, s in slopes.items():
         for name, k in s.items():
-            print(f"  {env_id:32s} {name:24s} {'—' if k is None else f'{k:.2f}'}")
+            k3 = tail[env_id][name]
+            print(
+                f"  {env_id:32s} {name:24s} {'—' if k is None else f'{k:.2f}':>6s}"
+                f" {'—' if k3 is None else f'{k3:.2f}':>6s}"
+            )
+    path = RESULTS / "scaling.json"
+    if args.env and path.exists():  # keep the rows of the envs not run now
+        kept = json.loads(path.read_text())["results"]
+        results = [r for r in kept["rows"] if r["env"] not in args.env] + results
+        results.sort(key=lambda r: list(SIZES).index(r["env"]))  # stable: the sizes' order
+        slopes = {e: s for e, s in kept["exponents"].items() if e not in args.env} | slopes
+        old_tail = kept.get("exponents_largest", {})
+        tail = {e: s for e, s in old_tail.items() if e not in args.env} | tail
     write_results(
-        RESULTS / "scaling.json",
-        {"rows": results, "exponents": slopes},
+        path,
+        {"rows": results, "exponents": slopes, "exponents_largest": tail},
         batch=args.batch,
         steps=args.steps,
         repeat=args.repeat,

@@ -149,8 +149,8 @@ def wrappers_of(config: dict[str, Any]) -> list[dict[str, Any]]:
 def build_model(config: dict[str, Any], env: Any = None) -> BaseAlgorithm:
     """The untrained SB3 algorithm a checked ``config`` describes, on the CPU: its ``algo`` and
     hyperparameters (policy alias, ``policy_kwargs`` and the rest) over the observation and
-    action spaces of the registered env (per agent when ``agents`` is true) seen through the
-    run's ``wrappers`` (:func:`wrappers_of`; ``env`` must already carry them).
+    action spaces of the registered env at the run's ``params`` (per agent when ``agents`` is
+    true) seen through the run's ``wrappers`` (:func:`wrappers_of`; ``env`` must already carry them).
 
     The model keeps no env unless ``env`` (an SB3 ``VecEnv`` with those spaces) is given, as
     after SB3's own ``load``. Hyperparameters that do not build the algorithm
@@ -169,7 +169,9 @@ def build_model(config: dict[str, Any], env: Any = None) -> BaseAlgorithm:
         raise RunFolderError(f"{where}: policy {policy!r} is not one of {known}")
     kwargs = {k: v for k, v in hp.items() if k not in RUN_KEYS + OPTIONAL_RUN_KEYS}
     agents = bool(config.get("agents", False))
-    spaces_env = make_sb3_env(config["env"], 1, seed=0, agents=agents, wrappers=wrappers_of(config))
+    spaces_env = make_sb3_env(
+        config["env"], 1, seed=0, agents=agents, wrappers=wrappers_of(config), **params_of(config)
+    )
     try:
         if env is not None and (
             env.observation_space != spaces_env.observation_space

@@ -147,6 +147,17 @@ def drive(receivers, action, period, max_speed, radius, end):
         _drive_row(receivers, action, period, max_speed, radius, end, i)
 
 
+@njit(inline="always")
+def _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position):
+    """Row ``s``'s order-1 conjugation (checked): the n = 3 closed form, else the normal
+    equations; returns the kernel's input-check code."""
+    if ak.shape[1] == 2:
+        return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q,
+                                      kappa, position)  # fmt: skip
+    return velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
+                           position)  # fmt: skip
+
+
 @njit(**_ROW)
 def systems_row(
     i, s, delays, scalars, start, end, drone_end, drone_velocity, previous, normals, truth, R,
@@ -215,27 +226,10 @@ def systems_row(
             b[s, k - 1, j] = bk[j]
             for c in range(3):
                 P[s, k - 1, j, c] = Pk[c][j]
-    if n == 3:
-        code = triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
-                                      position)  # fmt: skip
-        if code != 0:
-            return code
-        if noisy:
-            code = triple_velocity_kernel(e1, ek, P, b, dt, 1.0, np.bool_(True), s, s + 1, Xe, J, Qe,
-                                          kappa_e, position)  # fmt: skip
-            if code != 0:
-                return code
-    else:
-        code = velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
-                               position)  # fmt: skip
-        if code != 0:
-            return code
-        if noisy:
-            code = velocity_kernel(e1, ek, P, b, dt, 1.0, np.bool_(True), s, s + 1, Xe, J, Qe,
-                                   kappa_e, position)  # fmt: skip
-            if code != 0:
-                return code
-    return 0
+    code = _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position)
+    if code != 0 or not noisy:
+        return code
+    return _velocity_solve(e1, ek, P, b, dt, s, Xe, J, Qe, kappa_e, position)
 
 
 @njit(**_JIT)
@@ -355,10 +349,10 @@ def _clip_obs(x):
 @njit(**_ROW)
 def observe_row(
     i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
-    sigma_ref, period, pairs, out, sight,
+    sigma_ref, period, pairs, out, sights,
 ):  # fmt: skip
     """Scenario ``i``'s observation blocks of :func:`.simulation.observe`, clipped to
-    ``±OBS_CLIP``, into ``out[i]`` (float32); ``sight (3,)`` scratch."""
+    ``±OBS_CLIP``, into ``out[i]`` (float32); ``sights (n, 3)`` scratch."""
     n = receivers.shape[1]
     tiny = 1e-12
     half_pi = np.pi / 2
@@ -382,8 +376,9 @@ def observe_row(
     out[i, c] = _clip_obs(np.log(max(velocity_sigma[i], tiny) * period / sigma_ref))
     out[i, c + 1] = _clip_obs(np.log10(min(condition[i], 1e300)))
     c += 2
+    _sights(receivers, i, p, sights)
     for q in range(pairs.shape[0]):
-        angle = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight)
+        angle = _pair_angle(sights, pairs[q, 0], pairs[q, 1])
         out[i, c + q] = _clip_obs(angle / half_pi)
     c += pairs.shape[0]
     out[i, c] = 1.0 if degenerate[i] else 0.0
@@ -395,57 +390,58 @@ def observe_kernel(
     sigma_ref, period, pairs, out,
 ):  # fmt: skip
     """:func:`observe_row` for the scenarios ``rows``."""
-    sight = np.empty(3)
+    sights = np.empty((receivers.shape[1], 3))
     for i in rows:
         observe_row(
             i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length,
-            speed, sigma_ref, period, pairs, out, sight,
+            speed, sigma_ref, period, pairs, out, sights,
         )  # fmt: skip
 
 
 @njit(inline="always")
-def _sight(receivers, i, k, point, sight):
-    """Unit line of sight from receiver ``k`` of scenario ``i`` to ``point`` (the stereo tracker
-    kernels' :func:`line_of_sight`; ``sight (3,)`` scratch)."""
-    line_of_sight(_row3(receivers, i, k), point, sight)
-    return (sight[0], sight[1], sight[2])
+def _sights(receivers, i, point, sights):
+    """Unit lines of sight ``sights (n, 3)`` from every receiver of scenario ``i`` to ``point``
+    (the stereo tracker kernels' :func:`line_of_sight`), each computed once for all its pairs."""
+    for k in range(receivers.shape[1]):
+        line_of_sight(_row3(receivers, i, k), point, sights[k])
 
 
 @njit(inline="always")
-def _pair_angle(receivers, i, k, l, point, sight):
-    u = _sight(receivers, i, k, point, sight)
-    return los_angle3(u, _sight(receivers, i, l, point, sight))
+def _pair_angle(sights, k, l):
+    """The angle between the lines of sight ``k`` and ``l`` of :func:`_sights`."""
+    return los_angle3(_row(sights, k), _row(sights, l))
 
 
 @njit(**_JIT)
 def los_angles_kernel(receivers, point, pairs, out):
     """Angles ``γ_kl (B, pairs)`` between the lines of sight from ``receivers (B, n, 3)`` to
     ``point (B, 3)``, rad."""
-    sight = np.empty(3)
+    sights = np.empty((receivers.shape[1], 3))
     for i in range(receivers.shape[0]):
-        p = _row(point, i)
+        _sights(receivers, i, _row(point, i), sights)
         for q in range(pairs.shape[0]):
-            out[i, q] = _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight)
+            out[i, q] = _pair_angle(sights, pairs[q, 0], pairs[q, 1])
 
 
 @njit(**_ROW)
-def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sight):
+def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sights):
     """Scenario ``i``'s position error ``‖p̂ − p‖`` and the smallest angle between the lines of
-    sight to the drone (``sight (3,)`` scratch)."""
+    sight to the drone (``sights (n, 3)`` scratch)."""
     p = _row(drone_position, i)
     error[i] = norm3((estimate[i, 0] - p[0], estimate[i, 1] - p[1], estimate[i, 2] - p[2]))
     smallest = np.inf
+    _sights(receivers, i, p, sights)
     for q in range(pairs.shape[0]):
-        smallest = min(smallest, _pair_angle(receivers, i, pairs[q, 0], pairs[q, 1], p, sight))
+        smallest = min(smallest, _pair_angle(sights, pairs[q, 0], pairs[q, 1]))
     min_angle[i] = smallest
 
 
 @njit(**_JIT)
 def info_kernel(rows, receivers, estimate, drone_position, pairs, error, min_angle):
     """:func:`info_row` for the scenarios ``rows``."""
-    sight = np.empty(3)
+    sights = np.empty((receivers.shape[1], 3))
     for i in rows:
-        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sight)
+        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sights)
 
 
 #: flags returned by :func:`period_rows` (or-ed over its scenarios)
@@ -496,7 +492,7 @@ def period_rows(
     piv = np.empty(3, np.int64)
     unit = np.ones(n)
     every = np.ones(n, np.bool_)
-    sight = np.empty(3)
+    sight, sights = np.empty(3), np.empty((n, 3))
     flags = 0
     for i in range(lo, hi):
         if moving:
@@ -533,9 +529,9 @@ def period_rows(
         observe_row(
             i, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
             constants[C_LENGTH], constants[C_SCALE], constants[C_REF], period, pairs, observation,
-            sight,
+            sights,
         )  # fmt: skip
-        info_row(i, end, estimate, drone_end, pairs, error, min_angle, sight)
+        info_row(i, end, estimate, drone_end, pairs, error, min_angle, sights)
     return flags
 
 

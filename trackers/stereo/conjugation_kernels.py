@@ -317,22 +317,9 @@ def _cholesky_inverse4(S, L, out):
 
 
 @njit(**_JIT)
-def velocity_kernel(
-    a1: Array,
-    ak: Array,
-    P: Array,
-    b: Array,
-    dt: Array,
-    sigma2: float,
-    check: bool,
-    lo: int,
-    hi: int,
-    X: Array,
-    J: Array,
-    Q: Array,
-    kappa: Array,
-    position: Array,
-) -> int:
+def velocity_kernel(a1: Array, ak: Array, P: Array, b: Array, dt: Array, sigma2: float,
+                    check: bool, lo: int, hi: int, X: Array, J: Array, Q: Array, kappa: Array,
+                    position: Array) -> int:  # fmt: skip
     """Any n ≥ 3, order 1 for elements ``lo..hi−1``: the normal equations, the ranges
     ``r_2 … r_n`` eliminated (``O(n)`` per solve, ``O(n²)`` for ``Q``).
 

@@ -267,3 +267,14 @@ def test_coordinate_search_against_the_exhaustive_optimum(n, horizon, spread, re
     }
     record_property("coordinate_vs_exhaustive", summary)
     print(f"n = {n}, horizon = {horizon}, spread = {spread:g} m: {summary}")
+
+
+def test_a_run_trained_at_six_receivers_builds_its_policy_at_that_size():
+    """The run folder records ``--param n_receivers=6``; the policy it builds acts on the
+    6-receiver spaces (per agent: the observation and the one-hot of 6)."""
+    from sensorgym.train.models import build_model
+
+    config = {"env": ENV_ID, "algo": "ppo", "seed": 0, "agents": True, "params": {"n_receivers": 6}}
+    model = build_model(config)
+    obs_dim = PlacementParams(n_receivers=6).obs_dim
+    assert model.observation_space.shape == (obs_dim + 6,) and model.action_space.shape == (2,)
