@@ -11,11 +11,19 @@ receiver straight at the predicted position of its drone (the env's one slew con
 compiled :func:`~sensorgym.trackers.stereo.kernels.assignment_orthogonality_batch` and
 :func:`~sensorgym.trackers.stereo.kernels.assignment_log_det_batch`, the lines of sight and
 pointing offsets the env's compiled ones.
+
+Every assignment rule has a ``solver`` field (:mod:`sensorgym.agents.assignment_solver`):
+``"auto"`` searches all ``m^n`` assignments up to ``MAX_ASSIGNMENTS`` (4096, e.g. 4 receivers ×
+8 drones or 6 × 4) — the decisions are those of the exhaustive search at every such size — and
+beyond that (16 receivers × 10 drones) starts from the sequential greedy on the information
+gain over the tracker's prediction (:func:`information_seed`) and re-assigns one receiver at a
+time while the rule's own objective rises, the same objective through
+:func:`~sensorgym.trackers.stereo.kernels.assignment_marginals_batch`; ``"greedy"`` takes that
+polynomial path at any size, ``"exhaustive"`` the full search (refused above 4096).
 """
 
 from __future__ import annotations
 
-import itertools
 from abc import abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,6 +32,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgym.agents.assignment_solver import (
+    SeparableObjective,
+    assignments,
+    check_solver,
+    exhaustive,
+    improve,
+    sequential_greedy,
+)
 from sensorgym.agents.protocol import MemorylessRule, as_batch
 from sensorgym.envs.stereo_pointing.simulation import (
     PointingParams,
@@ -45,9 +61,6 @@ from sensorgym.trackers.stereo.information import (
 )
 
 FloatArray = NDArray[np.float64]
-
-#: the assignment rules refuse layouts with more candidate assignments than this
-MAX_ASSIGNMENTS = 4096
 
 
 @dataclass(frozen=True)
@@ -98,10 +111,53 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
 
 def _assignments(params: PointingParams) -> NDArray[np.int64]:
     """Every map of the ``n`` receivers to the ``m`` drones, ``(m^n, n)``."""
-    n, m = params.n_receivers, params.n_drones
-    if m**n > MAX_ASSIGNMENTS:
-        raise ValueError(f"params: {m}^{n} receiver-to-drone assignments exceed {MAX_ASSIGNMENTS}")
-    return np.array(list(itertools.product(range(m), repeat=n)), dtype=np.int64)
+    return assignments(params.n_receivers, params.n_drones)
+
+
+def _weights(sigma_ang: float, ranges: FloatArray) -> FloatArray:
+    """Information weights ``1/(σ r)²`` of lines of sight at ``ranges``, ranges floored at
+    ``MIN_RANGE`` (as :func:`~sensorgym.trackers.stereo.kernels.position_information`);
+    ``σ = 0`` counts as 1e-9 rad (the exhaustive scores' floor)."""
+    sr = max(sigma_ang, 1e-9) * np.maximum(ranges, MIN_RANGE)
+    return 1.0 / (sr * sr)
+
+
+def _one_step(
+    kind: int, los: FloatArray, w: FloatArray, prior: FloatArray, consts: tuple[float, ...]
+) -> SeparableObjective:
+    """A one-step objective of lines of sight ``los (N, n, m, 3)`` with weights ``w (N, n, m)``
+    and a prior ``(N, m)``, every receiver counted."""
+    N, n, m = w.shape
+    return SeparableObjective(
+        kind=kind,
+        u=np.ascontiguousarray(los[:, None]),
+        w=np.ascontiguousarray(w[:, None]),
+        ready=np.ones((N, 1, n, m), dtype=bool),
+        prior=np.ascontiguousarray(prior, dtype=np.float64),
+        weight=np.ones((N, 1)),
+        consts=np.array(consts, dtype=np.float64),
+    )
+
+
+def information_seed(
+    params: PointingParams, los: FloatArray, ranges: FloatArray, sigma: FloatArray
+) -> NDArray[np.int64]:
+    """The polynomial solvers' start ``(N, n)``: the sequential greedy
+    (:func:`~sensorgym.agents.assignment_solver.sequential_greedy`) on the information gain
+    ``Σ_j ln det(I/σ_j² + I_j) − ln det(I/σ_j²)`` of the receivers each drone gets over the
+    tracker's prediction (position RMS ``sigma (N, m)``, floored at 1e-6 m and capped at 1e6
+    m), ``I_j`` their position information at lines of sight ``los (N, n, m, 3)`` and
+    ``ranges (N, n, m)`` (a line of sight within ``MIN_RANGE`` adds nothing). The gain is
+    monotone and submodular, so the greedy comes within half of its best assignment; it
+    spreads the receivers over the drones and favours near-orthogonal crossings."""
+    w = np.where(ranges > MIN_RANGE, _weights(params.sigma_ang, ranges), 0.0)
+    prior = 1.0 / np.clip(sigma, 1e-6, 1e6) ** 2
+    return sequential_greedy(_one_step(kernels.GAIN, los, w, prior, ()))
+
+
+def _seed(params: PointingParams, view: _View) -> NDArray[np.int64]:
+    """:func:`information_seed` at the tracker's predictions."""
+    return information_seed(params, view.los, view.ranges, view.sigma)
 
 
 def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
@@ -193,10 +249,23 @@ class OrthogonalPairs(_AssignAndSlew):
     keep_bonus: float = 0.3
     """Objective bonus per receiver left on a drone it is aimed at (hysteresis against flapping
     and against leaving the cue for a near-tie; tuned on training seeds 5 and 7)."""
+    solver: str = "auto"
+    """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
+    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to 4096 assignments)."""
+
+    def __post_init__(self) -> None:
+        check_solver(self.solver)
 
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
-        cand = _assignments(self.params)  # (C, n)
+        p = self.params
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones):
+            N, n, m = view.ranges.shape
+            objective = _one_step(
+                kernels.ORTHOGONALITY, view.los, np.ones((N, n, m)), np.zeros((N, m)), ()
+            )
+            return improve(objective, _seed(p, view), self.keep_bonus * view.aimed)
+        cand = _assignments(p)  # (C, n)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ½ ln max_{k∈S_j} Σ_{l∈S_j} sin²γ_kl, compiled
         kernels.assignment_orthogonality_batch(view.los, cand, objective)
@@ -223,9 +292,22 @@ class GreedyPointing(_AssignAndSlew):
     and against leaving the cue for a near-tie; tuned on training seeds 5 and 7)."""
     no_fix_cost: float = 1e3
     """Score of a drone left without a pair of receivers (ln det units)."""
+    solver: str = "auto"
+    """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
+    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to 4096 assignments)."""
+
+    def __post_init__(self) -> None:
+        check_solver(self.solver)
 
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
+        p = self.params
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones):
+            N, _, m = view.ranges.shape
+            w = _weights(p.sigma_ang, view.ranges)
+            consts = (float(self.no_fix_cost),)
+            objective = _one_step(kernels.LOG_DET, view.los, w, np.zeros((N, m)), consts)
+            return improve(objective, _seed(p, view), self.keep_bonus * view.aimed)
         cand = _assignments(self.params)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ln det I_j of the receivers each candidate assigns to drone j, compiled
@@ -249,7 +331,9 @@ class OraclePlan(MemorylessRule):
     """Plan on the truth (reads ``simulator_state``; a ceiling, not a fieldable rule): at every
     step, for every assignment of receivers to drones held from now to the episode's end, sum
     the env's reward over the remaining steps of the true straight-line flights — each receiver
-    counted once its gimbal, slewing at full rate, has reached its drone — and take the best.
+    counted once its gimbal, slewing at full rate, has reached its drone — and take the best
+    (``solver``: all assignments, or the polynomial search from :func:`information_seed` at
+    the true positions with the tracker's covariance).
 
     The plan assumes that a receiver sent to a drone sees it (the tracker keeps up); the act is
     the assignment rules' slew onto the tracker's prediction. Planning over constant assignments
@@ -261,13 +345,17 @@ class OraclePlan(MemorylessRule):
         params: PointingParams,
         episode_steps: int = EPISODE_STEPS,
         stride: int = 3,
+        solver: str = "auto",
     ):
+        check_solver(solver)
         self.state_fn = state_fn
         self.params = params
         self.episode_steps = int(episode_steps)
         """Episode length in steps (the registration's ``max_episode_steps``)."""
         self.stride = int(stride)
         """Planning grid: every ``stride``-th future step is scored (weighted by ``stride``)."""
+        self.solver = solver
+        """``"auto"``, ``"exhaustive"`` or ``"greedy"`` (:mod:`..assignment_solver`)."""
 
     def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
@@ -285,12 +373,17 @@ class OraclePlan(MemorylessRule):
         """The best held assignment ``(N, n)`` of every scenario of ``state``."""
         if state.batch_size != N:
             raise ValueError(f"observation: {N} envs, but the simulator holds {state.batch_size}")
-        return _assignments(self.params)[np.argmax(self.values(state), axis=-1)]
+        p = self.params
+        if exhaustive(self.solver, p.n_receivers, p.n_drones):
+            return _assignments(p)[np.argmax(self.values(state), axis=-1)]
+        los, r = lines_of_sight(p, state.drone_position)
+        seed = information_seed(p, los, r, state.track.position_sigma)
+        return improve(plan_objective(p, self.geometry(state)), seed)
 
-    def values(self, state: PointingState) -> FloatArray:
-        """Planned return ``(B, C)`` of every candidate of :func:`_assignments` from ``state``."""
+    def geometry(self, state: PointingState) -> PlanGeometry:
+        """The plan's :class:`PlanGeometry` from ``state`` (the truth) to the episode's end."""
         left = self.episode_steps - np.rint(state.t / self.params.dt)
-        return plan_values(
+        return plan_geometry(
             self.params,
             state.azimuth,
             state.elevation,
@@ -299,6 +392,57 @@ class OraclePlan(MemorylessRule):
             left,
             self.stride,
         )
+
+    def values(self, state: PointingState) -> FloatArray:
+        """Planned return ``(B, C)`` of every candidate of :func:`_assignments` from ``state``."""
+        return geometry_values(self.params, self.geometry(state))
+
+
+@dataclass(frozen=True)
+class PlanGeometry:
+    """What a plan scores: the drones' flights on the planning grid seen from the receivers."""
+
+    u: FloatArray
+    """(B, S, n, m, 3) unit lines of sight from receiver ``k`` to drone ``j`` on step ``s``."""
+    r: FloatArray
+    """(B, S, n, m) their ranges, floored at ``MIN_RANGE``, m."""
+    ready: NDArray[np.bool_]
+    """(B, S, n, m) whether receiver ``k``'s boresight, slewing at full rate, has reached
+    drone ``j`` by step ``s`` (within half a field of view)."""
+    weight: FloatArray
+    """(B, S) weight of each grid step: ``stride`` within the horizon, 0 beyond."""
+
+
+def plan_geometry(
+    params: PointingParams,
+    azimuth: FloatArray,
+    elevation: FloatArray,
+    position: FloatArray,
+    velocity: FloatArray,
+    left: FloatArray,
+    stride: int,
+) -> PlanGeometry:
+    """The :class:`PlanGeometry` of the next ``left (B,)`` steps, for drones flying straight
+    from ``position`` with ``velocity`` ``(B, m, 3)`` and boresights at
+    ``azimuth``/``elevation (B, n)``, on every ``stride``-th step."""
+    p = params
+    n, m, B = p.n_receivers, p.n_drones, azimuth.shape[0]
+    step = max(p.slew_rate * p.dt, 1e-12)
+    # future steps s = 1, 1 + stride, …, weighted by stride where s ≤ left
+    s = np.arange(1, max(int(np.max(left)), 1) + 1, stride, dtype=np.float64)  # (S,)
+    weight = np.where(s[None, :] <= left[:, None], float(stride), 0.0)  # (B, S)
+    dt = (s * p.dt)[None, :, None, None]
+    q = position[:, None] + velocity[:, None] * dt  # (B, S, m, 3)
+    u, r = lines_of_sight(p, q.reshape(B * len(s), m, 3))
+    # steps until receiver k's boresight reaches drone j (half a field of view counts)
+    off = np.abs(pointing_offsets(p, azimuth, elevation, q[:, 0]))  # (B, n, m, 2)
+    reach = np.maximum(np.ceil((off.max(axis=-1) - 0.5 * p.fov) / step), 1.0)  # (B, n, m)
+    return PlanGeometry(
+        u=u.reshape(B, len(s), n, m, 3),
+        r=np.maximum(r, MIN_RANGE).reshape(B, len(s), n, m),
+        ready=s[None, :, None, None] >= reach[:, None],  # (B, S, n, m)
+        weight=weight,
+    )
 
 
 def plan_values(
@@ -314,31 +458,45 @@ def plan_values(
     next ``left (B,)`` steps, for drones flying straight from ``position`` with ``velocity``
     ``(B, m, 3)`` and boresights at ``azimuth``/``elevation (B, n)``: the env's reward of the
     receivers assigned to each drone, each counted from the step its gimbal, slewing at full
-    rate, is within half a field of view of its drone; scored on every ``stride``-th step."""
-    p = params
-    n, m, B = p.n_receivers, p.n_drones, azimuth.shape[0]
+    rate, is within half a field of view of its drone; scored on every ``stride``-th step
+    (:func:`plan_geometry`, :func:`geometry_values`)."""
+    geometry = plan_geometry(params, azimuth, elevation, position, velocity, left, stride)
+    return geometry_values(params, geometry)
+
+
+def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
+    """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` over
+    ``geometry``: the env's reward of the receivers assigned to each drone, each counted from
+    the step it is ready, averaged over the drones and summed with the steps' weights."""
+    p, g = params, geometry
     cand = _assignments(p)  # (C, n)
-    step = max(p.slew_rate * p.dt, 1e-12)
-    # future steps s = 1, 1 + stride, …, weighted by stride where s ≤ left
-    s = np.arange(1, max(int(np.max(left)), 1) + 1, stride, dtype=np.float64)  # (S,)
-    weight = np.where(s[None, :] <= left[:, None], float(stride), 0.0)  # (B, S)
-    dt = (s * p.dt)[None, :, None, None]
-    q = position[:, None] + velocity[:, None] * dt  # (B, S, m, 3)
-    u, r = lines_of_sight(p, q.reshape(B * len(s), m, 3))
-    u = u.reshape(B, len(s), n, m, 3).transpose(0, 1, 3, 2, 4)  # (B, S, m, n, 3)
-    r = r.reshape(B, len(s), n, m).transpose(0, 1, 3, 2)  # (B, S, m, n)
-    # steps until receiver k's boresight reaches drone j (half a field of view counts)
-    off = np.abs(pointing_offsets(p, azimuth, elevation, q[:, 0]))  # (B, n, m, 2)
-    reach = np.maximum(np.ceil((off.max(axis=-1) - 0.5 * p.fov) / step), 1.0)  # (B, n, m)
-    ready = s[None, :, None, None] >= reach.transpose(0, 2, 1)[:, None]  # (B, S, m, n)
     # candidate c sends receiver k to drone c_k
-    sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
+    sent = cand[:, None, :] == np.arange(p.n_drones)[None, :, None]  # (C, m, n)
+    # (B, S, m, n) views of the geometry, receivers last
+    u, r, ready = g.u.transpose(0, 1, 3, 2, 4), g.r.transpose(0, 1, 3, 2), g.ready.swapaxes(2, 3)
     mask = sent[None, :, None] & ready[:, None]  # (B, C, S, m, n)
     sigma_ang = p.sigma_ang if p.sigma_ang > 0.0 else 1e-9
-    info = position_information(u[:, None], np.maximum(r, MIN_RANGE)[:, None], sigma_ang, mask)
+    info = position_information(u[:, None], r[:, None], sigma_ang, mask)
     sigma = position_sigma(info, observable(info, mask))
     reward = log_ratio_reward(sigma, p.sigma_ref, p.reward_clip).mean(axis=-1)  # (B, C, S)
-    return np.einsum("bcs,bs->bc", reward, weight)
+    return np.einsum("bcs,bs->bc", reward, g.weight)
+
+
+def plan_objective(params: PointingParams, geometry: PlanGeometry) -> SeparableObjective:
+    """:func:`geometry_values` as a separable objective (per drone: its reward summed over the
+    steps with their weights, over ``m``) for the polynomial solver."""
+    p, g = params, geometry
+    sigma_ang = p.sigma_ang if p.sigma_ang > 0.0 else 1e-9
+    sr = sigma_ang * g.r
+    return SeparableObjective(
+        kind=kernels.REWARD,
+        u=g.u,
+        w=1.0 / (sr * sr),
+        ready=g.ready,
+        prior=np.zeros((g.weight.shape[0], p.n_drones)),
+        weight=np.ascontiguousarray(g.weight / p.n_drones),
+        consts=np.array([p.sigma_ref, p.reward_clip], dtype=np.float64),
+    )
 
 
 @dataclass(frozen=True)
@@ -354,12 +512,18 @@ class PlanEstimate(_AssignAndSlew):
     """Planning horizon, steps (tuned on seeds 5 and 7 among 15, 50, 100, 150)."""
     stride: int = 3
     """Planning grid: every ``stride``-th future step is scored."""
+    solver: str = "auto"
+    """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
+    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to 4096 assignments)."""
+
+    def __post_init__(self) -> None:
+        check_solver(self.solver)
 
     def choose(self, view: _View) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
-        N = view.azimuth.shape[0]
-        values = plan_values(
-            self.params,
+        p, N = self.params, view.azimuth.shape[0]
+        geometry = plan_geometry(
+            p,
             view.azimuth,
             view.elevation,
             view.position,
@@ -367,4 +531,6 @@ class PlanEstimate(_AssignAndSlew):
             np.full(N, float(self.horizon)),
             self.stride,
         )
-        return _assignments(self.params)[np.argmax(values, axis=-1)]
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones):
+            return improve(plan_objective(p, geometry), _seed(p, view))
+        return _assignments(p)[np.argmax(geometry_values(p, geometry), axis=-1)]

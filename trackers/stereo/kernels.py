@@ -200,6 +200,15 @@ def perturb_direction(a, z, sigma, out):
 
 
 @njit(**INLINE)
+def add_projection(u, w, out):
+    """``out += w (I − u uᵀ)``: one line of sight's term ``w Π`` of :func:`position_information`."""
+    for i in range(3):
+        for j in range(3):
+            # Π = I − u uᵀ
+            out[i, j] += w * ((1.0 if i == j else 0.0) - u[i] * u[j])
+
+
+@njit(**INLINE)
 def position_information(u, r, sigma, mask, out):
     """``I = Σ_k m_k (I − u_k u_kᵀ) / (σ_k² r_k²)`` into ``out (3, 3)`` (theory §4.1), ranges
     floored at ``MIN_RANGE``; ``u (n, 3)``, ``r``, ``sigma``, ``mask`` of shape ``(n,)``."""
@@ -208,11 +217,7 @@ def position_information(u, r, sigma, mask, out):
             out[i, j] = 0.0
     for k in range(u.shape[0]):
         sr = sigma[k] * floor_range(r[k])
-        w = (1.0 if mask[k] else 0.0) * (1.0 / (sr * sr))
-        for i in range(3):
-            for j in range(3):
-                # Π_k = I − u_k u_kᵀ
-                out[i, j] += w * ((1.0 if i == j else 0.0) - u[k, i] * u[k, j])
+        add_projection(u[k], (1.0 if mask[k] else 0.0) * (1.0 / (sr * sr)), out)
 
 
 @njit(**INLINE)
@@ -365,6 +370,105 @@ def assignment_orthogonality_batch(u, cand, out):
                     best = max(best, s)
                 total += math.log(max(best, 1e-300))
             out[b, c] = 0.5 * total
+
+
+#: the separable assignment objectives of :func:`assignment_marginals_batch` (its ``kind``):
+#: the score of one drone's receivers on one step is ``ln det I`` (``−no_fix`` below two views
+#: or at ``det I ≤ 0``, :func:`assignment_log_det_batch`), the information gain
+#: ``ln det(λ I + I_S) − 3 ln λ`` over a prior ``λ I``, the env's reward
+#: ``clip(ln(σ_ref/σ_pos), −R, R)`` (the planners' return), or the orthogonality
+#: ``½ ln max_k Σ_l sin²γ_kl`` (:func:`assignment_orthogonality_batch`)
+LOG_DET, GAIN, REWARD, ORTHOGONALITY = 0, 1, 2, 3
+
+
+@njit(**INLINE)
+def set_score(kind, u, w, ready, prior, consts, members, count, skip, extra, work, piv):
+    """Score of one drone's receiver set on one step (the objective ``kind``, above): the
+    receivers ``members[:count]`` without ``skip`` and with ``extra`` (−1: none), counted
+    where ``ready[k]``, their information ``λ I + Σ_k w_k (I − u_k u_kᵀ)``
+    (:func:`add_projection`, ``λ = prior``). ``u (n, 3)``, ``w``/``ready (n,)``; ``consts``
+    holds ``no_fix`` (LOG_DET) or ``σ_ref, R`` (REWARD); scratch ``work (3, 3, 3)``,
+    ``piv (3,)``."""
+    info, LU, inv = work[0], work[1], work[2]
+    for a in range(3):
+        for c in range(3):
+            info[a, c] = prior if a == c else 0.0
+    views = 0
+    best = 0.0
+    for i in range(count + 1):
+        k = members[i] if i < count else extra
+        if k < 0 or k == skip or not ready[k]:
+            continue
+        views += 1
+        if kind == ORTHOGONALITY:
+            # Σ_l sin²γ_kl over the set, for the best reference receiver k
+            acc = 0.0
+            for i2 in range(count + 1):
+                l = members[i2] if i2 < count else extra
+                if l >= 0 and l != skip and ready[l]:
+                    acc += sin2_between(u[k], u[l])
+            best = max(best, acc)
+        else:
+            add_projection(u[k], w[k], info)
+    if kind == LOG_DET:
+        d = det3(info)
+        return math.log(d) if views >= 2 and d > 0.0 else -consts[0]
+    if kind == GAIN:
+        return math.log(det3(info)) - 3.0 * math.log(prior)
+    if kind == REWARD:
+        sigma = position_sigma(info, observable(info, views), 1.0, LU, piv, inv)
+        return log_ratio_reward(sigma, consts[0], consts[1])
+    return 0.5 * math.log(max(best, 1e-300))
+
+
+@njit(**JIT)
+def assignment_marginals_batch(
+    kind, u, w, ready, prior, weight, consts, assign, scenarios, rows, cols, out
+):
+    """Marginal values of receivers on drones under a separable assignment objective
+    ``F(a) = Σ_j V_j({k : a_k = j})``, ``V_j(S) = Σ_s weight_s · score_s(S)`` with the
+    :func:`set_score` of ``kind`` on each step ``s``: for row ``i`` — scenario
+    ``b = scenarios[i]`` under the assignment ``assign[i] (n,)`` (−1: not assigned) — receiver
+    ``k = rows[a]`` and drone ``j = cols[i, c]``, ``out[i, a, c] = V_j(S ∪ {k}) − V_j(S)`` with
+    ``S`` drone ``j``'s receivers other than ``k``. Moving ``k`` from drone ``j₀`` to ``j``
+    changes ``F`` by ``out[.., j] − out[.., j₀]``. ``u (B, S, n, m, 3)``, ``w``/``ready
+    (B, S, n, m)``, ``prior (B, m)``, ``weight (B, S)``. A step where ``k`` does not count, or
+    of weight 0, adds nothing to the difference and is not scored twice."""
+    n, S = assign.shape[1], u.shape[1]
+    members = np.empty(n, np.int64)
+    base = np.empty(S)
+    work, piv = np.empty((3, 3, 3)), np.empty(3, np.int64)
+    for i in range(scenarios.shape[0]):
+        b = scenarios[i]
+        for c in range(cols.shape[1]):
+            j = cols[i, c]
+            count = 0
+            for k in range(n):
+                if assign[i, k] == j:
+                    members[count] = k
+                    count += 1
+            pj = prior[b, j]
+            for s in range(S):
+                base[s] = 0.0
+                if weight[b, s] != 0.0:
+                    base[s] = set_score(
+                        kind, u[b, s, :, j], w[b, s, :, j], ready[b, s, :, j], pj, consts,
+                        members, count, -1, -1, work, piv,
+                    )  # fmt: skip
+            for a in range(rows.shape[0]):
+                k = rows[a]
+                inside = assign[i, k] == j
+                total = 0.0
+                for s in range(S):
+                    if weight[b, s] == 0.0 or not ready[b, s, k, j]:
+                        continue
+                    # the set with k minus the set without k, on this step
+                    other = set_score(
+                        kind, u[b, s, :, j], w[b, s, :, j], ready[b, s, :, j], pj, consts,
+                        members, count, k if inside else -1, -1 if inside else k, work, piv,
+                    )  # fmt: skip
+                    total += weight[b, s] * (base[s] - other if inside else other - base[s])
+                out[i, a, c] = total
 
 
 # ---------------------------------------------------------------- constant-velocity Kalman filter

@@ -365,10 +365,12 @@ def test_rules_follow_the_sb3_predict_protocol():
         np.testing.assert_array_equal(one, action[0])
     with pytest.raises(ValueError, match="observation"):
         TrackNearest().predict(np.zeros(4))
+    # beyond 4096 assignments only the exhaustive solver refuses; auto turns polynomial
+    large = PointingParams(n_receivers=9, n_drones=4)
+    obs = core.observe(large, core.reset(large, np.random.default_rng(13), 3))
     with pytest.raises(ValueError, match="assignments"):
-        OrthogonalPairs(PointingParams(n_receivers=9, n_drones=4)).predict(
-            np.zeros(PointingParams(n_receivers=9, n_drones=4).obs_dim)
-        )
+        OrthogonalPairs(large, solver="exhaustive").predict(obs)
+    assert OrthogonalPairs(large).predict(obs)[0].shape == (3, 18)
 
 
 def test_slewing_rules_put_the_prediction_on_the_boresight():
