@@ -17,6 +17,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgym.trackers.validation import count
+
 #: the book's leg change: minutes (steps) during which the observer turns at the full rate
 LEG_CHANGE_STEPS = (12, 13, 14, 15)
 #: its direction: −1 = full turn to port (140° → 20° at 30°/min)
@@ -66,10 +68,12 @@ class OpenLoop:
     """A fixed sequence of turn commands ``a₀`` in ``[−1, 1]`` (× the world's turn limit), one
     per step, speed change 0; after the sequence, straight on. An SB3-style predictor whose
     ``state`` is the step count per env (reset by ``episode_start``), as SB3 does for recurrent
-    policies."""
+    policies. With ``platforms = K`` every platform flies the same sequence (action ``(2K,)``)."""
 
     turns: tuple[float, ...]
     """Turn command per step."""
+    platforms: int = 1
+    """Number of platforms ``K`` the action is for."""
 
     def __post_init__(self) -> None:
         u = np.asarray(self.turns, dtype=np.float64)
@@ -79,6 +83,7 @@ class OpenLoop:
             )
         if np.any(np.abs(u) > 1.0):
             raise ValueError("turns: every command must lie in [-1, 1]")
+        count(self.platforms, "platforms")
 
     def predict(
         self,
@@ -94,20 +99,22 @@ class OpenLoop:
         if episode_start is not None:
             k = np.where(np.asarray(episode_start, dtype=bool), 0, k)
         turns = np.append(np.asarray(self.turns, dtype=np.float64), 0.0)
-        action = np.zeros((n, 2), dtype=np.float32)
-        action[:, 0] = turns[np.minimum(k, turns.size - 1)]
+        action = np.zeros((n, self.platforms, 2), dtype=np.float32)
+        action[:, :, 0] = turns[np.minimum(k, turns.size - 1)][:, None]
+        action = action.reshape(n, -1)
         return (action[0] if single else action), k + 1
 
 
-def book_leg_change(steps: int = 32) -> OpenLoop:
+def book_leg_change(steps: int = 32, platforms: int = 1) -> OpenLoop:
     """The book's manoeuvre over ``steps`` steps: straight on course 140°, a full turn to port
-    (−30°/min) during minutes 13–16 (steps 12–15) to course 20°, straight again."""
+    (−30°/min) during minutes 13–16 (steps 12–15) to course 20°, straight again (by each of
+    ``platforms`` platforms)."""
     turns = np.zeros(steps)
     turns[[k for k in LEG_CHANGE_STEPS if k < steps]] = LEG_CHANGE_TURN
-    return OpenLoop(tuple(turns))
+    return OpenLoop(tuple(turns), platforms)
 
 
-def optimised_open_loop() -> OpenLoop:
+def optimised_open_loop(platforms: int = 1) -> OpenLoop:
     """The optimised open-loop manoeuvre :data:`BOOK_OPTIMISED_TURNS` (a ceiling: planned on
-    the true target of the book's fixed scenario)."""
-    return OpenLoop(BOOK_OPTIMISED_TURNS)
+    the true target of the book's fixed scenario; flown by each of ``platforms`` platforms)."""
+    return OpenLoop(BOOK_OPTIMISED_TURNS, platforms)

@@ -24,7 +24,7 @@ RuleFactory = Callable[[Any, StateFn], PolicyPredictor]
 
 RULES: dict[str, dict[str, RuleFactory]] = {
     "sensorgym/BearingsManeuver-v0": {
-        "straight-course": lambda params, _: maneuver.StraightCourse(),
+        "straight-course": lambda params, _: maneuver.StraightCourse(params),
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
@@ -33,13 +33,13 @@ RULES: dict[str, dict[str, RuleFactory]] = {
     # the textbook scenario: the same rules (they read the book's limits from params), and the
     # book's own manoeuvre
     "sensorgym/BearingsManeuverBook-v0": {
-        "straight-course": lambda params, _: maneuver.StraightCourse(),
-        "book-leg-change": lambda params, _: book.book_leg_change(),
+        "straight-course": lambda params, _: maneuver.StraightCourse(params),
+        "book-leg-change": lambda params, _: book.book_leg_change(platforms=params.platforms),
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
-        "oracle-open-loop": lambda params, _: book.optimised_open_loop(),
+        "oracle-open-loop": lambda params, _: book.optimised_open_loop(params.platforms),
     },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),

@@ -55,7 +55,7 @@ SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
         (f"{n} receivers", n, {"n_receivers": n}) for n in (3, 4, 6, 8, 16)
     ],
     "sensorgym/BearingsManeuver-v0": [
-        (f"{k} platforms", k, {"platforms": k}) for k in (1, 2, 4, 16)
+        (f"{k} platforms", k, {"platforms": k}) for k in (1, 2, 4, 8, 16)
     ],
 }
 

@@ -34,6 +34,7 @@ from sensorgym.trackers.bearings.kernels import (
     bank_update,
     bound_predict,
     bound_update,
+    position_update,
     psd_square_root,
     range_bank_prior,
 )
@@ -257,6 +258,26 @@ def _put(out, b, k, i, value, clip):
 
 
 @njit(**_JIT)
+def _put_spread(out, b, k, i, s, c, p00, p01, p11, scale, clip):
+    """A 2-D covariance ``[[p00, p01], [p01, p11]]`` (world axes East, North) turned into the
+    platform frame, ``R P Rᵀ`` with ``R = [[c, −s], [s, c]]`` (:func:`body_frame`), written as
+    ``ln(σ₀/scale)``, ``ln(σ₁/scale)`` and the correlation at ``out[b, k, i : i + 3]``
+    (variances floored at 1e-12: a finite log for a collapsed estimate)."""
+    rp00 = c * p00 - s * p01
+    rp01 = c * p01 - s * p11
+    rp10 = s * p00 + c * p01
+    rp11 = s * p01 + c * p11
+    pb00 = rp00 * c - rp01 * s
+    pb01 = rp00 * s + rp01 * c
+    pb11 = rp10 * s + rp11 * c
+    sd0 = math.sqrt(max(pb00, 1e-12))
+    sd1 = math.sqrt(max(pb11, 1e-12))
+    _put(out, b, k, i, math.log(sd0 / scale), clip)
+    _put(out, b, k, i + 1, math.log(sd1 / scale), clip)
+    _put(out, b, k, i + 2, pb01 / (sd0 * sd1), clip)
+
+
+@njit(**_JIT)
 def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, nearest, error):
     """Row ``b``'s derived fields from the bank's moment-matched estimate ``x``, ``Pe``
     (scratch, with the weights ``w``): each platform's observation ``obs[b] (K, obs_dim)`` float32 (the table of
@@ -283,19 +304,8 @@ def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, 
         v0, v1 = body_frame(s, co, x[2] - speed[b, k] * s, x[3] - speed[b, k] * co)
         _put(obs, b, k, 5, v0 / speed_scale, clip)
         _put(obs, b, k, 6, v1 / speed_scale, clip)
-        # position covariance in the platform frame: R P Rᵀ, R = [[c, −s], [s, c]]
-        rp00 = co * Pe[0, 0] + -s * Pe[1, 0]
-        rp01 = co * Pe[0, 1] + -s * Pe[1, 1]
-        rp10 = s * Pe[0, 0] + co * Pe[1, 0]
-        rp11 = s * Pe[0, 1] + co * Pe[1, 1]
-        pb00 = rp00 * co + rp01 * -s
-        pb01 = rp00 * s + rp01 * co
-        pb11 = rp10 * s + rp11 * co
-        sd0 = math.sqrt(max(pb00, 1e-12))
-        sd1 = math.sqrt(max(pb11, 1e-12))
-        _put(obs, b, k, 7, math.log(sd0 / range_scale), clip)
-        _put(obs, b, k, 8, math.log(sd1 / range_scale), clip)
-        _put(obs, b, k, 9, pb01 / (sd0 * sd1), clip)
+        # the position covariance in the platform frame, as spreads
+        _put_spread(obs, b, k, 7, s, co, Pe[0, 0], Pe[0, 1], Pe[1, 1], range_scale, clip)
         # each other platform's position relative to this one, in platform order
         i = 10
         for j in range(K):
@@ -311,34 +321,199 @@ def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, 
     error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])
 
 
+# one platform flies command (ω, Δv) for len(out) steps: its positions ``out (H, 2)``
+@njit(**_JIT)
+def _fly_hold(c, px, py, h, v, turn, dv, out):
+    for s in range(out.shape[0]):
+        px, py, h, v = fly_platform(
+            px, py, h, v, turn, dv, c[DT], c[MAX_TURN], c[MAX_DV], c[MIN_SPEED], c[MAX_SPEED]
+        )
+        out[s, 0], out[s, 1] = px, py
+
+
+# the target's mean path x' = F x (no noise draw) from x0 (4,): ``path (H, 4)``
+@njit(**_JIT)
+def _mean_path(c, x0, path, x, x_next, G):
+    x[:] = x0
+    for s in range(path.shape[0]):
+        propagate_target(x, x, G, c[DT], 0.0, x_next)
+        x[:] = x_next
+        path[s] = x
+
+
+# a bearing's position information n̂ n̂ᵀ / (r σ)² from ``track (H, 2)`` on ``path`` into
+# ``info (H, 3)`` as (i00, i01, i11)
+@njit(**_JIT)
+def _bearing_information(path, track, sigma, info):
+    for s in range(path.shape[0]):
+        dx, dy = path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]
+        r = math.hypot(dx, dy)
+        n0, n1 = dy / r, -dx / r
+        a = 1.0 / (r * sigma) ** 2
+        info[s, 0], info[s, 1], info[s, 2] = a * n0 * n0, a * n0 * n1, a * n1 * n1
+
+
+@njit(**_JIT)
+def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc, L_pred, A_pred,
+                   A_update):  # fmt: skip
+    """The bound recursion of :func:`step_kernel` along a plan: from the square root ``L0``,
+    each step predicts and fuses the bearing from ``track[s]`` on the target ``path[s]``; with
+    ``use_others``, together with the other platforms' position information ``others[s]``
+    (``(i00, i01, i11)``): the 2×2 sum enters as two rank-one updates, the columns of its
+    Cholesky factor (information adds, so this is the env's sequential fusion of every
+    bearing). Returns the accuracy the reward measures at the end (relative range from
+    ``(ox, oy)``), or ``inf`` when the track comes within ``too_close`` of the path."""
+    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
+    Lc[:, :] = L0
+    close = False
+    for s in range(path.shape[0]):
+        bound_predict(Lc, dt, q_tilde, L_pred, A_pred)
+        dx, dy = path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]
+        if use_others:
+            r = math.hypot(dx, dy)
+            n0, n1 = dy / r, -dx / r
+            a = 1.0 / (r * sigma) ** 2
+            i00 = others[s, 0] + a * n0 * n0
+            i01 = others[s, 1] + a * n0 * n1
+            i11 = others[s, 2] + a * n1 * n1
+            if i00 > 0.0:
+                g = math.sqrt(i00)
+                position_update(L_pred, 1.0, g, i01 / g, Lc, A_update)
+                L_pred[:, :] = Lc
+                i11 = i11 - i01 * i01 / i00
+            position_update(L_pred, 1.0, 0.0, math.sqrt(max(i11, 0.0)), Lc, A_update)
+        else:
+            bound_update(L_pred, path[s, 0], path[s, 1], track[s, 0], track[s, 1], sigma, Lc,
+                         A_update)  # fmt: skip
+        if math.hypot(dx, dy) < too_close:
+            close = True
+    if close:
+        return np.inf
+    H = path.shape[0] - 1
+    return accuracy(c[RELATIVE_RANGE] > 0.0, Lc, path[H, 0], path[H, 1], ox, oy, c[FLOOR])
+
+
 @njit(**_JIT)
 def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close, out):
-    """The oracle's plans (:class:`sensorgym.agents.bearings_maneuver.OracleLookahead`) for
-    scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``, ``heading``, ``speed``
-    ``(B, K)`` holds each command ``command (C, 2)`` (rad/s, m/s; clipped as the step does) for
-    ``horizon`` steps while the target follows its mean path ``F x`` from ``target (B, 4)`` and
-    the bound's square root ``L (B, 4, 4)`` runs the env's recursion (:func:`step_kernel`'s
-    predict and bearing update on the true state). Writes the accuracy the reward measures at
-    the end, ``out (B, C)``, or ``inf`` for a plan that comes within ``too_close`` (m)."""
-    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
+    """The oracle's plans for one platform (:meth:`sensorgym.agents.bearings_maneuver.
+    OracleLookahead.plan_bounds`) for scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``,
+    ``heading``, ``speed`` ``(B, K)`` holds each command ``command (C, 2)`` (rad/s, m/s; clipped
+    as the step does) for ``horizon`` steps while the target follows its mean path ``F x`` from
+    ``target (B, 4)`` and the bound's square root ``L (B, 4, 4)`` runs the env's recursion
+    (:func:`step_kernel`'s predict and bearing update on the true state). Writes the accuracy
+    the reward measures at the end, ``out (B, C)``, or ``inf`` for a plan that comes within
+    ``too_close`` (m)."""
     x = np.empty(STATE_DIM)
     x_next = np.empty(STATE_DIM)
     G = np.zeros((STATE_DIM, STATE_DIM))
+    path = np.empty((horizon, STATE_DIM))
+    track = np.empty((horizon, 2))
+    none = np.empty((0, 3))
     Lc = np.empty((STATE_DIM, STATE_DIM))
     L_pred = np.empty((STATE_DIM, STATE_DIM))
     A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
     A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
     for b in range(lo, hi):
+        _mean_path(c, target[b], path, x, x_next, G)
         for j in range(command.shape[0]):
-            px, py, h, v = pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0]
-            x[:] = target[b]
-            Lc[:, :] = L[b]
-            close = False
-            for _ in range(horizon):
-                px, py, h, v = fly_platform(
-                    px,
-                    py,
-                    h,
+            _fly_hold(c, pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0], command[j, 0],
+                      command[j, 1], track)  # fmt: skip
+            out[b, j] = _plan_accuracy(
+                c, L[b], path, track, none, False, too_close, track[-1, 0], track[-1, 1], Lc,
+                L_pred, A_pred, A_update,
+            )  # fmt: skip
+
+
+@njit(**_JIT)
+def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close,
+                      choice):  # fmt: skip
+    """Receding-horizon plans of ``K`` platforms by sequential (coordinate-wise) choice, for
+    scenarios ``lo ≤ b < hi`` (:class:`sensorgym.agents.bearings_maneuver.OracleLookahead` on
+    the truth, :class:`~sensorgym.agents.bearings_maneuver.EstimateLookahead` on the estimate):
+    every platform of ``pos (B, K, 2)``, ``heading``, ``speed`` ``(B, K)`` starts on the plan
+    "hold course and speed"; then platforms 1, 2, …, K in turn take the command of
+    ``command (C, 2)`` whose ``horizon``-step plan ends with the smallest bound, the others
+    flying their current plans (platforms before it their chosen ones, after it straight on),
+    their bearings' information fused at every step. Cost ``O(K·C·horizon + K²·horizon)`` per
+    scenario (the others' information is summed once per platform, a 2×2 per step). For
+    ``K = 1`` this is :func:`plan_kernel`'s argmin. Writes each platform's command index into
+    ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out."""
+    K = heading.shape[1]
+    sigma = c[SIGMA]
+    x = np.empty(STATE_DIM)
+    x_next = np.empty(STATE_DIM)
+    G = np.zeros((STATE_DIM, STATE_DIM))
+    path = np.empty((horizon, STATE_DIM))
+    tracks = np.empty((K, horizon, 2))
+    track = np.empty((horizon, 2))
+    info = np.empty((K, horizon, 3))
+    others = np.zeros((horizon, 3))
+    Lc = np.empty((STATE_DIM, STATE_DIM))
+    L_pred = np.empty((STATE_DIM, STATE_DIM))
+    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
+    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
+    for b in range(lo, hi):
+        _mean_path(c, target[b], path, x, x_next, G)
+        for k in range(K):
+            _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k], 0.0, 0.0,
+                      tracks[k])  # fmt: skip
+            _bearing_information(path, tracks[k], sigma, info[k])
+        for k in range(K):
+            others[:, :] = 0.0
+            for i in range(K):
+                if i != k:
+                    for s in range(horizon):
+                        for e in range(3):
+                            others[s, e] += info[i, s, e]
+            best, best_value = 0, np.inf
+            for j in range(command.shape[0]):
+                _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
+                          command[j, 0], command[j, 1], track)  # fmt: skip
+                origin = track if k == 0 else tracks[0]
+                value = _plan_accuracy(
+                    c, L[b], path, track, others, K > 1, too_close, origin[-1, 0],
+                    origin[-1, 1], Lc, L_pred, A_pred, A_update,
+                )  # fmt: skip
+                if value < best_value:
+                    best, best_value = j, value
+            choice[b, k] = best
+            _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
+                      command[best, 0], command[best, 1], tracks[k])  # fmt: skip
+            _bearing_information(path, tracks[k], sigma, info[k])
+
+
+@njit(**_JIT)
+def greedy_kernel(c, obs, sd, delta, command, too_close, choice):
+    """The greedy rule (:class:`sensorgym.agents.bearings_maneuver.GreedyManeuver`) on every
+    platform's view ``obs (n, K, obs_dim)``, platform by platform (sequential greedy): platform
+    ``k`` flies each command ``command (C, 2)`` (rad/s, m/s) from its own frame
+    (:func:`fly_platform` from the origin, heading 0 = ahead); the estimated target moves on by
+    its estimated velocity; the command with the largest information gain ``hᵀ P h`` of the next
+    bearing, ``h = n̂/r`` at the new relative position (``-inf`` within ``too_close``, m), is
+    taken, and its information updates ``P ← P − P h hᵀ P / (hᵀ P h + σ²)`` before the next
+    platform chooses. ``P`` is the estimate's position covariance in platform 1's frame, from
+    its standard deviations ``sd (n, 2)`` (m) and correlation (obs 9); ``delta (n, K)`` turns
+    platform ``k``'s frame into platform 1's (its heading relative to platform 1's, rad).
+    Writes each platform's first best command index into ``choice (n, K)``."""
+    K = obs.shape[1]
+    dt, max_speed, sigma = c[DT], c[MAX_SPEED], c[SIGMA]
+    range_scale, speed_scale = c[RANGE_SCALE], c[SPEED_SCALE]
+    for b in range(obs.shape[0]):
+        # estimated position covariance from the log standard deviations and the correlation
+        p00, p11 = sd[b, 0] * sd[b, 0], sd[b, 1] * sd[b, 1]
+        p01 = sd[b, 0] * sd[b, 1] * obs[b, 0, 9]
+        for k in range(K):
+            v = obs[b, k, 2] * max_speed
+            d0, d1 = obs[b, k, 3] * range_scale, obs[b, k, 4] * range_scale
+            # estimated target velocity in the platform frame: relative velocity + own (0, v)
+            vt0, vt1 = obs[b, k, 5] * speed_scale, obs[b, k, 6] * speed_scale + v
+            cd, sdl = math.cos(delta[b, k]), math.sin(delta[b, k])
+            best, best_gain, h0, h1 = 0, -np.inf, 0.0, 0.0
+            for j in range(command.shape[0]):
+                e0, e1, _, _ = fly_platform(
+                    0.0,
+                    0.0,
+                    0.0,
                     v,
                     command[j, 0],
                     command[j, 1],
@@ -346,64 +521,23 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
                     c[MAX_TURN],
                     c[MAX_DV],
                     c[MIN_SPEED],
-                    c[MAX_SPEED],
+                    max_speed,
                 )
-                # the target's mean path: x' = F x (no noise draw)
-                propagate_target(x, x, G, dt, 0.0, x_next)
-                x[:] = x_next
-                bound_predict(Lc, dt, q_tilde, L_pred, A_pred)
-                bound_update(L_pred, x[0], x[1], px, py, sigma, Lc, A_update)
-                if math.hypot(x[0] - px, x[1] - py) < too_close:
-                    close = True
-            if close:
-                out[b, j] = np.inf
-            else:
-                out[b, j] = accuracy(c[RELATIVE_RANGE] > 0.0, Lc, x[0], x[1], px, py, c[FLOOR])
-
-
-@njit(**_JIT)
-def greedy_kernel(c, obs, sd, command, too_close, choice):
-    """The greedy rule (:class:`sensorgym.agents.bearings_maneuver.GreedyManeuver`) on
-    observations ``obs (n, obs_dim)`` with the position standard deviations ``sd (n, 2)`` (m)
-    read off them: each command ``command (C, 2)`` (rad/s, m/s) flown from the platform's frame
-    (:func:`fly_platform` from the origin, heading 0 = ahead); the estimated target moves on by
-    its estimated velocity; the information gain ``n̂ᵀ P n̂ / r²`` of the next bearing at the new
-    relative position (``-inf`` within ``too_close``, m). Writes the first best command's index
-    into ``choice (n,)``."""
-    dt, max_speed = c[DT], c[MAX_SPEED]
-    range_scale, speed_scale = c[RANGE_SCALE], c[SPEED_SCALE]
-    for b in range(obs.shape[0]):
-        v = obs[b, 2] * max_speed
-        d0, d1 = obs[b, 3] * range_scale, obs[b, 4] * range_scale
-        # estimated target velocity in the platform frame: relative velocity + own (0, v)
-        vt0, vt1 = obs[b, 5] * speed_scale, obs[b, 6] * speed_scale + v
-        # estimated position covariance from the log standard deviations and the correlation
-        p00, p11 = sd[b, 0] * sd[b, 0], sd[b, 1] * sd[b, 1]
-        p01 = sd[b, 0] * sd[b, 1] * obs[b, 9]
-        best, best_gain = 0, -np.inf
-        for j in range(command.shape[0]):
-            e0, e1, _, _ = fly_platform(
-                0.0,
-                0.0,
-                0.0,
-                v,
-                command[j, 0],
-                command[j, 1],
-                dt,
-                c[MAX_TURN],
-                c[MAX_DV],
-                c[MIN_SPEED],
-                max_speed,
-            )
-            # relative position after the step, the bearing's normal n̂ and its gain
-            n0 = d0 + vt0 * dt - e0
-            n1 = d1 + vt1 * dt - e1
-            dist = math.hypot(n0, n1)
-            r = max(dist, 1e-9)
-            u0, u1 = n1 / r, -n0 / r
-            gain = (u0 * (p00 * u0 + p01 * u1) + u1 * (p01 * u0 + p11 * u1)) / (r * r)
-            if dist < too_close:
-                gain = -np.inf
-            if gain > best_gain:
-                best, best_gain = j, gain
-        choice[b] = best
+                # relative position after the step, the bearing's normal n̂ and its gain
+                n0 = d0 + vt0 * dt - e0
+                n1 = d1 + vt1 * dt - e1
+                dist = math.hypot(n0, n1)
+                r = max(dist, 1e-9)
+                # n̂ in platform 1's frame (k's frame turned back by delta)
+                u0, u1 = cd * (n1 / r) + sdl * (-n0 / r), -sdl * (n1 / r) + cd * (-n0 / r)
+                gain = (u0 * (p00 * u0 + p01 * u1) + u1 * (p01 * u0 + p11 * u1)) / (r * r)
+                if dist < too_close:
+                    gain = -np.inf
+                if gain > best_gain:
+                    best, best_gain, h0, h1 = j, gain, u0 / r, u1 / r
+            choice[b, k] = best
+            # the chosen bearing's information, for the platforms after this one
+            if K > 1 and best_gain > -np.inf:
+                q0, q1 = p00 * h0 + p01 * h1, p01 * h0 + p11 * h1
+                s = best_gain + sigma * sigma
+                p00, p01, p11 = p00 - q0 * q0 / s, p01 - q0 * q1 / s, p11 - q1 * q1 / s

@@ -11,6 +11,7 @@ import pytest
 from sensorgym.agents.book_maneuver import BOOK_OPTIMISED_TURNS, OpenLoop, book_leg_change
 from sensorgym.envs.bearings_maneuver import BookManeuverParams, ManeuverParams
 from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.envs.worlds.platform import rollout
 from sensorgym.reproduce.experiments import bot_control
 from sensorgym.reproduce.experiments.bot_benchmark import pcrlb_position, simulate
@@ -74,7 +75,7 @@ def test_leg_change_through_the_env_is_bot_benchmarks_trajectory_and_bound():
 
 def test_open_loop_counts_steps_per_env_and_checks_its_turns():
     policy = book_leg_change()
-    obs = np.zeros((2, 10), dtype=np.float32)
+    obs = np.zeros((2, OBS_DIM), dtype=np.float32)
     a, k = policy.predict(obs)
     for _ in range(12):
         a, k = policy.predict(obs, k, np.array([False, False]))

@@ -21,6 +21,7 @@ import torch
 import yaml
 
 from sensorgym.cli.main import main
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.evaluation import make_sb3_env
 from sensorgym.train.models import (
     CONFIG_FILE,
@@ -234,7 +235,7 @@ def test_an_older_run_folder_with_only_model_zip_loads_with_the_flag(tmp_path):
     (run / CONFIG_FILE).write_text(yaml.safe_dump({"env": BEARINGS, "algo": "ppo"}))
     with pytest.raises(RunFolderError, match="--unsafe-pickle"):
         load_model(run)
-    obs = np.random.default_rng(1).uniform(-3, 3, (16, 10)).astype(np.float32)
+    obs = np.random.default_rng(1).uniform(-3, 3, (16, OBS_DIM)).astype(np.float32)
     loaded = load_model(run, unsafe_pickle=True)
     np.testing.assert_array_equal(
         loaded.predict(obs, deterministic=True)[0], model.predict(obs, deterministic=True)[0]

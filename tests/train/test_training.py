@@ -12,6 +12,7 @@ from gymnasium.vector import AutoresetMode
 from sensorgym.agents.bearings_maneuver import StraightCourse
 from sensorgym.cli.main import main
 from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.config import load_hyperparams, split_run_settings
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.models import WEIGHTS_FILE, load_model, read_config
@@ -28,12 +29,12 @@ def test_sb3_adapter_reports_terminal_observations_and_time_limits():
     venv.reset()
     for _ in range(4):
         obs, reward, dones, infos = venv.step(np.zeros((3, 2), dtype=np.float32))
-        assert obs.shape == (3, 10) and reward.dtype == np.float32
+        assert obs.shape == (3, OBS_DIM) and reward.dtype == np.float32
         assert all(isinstance(i["range"], float) for i in infos)
     assert dones.all()
     for info in infos:
         assert info["TimeLimit.truncated"] is True
-        assert info["terminal_observation"].shape == (10,)
+        assert info["terminal_observation"].shape == (OBS_DIM,)
     with pytest.raises(ValueError, match="SAME_STEP"):
         SB3VecEnv(BearingsManeuverVectorEnv(2))
 

@@ -324,14 +324,21 @@ def bound_update(L, tx, ty, px, py, sigma, out, A):
     dx = tx - px
     dy = ty - py
     r = math.hypot(dx, dy)
-    n0 = dy / r
-    n1 = -dx / r
+    position_update(L, r * sigma, dy / r, -dx / r, out, A)
+
+
+# the same pre-array for any position information g gᵀ / a²: P⁺ = (P̄⁻¹ + Hᵀ H)⁻¹, H = gᵀ/a on
+# the position (a bearing: a = r σ, g = n̂)
+@njit(**_JIT)
+def position_update(L, a, g0, g1, out, A):
+    """Square root ``out (4, 4)`` of ``(P̄⁻¹ + Hᵀ H)⁻¹`` with ``H = (g0, g1, 0, 0)/a``, from the
+    square root ``L (4, 4)`` of ``P̄``; ``A (5, 5)`` is scratch."""
     # A = Mᵀ
-    A[0, 0] = r * sigma
+    A[0, 0] = a
     for j in range(STATE_DIM):
         A[0, j + 1] = 0.0
     for j in range(STATE_DIM):
-        A[j + 1, 0] = n0 * L[0, j] + n1 * L[1, j]
+        A[j + 1, 0] = g0 * L[0, j] + g1 * L[1, j]
         for i in range(STATE_DIM):
             A[j + 1, i + 1] = L[i, j]
     householder_r(A)

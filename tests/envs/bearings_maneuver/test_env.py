@@ -227,5 +227,7 @@ def test_oracle_lookahead_is_a_ceiling_above_the_rules():
     assert oracle.mean > greedy.mean + 1.0
     with pytest.raises(ValueError, match="batch"):
         OracleLookahead(simulator_state(env)).predict(np.zeros((3, core.OBS_DIM), np.float32))
-    with pytest.raises(ValueError, match="one platform"):
-        OracleLookahead(simulator_state(env), ManeuverParams(platforms=2))
+    with pytest.raises(ValueError, match="platforms"):  # a state of another size
+        OracleLookahead(simulator_state(env), ManeuverParams(platforms=2)).predict(
+            np.zeros((8, 2 * ManeuverParams(platforms=2).obs_dim), np.float32)
+        )

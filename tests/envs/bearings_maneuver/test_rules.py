@@ -165,7 +165,5 @@ def test_estimate_lookahead_plans_the_oracle_recursion_on_the_estimate(params, h
 
 
 def test_estimate_lookahead_rejects_what_it_cannot_plan():
-    with pytest.raises(ValueError, match="platforms"):
-        EstimateLookahead(ManeuverParams(platforms=2))
     with pytest.raises(ValueError, match="horizon"):
         EstimateLookahead(ManeuverParams(), horizon=0)
