@@ -9,22 +9,31 @@ chain them per scenario:
 
 * :func:`raster_fix` — the pixel-visit rule of one object in one receiver's sector raster
   (theory §6.3): the fix time ``t = T_raster(φ(t), θ(t))`` by fixed-point iteration;
-* :func:`step_rows` — one scan period of scenarios ``lo..hi``: sectors from the action, fixes
+* :func:`step_rows` — one scan period of scenarios ``lo..hi``, out of place (the state before
+  the period is read, the new one written to fresh arrays): sectors from the action, fixes
   (drones and false detections), the candidates of the selected algorithm, association over
-  periods, track initiation and confirmation, the reward; drones then move on;
-* :func:`observe_rows` — the observation (track table and sectors).
+  periods, track initiation and confirmation, the reward; drones then move on; last the new
+  state's observation;
+* :func:`observe_row` — the observation of one scenario (track table and sectors), float32 and
+  clipped, which the step writes into the state (:func:`observe_kernel` for a state built by
+  hand).
 
-Random draws stay with numpy's Generator (drawn before the kernels, in a fixed order).
+Random draws stay with numpy's Generator (drawn before the kernels, in a fixed order). The
+per-params scalars and the receivers' geometry travel in one constants array (``C_*``): each
+array argument costs the dispatcher about 0.1 µs, a sizeable share of a one-scenario step.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
+from sensorgym.envs.shells.contract import OBS_CLIP
 from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, unit_from_angles3
 from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
-from sensorgym.trackers.stereo.kernels import log_ratio_reward
+from sensorgym.trackers.stereo.kernels import clip, log_ratio_reward
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
@@ -35,6 +44,37 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": Fal
 EMPTY, TENTATIVE, CONFIRMED = 0, 1, 2
 #: tracker codes
 PROPOSED, ALTERNATIVE, ALGORITHMIC = 0, 1, 2
+
+#: layout of the per-params constants (``simulation.ScanningParams.kernel_constants``): the
+#: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, then the
+#: receivers' geometry (:func:`geometry`)
+(C_SCENE_HALF, C_FLOOR, C_HEIGHT, C_SWEEP, C_LINES, C_PERIOD, C_LO_W, C_HI_W, C_HALF_REGARD,
+ C_KAPPA, C_SIGMA_MIN, C_POS_SIGMA, C_MAX_SPEED, C_MAX_ACCEL, C_GATE_Q, C_COND, C_SIGMA_REF,
+ C_REWARD_CLIP, C_FALSE_PENALTY, C_TRUTH_GATE, C_LENGTH, C_SPEED, C_MAX_FIX, C_TRACKER,
+ C_ITERS, C_CONFIRM, C_MISSES, C_CENTRE) = range(28)  # fmt: skip
+#: the geometry of ``n`` receivers starts here: places ``O (n, 3)``, rotations ``R (n, 3, 3)``,
+#: relative poses ``P (n − 1, 3, 3)`` and ``b (n − 1, 3)``, sweep offsets ``(n,)``
+C_GEOMETRY = C_CENTRE + 3
+
+
+def n_constants(n: int) -> int:
+    """Length of the constants array of ``n`` receivers."""
+    return C_GEOMETRY + 3 * n + 9 * n + 9 * (n - 1) + 3 * (n - 1) + n
+
+
+@njit(inline="always")
+def geometry(c, n):
+    """Views ``(O, R, P, b, offsets)`` of the receivers' geometry in the constants ``c``."""
+    o = C_GEOMETRY
+    O = c[o : o + 3 * n].reshape((n, 3))
+    o += 3 * n
+    R = c[o : o + 9 * n].reshape((n, 3, 3))
+    o += 9 * n
+    P = c[o : o + 9 * (n - 1)].reshape((n - 1, 3, 3))
+    o += 9 * (n - 1)
+    b = c[o : o + 3 * (n - 1)].reshape((n - 1, 3))
+    o += 3 * (n - 1)
+    return O, R, P, b, c[o : o + n]
 
 
 @njit(inline="always")
@@ -204,81 +244,196 @@ def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, g
             e += 1
 
 
+@njit(inline="always")
+def _carve1(buf, o, a):
+    """The next ``a`` entries of the scratch buffer ``buf`` from offset ``o``, and the offset
+    after them."""
+    return buf[o : o + a], o + a
+
+
+@njit(inline="always")
+def _carve2(buf, o, a, b):
+    return buf[o : o + a * b].reshape((a, b)), o + a * b
+
+
+@njit(inline="always")
+def _carve3(buf, o, a, b, c):
+    return buf[o : o + a * b * c].reshape((a, b, c)), o + a * b * c
+
+
+@njit(inline="always")
+def _carve4(buf, o, a, b, c, d):
+    return buf[o : o + a * b * c * d].reshape((a, b, c, d)), o + a * b * c * d
+
+
 @njit(**_JIT)
 def step_rows(
-    lo, hi, tracker, action, O, R, P, b, t, drone_p, drone_v, drone_a, enter, exited,
-    scene_half, scene_floor, scene_height, dir_normals, pos_noise, clutter_count, clutter_uv,
-    offsets, sweep, lines, period, iters, lo_w, hi_w, half_regard, kappa, sigma_min,
-    position_sigma, max_speed, max_accel, gate_q, cond_max, confirm_hits, max_misses,
-    sigma_ref, reward_clip, false_penalty, truth_gate,
-    sectors, fix_world, fix_time, fix_count, fix_drone,
-    tx, tt, tsig, tscore, thits, tmiss, tstatus, tsums, tid, next_id,
-    assigned, drone_sigma, reward, parts,
-):  # fmt: skip
-    """One scan period of scenarios ``lo..hi`` (module docstring); arrays are updated in place.
+    lo,  # first scenario row
+    hi,  # end of the rows (the caller splits a batch over threads, envs/shells/rows.py)
+    cf,  # per-params constants (C_* layout, with the receivers' geometry)
+    action,  # (B, n, 3) raw actions
+    t_in,  # (B,) the state before the period
+    p_in,  # (B, m, 3)
+    v_in,  # (B, m, 3)
+    drone_a,  # (B, m, 3) (constant)
+    enter,  # (B, m) (constant)
+    exited_in,  # (B, m)
+    tracks_in,  # (B, T, 19)
+    track_int_in,  # (B, T, 4)
+    next_id_in,  # (B,)
+    dir_normals,  # (B, n, m, 3) standard normal draws of the direction noise
+    pos_noise,  # (B, m, 3) apparent-position errors (or (B or 0, ...) zeros if σ_x = 0)
+    clutter_count,  # (B, n) false detections (or zeros)
+    clutter_uv,  # (B, n, max_clutter, 2) their places in the sector
+    # outputs (out of place: none may alias an input)
+    t,  # (B,)
+    drone_p,  # (B, m, 3)
+    drone_v,  # (B, m, 3)
+    exited,  # (B, m)
+    tracks,  # (B, T, 19)
+    track_int,  # (B, T, 4)
+    next_id,  # (B,)
+    sectors,  # (B, n, 3)
+    fixes,  # (B, n, F, 4)
+    fix_count,  # (B, n)
+    fix_drone,  # (B, n, F)
+    assigned,  # (B, m)
+    drone_sigma,  # (B, m)
+    parts,  # (B, 6)
+    obs,  # (B, obs_dim) float32: the observation of the new state (observe_row)
+    reward,  # (B,)
+    terminated,  # (B,) bool: every drone has left
+):
+    """One scan period of scenarios ``lo..hi`` (module docstring), written to the output
+    arrays; then the new state's observation. Returns False (and stops) if an action is NaN or
+    infinite.
 
     ``parts (B, 6)``: drones present, drones with a confirmed track, false confirmed tracks,
     mean per-drone reward, mean ``σ_pos`` of the tracked drones, confirmed tracks.
     """
-    n = O.shape[1]
+    for i in range(lo, hi):
+        for k in range(action.shape[1]):
+            for x in range(3):
+                if not math.isfinite(action[i, k, x]):
+                    return False
+    scene_half, scene_floor, scene_height = cf[C_SCENE_HALF], cf[C_FLOOR], cf[C_HEIGHT]
+    sweep, lines, period = cf[C_SWEEP], cf[C_LINES], cf[C_PERIOD]
+    lo_w, hi_w, half_regard = cf[C_LO_W], cf[C_HI_W], cf[C_HALF_REGARD]
+    kappa, sigma_min, position_sigma = cf[C_KAPPA], cf[C_SIGMA_MIN], cf[C_POS_SIGMA]
+    max_speed, max_accel, gate_q, cond_max = (
+        cf[C_MAX_SPEED],
+        cf[C_MAX_ACCEL],
+        cf[C_GATE_Q],
+        cf[C_COND],
+    )
+    sigma_ref, reward_clip = cf[C_SIGMA_REF], cf[C_REWARD_CLIP]
+    false_penalty, truth_gate = cf[C_FALSE_PENALTY], cf[C_TRUTH_GATE]
+    tracker, iters = int(cf[C_TRACKER]), int(cf[C_ITERS])
+    confirm_hits, max_misses = int(cf[C_CONFIRM]), int(cf[C_MISSES])
+    O, R, P, b, offsets = geometry(cf, action.shape[1])
+    # views of the outputs by role (the table's columns, the fixes' direction and time)
+    fix_world, fix_time = fixes[:, :, :, 0:3], fixes[:, :, :, 3]
+    tx, tt, tsig, tscore = tracks[:, :, 0:6], tracks[:, :, 6], tracks[:, :, 7:9], tracks[:, :, 9]
+    tsums = tracks[:, :, 10:19]
+    thits, tmiss = track_int[:, :, 0], track_int[:, :, 1]
+    tstatus, tid = track_int[:, :, 2], track_int[:, :, 3]
+    n = action.shape[1]
     m = drone_p.shape[1]
     F = fix_world.shape[2]
     T = tx.shape[1]
     cm = clutter_uv.shape[2]
     used_n = 3 if tracker == PROPOSED else 2
     C = F**used_n
-    # scratch, allocated once per call
-    la = np.empty((n, F, 3))
-    sig = np.empty(n)
-    a1 = np.empty((C, 3))
-    ak = np.empty((C, used_n - 1, 3))
-    Pc = np.empty((C, used_n - 1, 3, 3))
-    bc = np.empty((C, used_n - 1, 3))
-    dt = np.empty((C, 2))
-    ones = np.ones(C)
-    X = np.empty((C, used_n + (3 if used_n == 3 else 0)))
-    J = np.empty(C)
-    Q = np.empty((C, X.shape[1], X.shape[1]))
-    kap = np.empty(C)
-    M1 = np.empty((C, 3))
-    cmem = np.empty((C, 3), np.int64)
-    cpos = np.empty((C, 3))
-    cvel = np.empty((C, 3))
-    ctime = np.empty(C)
-    csig = np.empty((C, 2))
-    cdt = np.empty(C)
-    cok = np.empty(C, np.bool_)
-    ctaken = np.empty(C, np.bool_)
-    fused = np.empty((n, F), np.bool_)
-    pairs_t = np.empty(T * C, np.int64)
-    pairs_c = np.empty(T * C, np.int64)
-    pairs_s = np.empty(T * C)
-    pairs_mv = np.empty((T * C, 6))
-    child_mv = np.empty((T * C, 6))
-    child_t = np.empty(T * C, np.int64)
-    child_c = np.empty(T * C, np.int64)
-    child_s = np.empty(T * C)
-    old = np.empty((T, 20))
-    old_slot = np.empty(T, np.int64)
-    t_took = np.empty(T, np.bool_)
-    rng_idx = np.empty(C, np.int64)
-    d_dist = np.empty((T, m))
+    # scratch: views of three buffers, allocated once per call (one allocation per dtype
+    # instead of fifty)
+    nx = used_n + (3 if used_n == 3 else 0)
+    u1, FF, TC = used_n - 1, F * F, T * C
+    fbuf = np.empty(
+        n * F * 3
+        + n
+        + C * (3 + 15 * u1 + 2 + 1 + nx + 1 + nx * nx + 1 + 3 + 3 + 3 + 1 + 2 + 1)
+        + TC * 14
+        + T * (20 + m + 3 + 1)
+        + FF * 30
+    )
+    ibuf = np.empty(C * 4 + TC * 4 + T, np.int64)
+    bbuf = np.empty(2 * C + n * F + T + 2 * FF, np.bool_)
+    o = 0
+    la, o = _carve3(fbuf, o, n, F, 3)
+    sig, o = _carve1(fbuf, o, n)
+    a1, o = _carve2(fbuf, o, C, 3)
+    ak, o = _carve3(fbuf, o, C, u1, 3)
+    Pc, o = _carve4(fbuf, o, C, u1, 3, 3)
+    bc, o = _carve3(fbuf, o, C, u1, 3)
+    dt, o = _carve2(fbuf, o, C, 2)
+    ones, o = _carve1(fbuf, o, C)
+    ones[:] = 1.0
+    X, o = _carve2(fbuf, o, C, nx)
+    J, o = _carve1(fbuf, o, C)
+    Q, o = _carve3(fbuf, o, C, nx, nx)
+    kap, o = _carve1(fbuf, o, C)
+    M1, o = _carve2(fbuf, o, C, 3)
+    cpos, o = _carve2(fbuf, o, C, 3)
+    cvel, o = _carve2(fbuf, o, C, 3)
+    ctime, o = _carve1(fbuf, o, C)
+    csig, o = _carve2(fbuf, o, C, 2)
+    cdt, o = _carve1(fbuf, o, C)
+    pairs_s, o = _carve1(fbuf, o, TC)
+    pairs_mv, o = _carve2(fbuf, o, TC, 6)
+    child_mv, o = _carve2(fbuf, o, TC, 6)
+    child_s, o = _carve1(fbuf, o, TC)
+    old, o = _carve2(fbuf, o, T, 20)
+    d_dist, o = _carve2(fbuf, o, T, m)
+    t_end_pos, o = _carve2(fbuf, o, T, 3)
+    t_cmp, o = _carve1(fbuf, o, T)
     # the triples' pair pre-gates
-    pa1 = np.empty((F * F, 3))
-    pa2 = np.empty((F * F, 1, 3))
-    pP = np.empty((F * F, 1, 3, 3))
-    pb = np.empty((F * F, 1, 3))
-    pones = np.ones(F * F)
-    pX = np.empty((F * F, 2))
-    pJ = np.empty(F * F)
-    pQ = np.empty((F * F, 2, 2))
-    pk = np.empty(F * F)
-    pM = np.empty((F * F, 3))
-    g12 = np.ones((F, F), np.bool_)
-    g13 = np.ones((F, F), np.bool_)
-    t_end_pos = np.empty((T, 3))
-    t_cmp = np.empty(T)
+    pa1, o = _carve2(fbuf, o, FF, 3)
+    pa2, o = _carve3(fbuf, o, FF, 1, 3)
+    pP, o = _carve4(fbuf, o, FF, 1, 3, 3)
+    pb, o = _carve3(fbuf, o, FF, 1, 3)
+    pones, o = _carve1(fbuf, o, FF)
+    pones[:] = 1.0
+    pX, o = _carve2(fbuf, o, FF, 2)
+    pJ, o = _carve1(fbuf, o, FF)
+    pQ, o = _carve3(fbuf, o, FF, 2, 2)
+    pk, o = _carve1(fbuf, o, FF)
+    pM, o = _carve2(fbuf, o, FF, 3)
+    o = 0
+    cmem, o = _carve2(ibuf, o, C, 3)
+    rng_idx, o = _carve1(ibuf, o, C)
+    pairs_t, o = _carve1(ibuf, o, TC)
+    pairs_c, o = _carve1(ibuf, o, TC)
+    child_t, o = _carve1(ibuf, o, TC)
+    child_c, o = _carve1(ibuf, o, TC)
+    old_slot, o = _carve1(ibuf, o, T)
+    o = 0
+    cok, o = _carve1(bbuf, o, C)
+    ctaken, o = _carve1(bbuf, o, C)
+    fused, o = _carve2(bbuf, o, n, F)
+    t_took, o = _carve1(bbuf, o, T)
+    g12, o = _carve2(bbuf, o, F, F)
+    g13, o = _carve2(bbuf, o, F, F)
+    g12[:] = True
+    g13[:] = True
     for i in range(lo, hi):
+        # the state before the period, copied into the outputs (then updated there)
+        t[i] = t_in[i]
+        next_id[i] = next_id_in[i]
+        for j in range(m):
+            exited[i, j] = exited_in[i, j]
+            for x in range(3):
+                drone_p[i, j, x] = p_in[i, j, x]
+                drone_v[i, j, x] = v_in[i, j, x]
+        for q in range(T):
+            for x in range(tracks.shape[2]):
+                tracks[i, q, x] = tracks_in[i, q, x]
+            for x in range(track_int.shape[2]):
+                track_int[i, q, x] = track_int_in[i, q, x]
+        for k in range(n):
+            for f in range(F):
+                fix_drone[i, k, f] = 0
+                for x in range(4):
+                    fixes[i, k, f, x] = 0.0
         t0 = t[i]
         # ---- 1. sectors and fixes -------------------------------------------------------
         for k in range(n):
@@ -609,6 +764,14 @@ def step_rows(
                 ):
                     exited[i, j] = True
         t[i] = t_end
+        gone = True
+        for j in range(m):
+            if not exited[i, j]:
+                gone = False
+        terminated[i] = gone
+        # ---- 6. what the new state shows ----------------------------------------------------
+        observe_row(i, cf, t, tracks, track_int, sectors, fix_count, obs)
+    return True
 
 
 @njit(inline="always")
@@ -837,40 +1000,54 @@ def _update(tracker, i, q, c, cost, mv, ctime, csig, cdt, tx, tt, tsig, tscore, 
         tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], max_speed
 
 
+@njit(inline="always")
+def _observed(v):
+    """An observation entry: clipped to ``±OBS_CLIP`` (NaN stays NaN), stored as float32."""
+    return clip(v, -OBS_CLIP, OBS_CLIP)
+
+
 @njit(**_JIT)
-def observe_rows(
-    lo, hi, t, tx, tt, tsig, tstatus, thits, sectors, fix_count, centre, length, speed,
-    sigma_ref, period, half_regard, lo_w, hi_w, max_fix, out,
-):  # fmt: skip
-    """The observation of :func:`.simulation.observe` (before clipping) into ``out``."""
-    T = tx.shape[1]
+def observe_row(i, c, t, tracks, track_int, sectors, fix_count, obs):
+    """The observation of :func:`.simulation.observe` of scenario ``i`` into ``obs[i]``
+    (float32, clipped to ``±OBS_CLIP``)."""
+    T = tracks.shape[1]
     n = sectors.shape[1]
-    slots = (out.shape[1] - 4 * n) // 11
+    slots = (obs.shape[1] - 4 * n) // 11
+    length, speed, sigma_ref, period = c[C_LENGTH], c[C_SPEED], c[C_SIGMA_REF], c[C_PERIOD]
+    half_regard, lo_w, hi_w, max_fix = c[C_HALF_REGARD], c[C_LO_W], c[C_HI_W], c[C_MAX_FIX]
     tiny = 1e-12
-    for i in range(lo, hi):
-        for x in range(out.shape[1]):
-            out[i, x] = 0.0
-        r = 0
-        for q in range(T):
-            if r >= slots:
-                break
-            if tstatus[i, q] != 2:
-                continue
-            c = 11 * r
-            s = t[i] - tt[i, q]
-            out[i, c] = 1.0
-            for x in range(3):
-                out[i, c + 1 + x] = (tx[i, q, x] + tx[i, q, 3 + x] * s - centre[x]) / length
-                out[i, c + 4 + x] = tx[i, q, 3 + x] / speed
-            sp = np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
-            out[i, c + 7] = np.log(max(sp, tiny) / sigma_ref)
-            out[i, c + 8] = np.log(max(tsig[i, q, 1] * period, tiny) / sigma_ref)
-            out[i, c + 9] = s / period
-            out[i, c + 10] = thits[i, q] / 10.0
-            r += 1
-        c = 11 * slots
-        for k in range(n):
-            out[i, c + 4 * k] = sectors[i, k, 0] / half_regard
-            out[i, c + 4 * k + 1] = sectors[i, k, 1] / half_regard
-            out[i, c + 4 * k + 2] = 2.0 * (sectors[i, k, 2] - lo_w) / max(hi_w - lo_w, tiny) - 1.0
-            out[i, c + 4 * k + 3] = fix_count[i, k] / max_fix
+    for x in range(obs.shape[1]):
+        obs[i, x] = 0.0
+    r = 0
+    for q in range(T):
+        if r >= slots:
+            break
+        if track_int[i, q, 2] != CONFIRMED:
+            continue
+        col = 11 * r
+        s = t[i] - tracks[i, q, 6]
+        obs[i, col] = 1.0
+        for x in range(3):
+            p = tracks[i, q, x] + tracks[i, q, 3 + x] * s - c[C_CENTRE + x]
+            obs[i, col + 1 + x] = _observed(p / length)
+            obs[i, col + 4 + x] = _observed(tracks[i, q, 3 + x] / speed)
+        sp = np.sqrt(tracks[i, q, 7] ** 2 + (tracks[i, q, 8] * s) ** 2)
+        obs[i, col + 7] = _observed(np.log(max(sp, tiny) / sigma_ref))
+        obs[i, col + 8] = _observed(np.log(max(tracks[i, q, 8] * period, tiny) / sigma_ref))
+        obs[i, col + 9] = _observed(s / period)
+        obs[i, col + 10] = _observed(track_int[i, q, 0] / 10.0)
+        r += 1
+    col = 11 * slots
+    for k in range(n):
+        obs[i, col + 4 * k] = _observed(sectors[i, k, 0] / half_regard)
+        obs[i, col + 4 * k + 1] = _observed(sectors[i, k, 1] / half_regard)
+        width = 2.0 * (sectors[i, k, 2] - lo_w) / max(hi_w - lo_w, tiny) - 1.0
+        obs[i, col + 4 * k + 2] = _observed(width)
+        obs[i, col + 4 * k + 3] = _observed(fix_count[i, k] / max_fix)
+
+
+@njit(**_JIT)
+def observe_kernel(c, t, tracks, track_int, sectors, fix_count, obs):
+    """:func:`observe_row` of every scenario (a state :func:`step_rows` did not make)."""
+    for i in range(t.shape[0]):
+        observe_row(i, c, t, tracks, track_int, sectors, fix_count, obs)

@@ -4,7 +4,8 @@ The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pu
 over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`,
 :func:`step`, :func:`observe` (the joint view), :func:`observe_agents` (one view per receiver)
 and :func:`info`. One step is one scan period ``τ``; the compiled pass is
-:func:`.kernels.step_rows` (split over threads by :func:`~sensorgym.envs.shells.rows.run_rows`).
+:func:`.kernels.step_rows` (split over threads by :func:`~sensorgym.envs.shells.rows.run_rows`),
+which also writes the new state's observation, so :func:`observe` only reads it.
 
 World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (theory §2.2). Three receivers stand on
 a circle (default radius 120 m at azimuths 0°, 90°, 270°: paper 000's arc with orthogonal lines
@@ -28,13 +29,14 @@ of sight), each with a fixed frame looking at the scene centre ``(0, h_aim, 0)``
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.envs.shells.contract import EnvSpaces, clip_observation, with_agent_index
+from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
@@ -273,6 +275,44 @@ class ScanningParams:
         return norm_quantile(1.0, self.gate_probability)
 
     @functools.cached_property
+    def kernel_constants(self) -> FloatArray:
+        """What the compiled kernels read of the params, computed once (read-only; layout
+        ``kernels.C_*``): the scalars, then the receivers' geometry."""
+        c = np.empty(kernels.n_constants(self.n_receivers))
+        c[kernels.C_SCENE_HALF] = self.scene_half_width
+        c[kernels.C_FLOOR] = self.scene_floor
+        c[kernels.C_HEIGHT] = self.scene_height
+        c[kernels.C_SWEEP] = self.sweep_time
+        c[kernels.C_LINES] = float(self.raster_lines)
+        c[kernels.C_PERIOD] = self.period
+        c[kernels.C_LO_W], c[kernels.C_HI_W] = self.sector_width
+        c[kernels.C_HALF_REGARD] = 0.5 * self.field_of_regard
+        c[kernels.C_KAPPA] = self.noise_per_width
+        c[kernels.C_SIGMA_MIN] = self.sigma_ang_min
+        c[kernels.C_POS_SIGMA] = self.position_sigma
+        c[kernels.C_MAX_SPEED] = self.max_speed
+        c[kernels.C_MAX_ACCEL] = self.max_acceleration
+        c[kernels.C_GATE_Q] = self.gate_q
+        c[kernels.C_COND] = self.cond_max
+        c[kernels.C_SIGMA_REF] = self.sigma_ref
+        c[kernels.C_REWARD_CLIP] = self.reward_clip
+        c[kernels.C_FALSE_PENALTY] = self.false_track_penalty
+        c[kernels.C_TRUTH_GATE] = self.truth_gate
+        c[kernels.C_LENGTH] = self.length_scale
+        c[kernels.C_SPEED] = self.speed_scale
+        c[kernels.C_MAX_FIX] = float(self.max_fixes)
+        c[kernels.C_TRACKER] = TRACKERS[self.tracker]
+        c[kernels.C_ITERS] = self.pixel_iterations
+        c[kernels.C_CONFIRM] = self.confirm_hits
+        c[kernels.C_MISSES] = self.max_misses
+        c[kernels.C_CENTRE : kernels.C_CENTRE + 3] = self.centre
+        P, b = self.relative
+        parts = (self.receivers, self.rotations, P, b, self.offsets_array)
+        c[kernels.C_GEOMETRY :] = np.concatenate([np.ravel(x) for x in parts])
+        c.flags.writeable = False
+        return c
+
+    @functools.cached_property
     def receivers(self) -> FloatArray:
         """Receiver positions ``(n, 3)``, m."""
         az = np.asarray(self.receiver_azimuths, dtype=np.float64)
@@ -345,6 +385,10 @@ class ScanningState:
     parts: FloatArray = field(repr=False)
     """(B, 6) drones present, drones tracked, false tracks, mean per-drone reward, mean
     ``σ_pos`` of the tracked drones (m), confirmed tracks."""
+    observation: NDArray[np.float32] = field(repr=False)
+    """Derived: (B, obs_dim) the observation of this state (:func:`observe`), written by the
+    compiled kernels with the rest of the state; :func:`observe` only reads it. A state changed
+    by hand (``dataclasses.replace``) must be rebuilt with :func:`with_observation`."""
 
     @property
     def batch_size(self) -> int:
@@ -414,38 +458,33 @@ def spaces(params: ScanningParams) -> EnvSpaces:
     return EnvSpaces.build("receiver", n, params.obs_dim, params.obs_dim + n, 3)
 
 
-def _fresh(params: ScanningParams, B: int) -> dict:
-    """The per-period arrays the kernel writes (every entry the state exposes)."""
-    n, F, m = params.n_receivers, params.max_fixes, params.n_drones
-    return {
-        "sectors": np.empty((B, n, 3)),
-        "fixes": np.zeros((B, n, F, 4)),
-        "fix_count": np.empty((B, n), np.int64),
-        "fix_drone": np.zeros((B, n, F), np.int64),
-        "assigned": np.empty((B, m), np.int64),
-        "drone_sigma": np.empty((B, m)),
-        "parts": np.empty((B, 6)),
-    }
+#: the state fields a step writes, in the order of the step kernel's outputs
+_WRITTEN = ("t", "drone_position", "drone_velocity", "exited", "tracks", "track_int", "next_id",
+            "sectors", "fixes", "fix_count", "fix_drone", "assigned", "drone_sigma", "parts",
+            "observation")  # fmt: skip
 
 
-def _initial(params: ScanningParams, B: int) -> dict:
-    """The defined values of scenarios before their first period: no fixes, an empty table."""
-    T = params.track_capacity
-    out = _fresh(params, B)
-    out["sectors"][:] = 0.0
-    out["fix_count"][:] = 0
-    out["fix_drone"][:] = -1
-    out["assigned"][:] = -1
-    out["drone_sigma"][:] = np.inf
-    out["parts"][:] = 0.0
-    track_int = np.zeros((B, T, 4), np.int64)
-    track_int[..., 3] = -1
-    out |= {
-        "tracks": np.zeros((B, T, 19)),
-        "track_int": track_int,
-        "next_id": np.zeros(B, np.int64),
-    }
-    return out
+def _outputs(params: ScanningParams, B: int) -> tuple[np.ndarray, ...]:
+    """Uninitialised arrays of every field a step writes, in :data:`_WRITTEN` order (the
+    kernel fills each one)."""
+    n, F, m, T = params.n_receivers, params.max_fixes, params.n_drones, params.track_capacity
+    return (
+        np.empty(B),
+        np.empty((B, m, 3)),
+        np.empty((B, m, 3)),
+        np.empty((B, m), bool),
+        np.empty((B, T, 19)),
+        np.empty((B, T, 4), np.int64),
+        np.empty(B, np.int64),
+        np.empty((B, n, 3)),
+        np.empty((B, n, F, 4)),
+        np.empty((B, n), np.int64),
+        np.empty((B, n, F), np.int64),
+        np.empty((B, m), np.int64),
+        np.empty((B, m)),
+        np.empty((B, 6)),
+        np.empty((B, params.obs_dim), np.float32),
+    )
 
 
 def start(
@@ -456,7 +495,7 @@ def start(
     enter: FloatArray,
 ) -> ScanningState:
     """Scenarios from given drones ``(B, m, 3)`` (positions at their entry times ``enter
-    (B, m)``, s) with an empty track table at ``t = 0``."""
+    (B, m)``, s) with an empty track table at ``t = 0``: no fixes yet, zero sectors."""
     m = params.n_drones
     p = finite_array(drone_position, "drone_position", tail=(m, 3))
     v = finite_array(drone_velocity, "drone_velocity", tail=(m, 3))
@@ -465,15 +504,42 @@ def start(
     B = p.shape[0]
     if p.ndim != 3 or v.shape != p.shape or a.shape != p.shape or e.shape != (B, m):
         raise ValueError("drone_position/drone_velocity/drone_acceleration/enter: shapes differ")
-    return ScanningState(
-        t=np.zeros(B),
-        drone_position=np.ascontiguousarray(p),
-        drone_velocity=np.ascontiguousarray(v),
-        drone_acceleration=np.ascontiguousarray(a),
-        enter=np.ascontiguousarray(e),
-        exited=np.zeros((B, m), bool),
-        **_initial(params, B),
+    out = dict(zip(_WRITTEN, _outputs(params, B), strict=True))
+    out["t"][:] = 0.0
+    out["drone_position"][:] = p
+    out["drone_velocity"][:] = v
+    out["exited"][:] = False
+    out["tracks"][:] = 0.0
+    out["track_int"][:] = 0
+    out["track_int"][..., 3] = -1
+    out["next_id"][:] = 0
+    out["sectors"][:] = 0.0
+    out["fixes"][:] = 0.0
+    out["fix_count"][:] = 0
+    out["fix_drone"][:] = -1
+    out["assigned"][:] = -1
+    out["drone_sigma"][:] = np.inf
+    out["parts"][:] = 0.0
+    state = ScanningState(
+        drone_acceleration=np.ascontiguousarray(a), enter=np.ascontiguousarray(e), **out
     )
+    return with_observation(params, state)
+
+
+def with_observation(params: ScanningParams, state: ScanningState) -> ScanningState:
+    """``state`` with its derived :attr:`~ScanningState.observation` computed from its other
+    fields (for a state built or changed by hand; :func:`step` writes it itself)."""
+    obs = np.empty((state.batch_size, params.obs_dim), np.float32)
+    kernels.observe_kernel(
+        params.kernel_constants,
+        np.ascontiguousarray(state.t, dtype=np.float64),
+        np.ascontiguousarray(state.tracks, dtype=np.float64),
+        np.ascontiguousarray(state.track_int, dtype=np.int64),
+        np.ascontiguousarray(state.sectors, dtype=np.float64),
+        np.ascontiguousarray(state.fix_count, dtype=np.int64),
+        obs,
+    )
+    return dataclasses.replace(state, observation=obs)
 
 
 def reset(
@@ -526,74 +592,66 @@ def step(
     ``(B, 3n)``): per receiver the sector centre (azimuth, elevation) and width, each in
     ``[−1, 1]``.
 
-    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError``. Returns
-    ``(state, reward (B,), terminated (B,))``: terminated once every drone has entered and left
-    the scene; the time limit is the shells' business.
+    Out-of-range actions are clipped; NaN or infinite actions raise ``ValueError`` (the
+    compiled step checks them: the noise is drawn first). Returns ``(state, reward (B,),
+    terminated (B,))``: terminated once every drone has entered and left the scene; the time
+    limit is the shells' business. The new state carries its observation.
     """
-    B, n, m = state.batch_size, params.n_receivers, params.n_drones
-    a = finite_array(action, "action")
-    if a.size != B * 3 * n:
-        raise ValueError(f"action: expected {B * 3 * n} values (B, 3n), got shape {a.shape}")
-    a = np.ascontiguousarray(a.reshape(B, n, 3))
+    B, n, m = state.t.shape[0], params.n_receivers, params.n_drones
+    a = np.asarray(action, dtype=np.float64)
+    if a.shape != (B, n, 3):
+        if a.size != B * 3 * n:
+            raise ValueError(f"action: expected {B * 3 * n} values (B, 3n), got shape {a.shape}")
+        a = a.reshape(B, n, 3)
+    if not a.flags.c_contiguous:
+        a = np.ascontiguousarray(a)
     # noise draws, in a fixed order: directions, apparent positions, false detections
     normals = rng.standard_normal((B, n, m, 3))
     if params.position_sigma > 0.0:
         pos_noise = params.position_sigma * rng.standard_normal((B, m, 3))
     else:
-        pos_noise = np.zeros((B, m, 3))
+        pos_noise = _zeros(params, "pos_noise", (B, m, 3))
     if params.clutter_rate > 0.0 and params.max_clutter > 0:
         clutter_count = rng.poisson(params.clutter_rate, (B, n)).astype(np.int64)
         clutter_uv = rng.uniform(0.0, 1.0, (B, n, params.max_clutter, 2))
     else:
-        clutter_count = np.zeros((B, n), np.int64)
-        clutter_uv = np.zeros((B, n, max(params.max_clutter, 1), 2))
-    t = state.t.copy()
-    dp, dv = state.drone_position.copy(), state.drone_velocity.copy()
-    exited = state.exited.copy()
-    fresh = _fresh(params, B)
-    tracks, track_int, next_id = state.tracks.copy(), state.track_int.copy(), state.next_id.copy()
-    fixes = fresh["fixes"]
-    O, R = params.receivers, params.rotations
-    P, b = params.relative
-    reward = np.empty(B)
-    offsets = params.offsets_array
-    lo_w, hi_w = params.sector_width
-
-    def kernel_on(lo: int, hi: int) -> None:
-        kernels.step_rows(
-            lo, hi, TRACKERS[params.tracker], a, O, R, P, b, t, dp, dv, state.drone_acceleration,
-            state.enter, exited, params.scene_half_width, params.scene_floor, params.scene_height,
-            normals, pos_noise, clutter_count, clutter_uv, offsets, params.sweep_time,
-            float(params.raster_lines), params.period, params.pixel_iterations, lo_w, hi_w,
-            0.5 * params.field_of_regard, params.noise_per_width, params.sigma_ang_min,
-            params.position_sigma, params.max_speed, params.max_acceleration, params.gate_q,
-            params.cond_max, params.confirm_hits, params.max_misses, params.sigma_ref,
-            params.reward_clip, params.false_track_penalty, params.truth_gate,
-            fresh["sectors"], fixes[..., :3], fixes[..., 3], fresh["fix_count"],
-            fresh["fix_drone"], tracks[..., 0:6], tracks[..., 6], tracks[..., 7:9],
-            tracks[..., 9], track_int[..., 0], track_int[..., 1], track_int[..., 2],
-            tracks[..., 10:19], track_int[..., 3], next_id,
-            fresh["assigned"], fresh["drone_sigma"], reward, fresh["parts"],
-        )  # fmt: skip
-
-    if B < MIN_ROWS_PER_THREAD:  # one chunk: skip the pool's bookkeeping
-        kernel_on(0, B)
+        clutter_count = _zeros(params, "clutter_count", (B, n), np.int64)
+        clutter_uv = _zeros(params, "clutter_uv", (B, n, max(params.max_clutter, 1), 2))
+    out = _outputs(params, B)
+    reward, terminated = np.empty(B), np.empty(B, bool)
+    # the state's arrays go in as they are: step and start make them float64 and C-contiguous
+    args = (
+        params.kernel_constants, a, state.t, state.drone_position, state.drone_velocity,
+        state.drone_acceleration, state.enter, state.exited, state.tracks, state.track_int,
+        state.next_id, normals, pos_noise, clutter_count, clutter_uv, *out, reward, terminated,
+    )  # fmt: skip
+    if B < 2 * MIN_ROWS_PER_THREAD:  # what run_rows does for a batch this small, sooner
+        finite = kernels.step_rows(0, B, *args)
     else:
-        run_rows(B, kernel_on)
-    new = ScanningState(
-        t=t,
-        drone_position=dp,
-        drone_velocity=dv,
-        drone_acceleration=state.drone_acceleration,
-        enter=state.enter,
-        exited=exited,
-        tracks=tracks,
-        track_int=track_int,
-        next_id=next_id,
-        **fresh,
-    )
-    terminated = np.all(exited, axis=1)
+        chunks: list[bool] = []
+        run_rows(B, lambda lo, hi: chunks.append(kernels.step_rows(lo, hi, *args)))
+        finite = all(chunks)
+    if not finite:
+        raise ValueError("action: contains NaN or infinite values")
+    # kernel outputs: the constructor is skipped (every field is set, consistent)
+    new = object.__new__(ScanningState)
+    new.__dict__.update(zip(_WRITTEN, out, strict=True))
+    new.__dict__["drone_acceleration"] = state.drone_acceleration
+    new.__dict__["enter"] = state.enter
     return new, reward, terminated
+
+
+def _zeros(params: ScanningParams, name: str, shape: tuple[int, ...], dtype: type = np.float64):
+    """A read-only zero array of ``shape`` kept on ``params`` (the draws a step without that
+    noise passes to the kernel: allocated once, not per step)."""
+    cache = params.__dict__.setdefault("_zeros", {})
+    key = (name, shape)
+    z = cache.get(key)
+    if z is None:
+        z = np.zeros(shape, dtype)
+        z.flags.writeable = False
+        cache[key] = z
+    return z
 
 
 def observe(params: ScanningParams, state: ScanningState) -> NDArray[np.float32]:
@@ -620,15 +678,7 @@ def observe(params: ScanningParams, state: ScanningState) -> NDArray[np.float32]
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
-    out = np.empty((state.batch_size, params.obs_dim))
-    lo_w, hi_w = params.sector_width
-    kernels.observe_rows(
-        0, state.batch_size, state.t, state.track_x, state.track_t, state.track_sigma,
-        state.track_status, state.track_hits, state.sectors, state.fix_count, params.centre,
-        params.length_scale, params.speed_scale, params.sigma_ref, params.period,
-        0.5 * params.field_of_regard, lo_w, hi_w, float(params.max_fixes), out,
-    )  # fmt: skip
-    return clip_observation(out)
+    return state.observation
 
 
 def observe_agents(params: ScanningParams, state: ScanningState) -> NDArray[np.float32]:
@@ -641,12 +691,12 @@ def info(params: ScanningParams, state: ScanningState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy)."""
     parts = state.parts
     return {
-        "drones_present": parts[:, 0].copy(),
-        "drones_tracked": parts[:, 1].copy(),
-        "false_tracks": parts[:, 2].copy(),
-        "drone_reward": parts[:, 3].copy(),
-        "mean_sigma_pos": parts[:, 4].copy(),
-        "confirmed_tracks": parts[:, 5].copy(),
+        "drones_present": parts[:, 0],
+        "drones_tracked": parts[:, 1],
+        "false_tracks": parts[:, 2],
+        "drone_reward": parts[:, 3],
+        "mean_sigma_pos": parts[:, 4],
+        "confirmed_tracks": parts[:, 5],
     }
 
 
