@@ -140,18 +140,26 @@ class SeparableObjective:
         return total
 
 
-def sequential_greedy(objective: SeparableObjective, bonus: FloatArray | None = None) -> IntArray:
+def sequential_greedy(
+    objective: SeparableObjective,
+    bonus: FloatArray | None = None,
+    start: IntArray | None = None,
+) -> IntArray:
     """The locally greedy assignment ``(B, n)``: receivers in index order, each to the drone of
-    largest marginal value (plus ``bonus (B, n, m)``) given the receivers before it; ties go
-    to the lowest drone index. ``n m`` drone scores per scenario."""
+    largest marginal value (plus ``bonus (B, n, m)``) given the receivers assigned before it;
+    ties go to the lowest drone index. Receivers with a drone in ``start (B, n)`` keep it (−1:
+    to assign; default all). At most ``n m`` drone scores per scenario."""
     B, n, m = objective.shape
-    assign = np.full((B, n), -1, dtype=np.int64)
-    scenarios, cols = np.arange(B), np.broadcast_to(np.arange(m), (B, m))
+    assign = np.full((B, n), -1, dtype=np.int64) if start is None else np.array(start)
     for k in range(n):
-        value = objective.marginals(assign, scenarios, np.array([k]), cols)[:, 0]
+        free = np.flatnonzero(assign[:, k] < 0)
+        if free.size == 0:
+            continue
+        cols = np.broadcast_to(np.arange(m), (free.size, m))
+        value = objective.marginals(assign[free], free, np.array([k]), cols)[:, 0]
         if bonus is not None:
-            value = value + bonus[:, k]
-        assign[:, k] = np.argmax(value, axis=-1)
+            value = value + bonus[free, k]
+        assign[free, k] = np.argmax(value, axis=-1)
     return assign
 
 
@@ -187,3 +195,18 @@ def improve(
         # (advanced indices around a slice: their axes come first, (moving, 2, n))
         value[moving[:, None], :, cols] = np.swapaxes(fresh, 1, 2) + beta[moving[:, None], :, cols]
     return assign
+
+
+def best_of(
+    objective: SeparableObjective, starts: list[IntArray], bonus: FloatArray | None = None
+) -> IntArray:
+    """:func:`improve` from each of ``starts``; per scenario the result of the highest
+    objective (plus bonus), the first on ties."""
+    results = [improve(objective, start, bonus) for start in starts]
+    B, n, _ = objective.shape
+    score = np.stack([objective.gains(a) for a in results])  # (starts, B)
+    if bonus is not None:
+        b = np.arange(B)[:, None]
+        score += np.stack([bonus[b, np.arange(n)[None, :], a].sum(axis=-1) for a in results])
+    pick = np.argmax(score - MIN_RISE * np.arange(len(results))[:, None], axis=0)
+    return np.stack(results)[pick, np.arange(B)]

@@ -16,8 +16,9 @@ Every assignment rule has a ``solver`` field (:mod:`sensorgym.agents.assignment_
 ``"auto"`` searches all ``m^n`` assignments up to ``MAX_ASSIGNMENTS`` (4096, e.g. 4 receivers ×
 8 drones or 6 × 4) — the decisions are those of the exhaustive search at every such size — and
 beyond that (16 receivers × 10 drones) starts from the sequential greedy on the information
-gain over the tracker's prediction (:func:`information_seed`) and re-assigns one receiver at a
-time while the rule's own objective rises, the same objective through
+gain over the tracker's prediction (:func:`information_seed`; once from the current pointing,
+once from nothing) and re-assigns one receiver at a time while the rule's own objective rises,
+keeping the better of the two ends, the same objective through
 :func:`~sensorgym.trackers.stereo.kernels.assignment_marginals_batch`; ``"greedy"`` takes that
 polynomial path at any size, ``"exhaustive"`` the full search (refused above 4096).
 """
@@ -35,9 +36,9 @@ from numpy.typing import NDArray
 from sensorgym.agents.assignment_solver import (
     SeparableObjective,
     assignments,
+    best_of,
     check_solver,
     exhaustive,
-    improve,
     sequential_greedy,
 )
 from sensorgym.agents.protocol import MemorylessRule, as_batch
@@ -140,24 +141,39 @@ def _one_step(
 
 
 def information_seed(
-    params: PointingParams, los: FloatArray, ranges: FloatArray, sigma: FloatArray
+    params: PointingParams,
+    los: FloatArray,
+    ranges: FloatArray,
+    sigma: FloatArray,
+    aimed: FloatArray | None = None,
 ) -> NDArray[np.int64]:
-    """The polynomial solvers' start ``(N, n)``: the sequential greedy
+    """The polynomial solvers' start ``(N, n)``: each receiver aimed at a drone (``aimed
+    (N, n, m)``, :attr:`_View.aimed`; the first such drone) stays on it — the search starts
+    from the current pointing, so that re-planning every step does not jump between equally
+    good assignments — and the others follow the sequential greedy
     (:func:`~sensorgym.agents.assignment_solver.sequential_greedy`) on the information gain
     ``Σ_j ln det(I/σ_j² + I_j) − ln det(I/σ_j²)`` of the receivers each drone gets over the
     tracker's prediction (position RMS ``sigma (N, m)``, floored at 1e-6 m and capped at 1e6
     m), ``I_j`` their position information at lines of sight ``los (N, n, m, 3)`` and
     ``ranges (N, n, m)`` (a line of sight within ``MIN_RANGE`` adds nothing). The gain is
-    monotone and submodular, so the greedy comes within half of its best assignment; it
-    spreads the receivers over the drones and favours near-orthogonal crossings."""
+    monotone and submodular: from nothing aimed, the greedy comes within half of its best
+    assignment; it spreads the receivers over the drones and favours near-orthogonal
+    crossings."""
     w = np.where(ranges > MIN_RANGE, _weights(params.sigma_ang, ranges), 0.0)
     prior = 1.0 / np.clip(sigma, 1e-6, 1e6) ** 2
-    return sequential_greedy(_one_step(kernels.GAIN, los, w, prior, ()))
+    start = None
+    if aimed is not None:
+        start = np.where(aimed.any(axis=-1), np.argmax(aimed, axis=-1), -1)
+    return sequential_greedy(_one_step(kernels.GAIN, los, w, prior, ()), start=start)
 
 
-def _seed(params: PointingParams, view: _View) -> NDArray[np.int64]:
-    """:func:`information_seed` at the tracker's predictions."""
-    return information_seed(params, view.los, view.ranges, view.sigma)
+def _starts(params: PointingParams, view: _View) -> list[NDArray[np.int64]]:
+    """The polynomial search's two starts at the tracker's predictions: the
+    :func:`information_seed` from the current pointing, and from nothing (a coordinate-wise
+    ascent cannot exchange two receivers' drones: from the current pairs alone it would
+    never re-pair)."""
+    aimed = view.aimed > 0.0
+    return [information_seed(params, view.los, view.ranges, view.sigma, a) for a in (aimed, None)]
 
 
 def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
@@ -264,7 +280,7 @@ class OrthogonalPairs(_AssignAndSlew):
             objective = _one_step(
                 kernels.ORTHOGONALITY, view.los, np.ones((N, n, m)), np.zeros((N, m)), ()
             )
-            return improve(objective, _seed(p, view), self.keep_bonus * view.aimed)
+            return best_of(objective, _starts(p, view), self.keep_bonus * view.aimed)
         cand = _assignments(p)  # (C, n)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ½ ln max_{k∈S_j} Σ_{l∈S_j} sin²γ_kl, compiled
@@ -307,7 +323,7 @@ class GreedyPointing(_AssignAndSlew):
             w = _weights(p.sigma_ang, view.ranges)
             consts = (float(self.no_fix_cost),)
             objective = _one_step(kernels.LOG_DET, view.los, w, np.zeros((N, m)), consts)
-            return improve(objective, _seed(p, view), self.keep_bonus * view.aimed)
+            return best_of(objective, _starts(p, view), self.keep_bonus * view.aimed)
         cand = _assignments(self.params)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ln det I_j of the receivers each candidate assigns to drone j, compiled
@@ -360,25 +376,29 @@ class OraclePlan(MemorylessRule):
     def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
         obs, single = as_batch(observation, self.params.obs_dim)
-        choice = self.choose(self.state_fn(), obs.shape[0])
+        choice = self.choose(self.state_fn(), obs.shape[0], _view(self.params, obs))
         return choice[0] if single else choice
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
         view = _view(self.params, obs)
-        target = self.choose(self.state_fn(), obs.shape[0])
+        target = self.choose(self.state_fn(), obs.shape[0], view)
         return slew_actions(self.params, view.azimuth, view.elevation, view.position, target)
 
-    def choose(self, state: PointingState, N: int) -> NDArray[np.int64]:
-        """The best held assignment ``(N, n)`` of every scenario of ``state``."""
+    def choose(self, state: PointingState, N: int, view: _View | None = None) -> NDArray[np.int64]:
+        """The best held assignment ``(N, n)`` of every scenario of ``state`` (the polynomial
+        search starts from the pointing of ``view``, if given)."""
         if state.batch_size != N:
             raise ValueError(f"observation: {N} envs, but the simulator holds {state.batch_size}")
         p = self.params
         if exhaustive(self.solver, p.n_receivers, p.n_drones):
             return _assignments(p)[np.argmax(self.values(state), axis=-1)]
         los, r = lines_of_sight(p, state.drone_position)
-        seed = information_seed(p, los, r, state.track.position_sigma)
-        return improve(plan_objective(p, self.geometry(state)), seed)
+        sigma = state.track.position_sigma
+        starts = [information_seed(p, los, r, sigma, None if view is None else view.aimed > 0.0)]
+        if view is not None:  # and from nothing (see _starts)
+            starts.append(information_seed(p, los, r, sigma))
+        return best_of(plan_objective(p, self.geometry(state)), starts)
 
     def geometry(self, state: PointingState) -> PlanGeometry:
         """The plan's :class:`PlanGeometry` from ``state`` (the truth) to the episode's end."""
@@ -532,5 +552,5 @@ class PlanEstimate(_AssignAndSlew):
             self.stride,
         )
         if not exhaustive(self.solver, p.n_receivers, p.n_drones):
-            return improve(plan_objective(p, geometry), _seed(p, view))
+            return best_of(plan_objective(p, geometry), _starts(p, view))
         return _assignments(p)[np.argmax(geometry_values(p, geometry), axis=-1)]

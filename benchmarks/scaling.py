@@ -45,7 +45,8 @@ def _scanning(n: int, m: int) -> dict[str, Any]:
 SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
     "sensorgym/StereoPointing-v0": [
         (f"{n} receivers × {m} drones", n * m, {"n_receivers": n, "n_drones": m})
-        for n, m in ((4, 2), (4, 4), (6, 3), (8, 4), (16, 10))
+        # exhaustive assignment search up to 4096 = 4^6 candidates, polynomial beyond
+        for n, m in ((4, 2), (4, 4), (6, 3), (8, 4), (12, 6), (16, 10))
     ],
     "sensorgym/StereoScanning-v0": [
         (f"{n} receivers × {m} drones", n * m, _scanning(n, m))
