@@ -465,23 +465,13 @@ def plan_geometry(
     )
 
 
-def plan_values(
-    params: PointingParams,
-    azimuth: FloatArray,
-    elevation: FloatArray,
-    position: FloatArray,
-    velocity: FloatArray,
-    left: FloatArray,
-    stride: int,
-) -> FloatArray:
+def plan_values(params: PointingParams, *flight: Any) -> FloatArray:
     """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` for the
-    next ``left (B,)`` steps, for drones flying straight from ``position`` with ``velocity``
-    ``(B, m, 3)`` and boresights at ``azimuth``/``elevation (B, n)``: the env's reward of the
-    receivers assigned to each drone, each counted from the step its gimbal, slewing at full
-    rate, is within half a field of view of its drone; scored on every ``stride``-th step
-    (:func:`plan_geometry`, :func:`geometry_values`)."""
-    geometry = plan_geometry(params, azimuth, elevation, position, velocity, left, stride)
-    return geometry_values(params, geometry)
+    next ``left (B,)`` steps, ``flight = (azimuth, elevation, position, velocity, left,
+    stride)`` as for :func:`plan_geometry`: the env's reward of the receivers assigned to each
+    drone, each counted from the step its gimbal, slewing at full rate, is within half a field
+    of view of its drone, on every ``stride``-th step (:func:`geometry_values`)."""
+    return geometry_values(params, plan_geometry(params, *flight))
 
 
 def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
