@@ -83,3 +83,19 @@ def test_the_features_refuse_what_they_cannot_compute():
         PlanFeatures(make_sb3_env(ENV_ID, 2, 0), stride=0)
     with pytest.raises(ValueError, match="joint observation"):
         PlanFeatures(make_sb3_env(ENV_ID, 2, 0, wrappers=[{"name": "time-feature"}]))
+
+
+def test_the_final_observation_gets_its_features_and_the_count_restarts():
+    """At the time limit the final observation carries the features of its own last step (the
+    time-left plan over one step) and the next episode's first counts from zero again."""
+    env = PlanFeatures(make_sb3_env(ENV_ID, 2, 0), horizons=(15,))
+    env.seed(1)
+    obs = env.reset()
+    hold = np.zeros((2, 8), dtype=np.float32)
+    for _ in range(150):
+        obs, _, dones, infos = env.step(hold)
+    assert dones.all() and env._t.tolist() == [0, 0]
+    final = np.stack([info["terminal_observation"] for info in infos])
+    assert final.shape == obs.shape
+    np.testing.assert_array_equal(final[:, 52:], env.features(final[:, :52], np.array([150, 150])))
+    np.testing.assert_array_equal(obs[:, 52:], env.features(obs[:, :52], np.zeros(2, np.int64)))
