@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensorgym.envs.worlds.gimbal import StraightTrajectory, TurningTrajectory, measure_angles
-from sensorgym.reproduce.experiments.reporting import format_checks
+from sensorgym.reproduce.experiments.reporting import format_checks, round_off
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angles.prediction import ABCPredictor
 
@@ -56,14 +56,8 @@ def feed(predictor, az: np.ndarray, el: np.ndarray, one_step: bool = False):
     return state, None, None
 
 
-#: errors below this are floating-point round-off: their digits depend on the machine's BLAS and
-#: SIMD paths, so the report prints the bound, not the digits (the JSON keeps the raw value)
+#: noise-free errors below this (deg) are floating-point round-off (printed as a bound)
 ROUND_OFF_DEG = 1e-11
-
-
-def round_off(value: float) -> str:
-    """``value`` (deg) as printed: ``< 1e-11`` at round-off level, else ``1.2e-05``."""
-    return f"< {ROUND_OFF_DEG:.0e}" if value < ROUND_OFF_DEG else f"{value:.1e}"
 
 
 def noise_free_max_error(
@@ -176,7 +170,7 @@ def reproduce(
             "id": "RT-6",
             "what": f"noise-free A-B-C prediction, k ≤ {gate}, any Y_C, paper + oblique",
             "paper": "exact (implied)",
-            "ours": f"max |error| {round_off(worst)}°",
+            "ours": f"max |error| {round_off(worst, ROUND_OFF_DEG)}°",
             "status": "matched" if worst < 1e-9 else "missed",
             "reason": "" if worst < 1e-9 else "error above 1e-9°",
         }
@@ -279,6 +273,11 @@ def format_report(result: dict) -> str:
             lines.append(f"  {rate:>12g} {name:<9} | {az:>26} | {el:>26}")
     lines += ["", "Noise-free max |error| over the gate (deg):"]
     for traj, d in result["noise_free_max_error_deg"].items():
-        lines.append("  " + traj + ": " + ", ".join(f"{s} {round_off(v)}" for s, v in d.items()))
+        lines.append(
+            "  "
+            + traj
+            + ": "
+            + ", ".join(f"{s} {round_off(v, ROUND_OFF_DEG)}" for s, v in d.items())
+        )
     lines += format_checks(result["checks"])
     return "\n".join(lines)

@@ -31,6 +31,7 @@ from sensorgym.envs.worlds.platform import (
     step,
     true_bearings,
 )
+from sensorgym.reproduce.experiments.reporting import round_off
 from sensorgym.trackers.bearings.crlb import batch_information, crlb, position_rms_bound
 from sensorgym.trackers.bearings.four_bearings import (
     block_base_bearings,
@@ -45,6 +46,9 @@ from sensorgym.trackers.geometry import wrap_angle
 KMH = 1.0 / 3.6
 #: Platform speeds before the turn (km/h) for the OC-5 baseline sweep.
 SPEED_SWEEP_KMH = (15.0, 30.0, 60.0)
+#: noise-free errors below these are floating-point round-off at 30 km (printed as a bound)
+ROUND_OFF_M = 1e-6
+ROUND_OFF_DEG = 1e-9
 
 
 @dataclass(frozen=True)
@@ -296,8 +300,8 @@ def format_report(result: dict) -> str:
     for k, v in pe.items():
         paper = "< tens of m after 5th" if k >= 5 else "(4-bearing fix)"
         lines.append(
-            f"{'position error at bearing ' + str(k) + ' (m)':<38}{paper:<26}{v:<22.2e}"
-            + ("matched (< 50 m)" if v < 50 else "missed")
+            f"{'position error at bearing ' + str(k) + ' (m)':<38}{paper:<26}"
+            f"{round_off(v, ROUND_OFF_M, '.2e'):<22}" + ("matched (< 50 m)" if v < 50 else "missed")
         )
     lines.append(
         f"{'course error from Q, uncorrected':<38}{'(not given)':<26}"
@@ -305,7 +309,7 @@ def format_report(result: dict) -> str:
     )
     lines.append(
         f"{'course error, corrected V':<38}{'(not given)':<26}"
-        f"{ideal['course_error_corrected_deg']:<+22.2e}deg"
+        f"{round_off(ideal['course_error_corrected_deg'], ROUND_OFF_DEG, '+.2e'):<22}deg"
     )
     rows = noisy["rows"]
     lines += [
@@ -360,7 +364,7 @@ def format_report(result: dict) -> str:
         f"{f'{vals[0]:.0f} -> {vals[-1]:.0f} m':<30}" + ("matched" if trend else "missed")
     )
     lines.append(
-        f"{'RT-8: noise-free fix < tens of metres':<52}{f'{max(pe.values()):.1e} m':<30}"
+        f"{'RT-8: noise-free fix < tens of metres':<52}{f'{round_off(max(pe.values()), ROUND_OFF_M)} m':<30}"
         + ("matched" if ok8 else "missed")
     )
     return "\n".join(lines)

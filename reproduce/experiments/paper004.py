@@ -24,7 +24,7 @@ import numpy as np
 
 from sensorgym.envs.worlds.imaging import ImagingScene
 from sensorgym.reproduce.experiments.paper004_closed_loop import matched_model, simulate_closed_loop
-from sensorgym.reproduce.experiments.reporting import format_checks
+from sensorgym.reproduce.experiments.reporting import format_checks, round_off
 from sensorgym.trackers.fusion.detection_probability import (
     axis_holding_probability,
     combined_detection_parameter,
@@ -220,7 +220,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
             "eq. (9) P(q=3, F=0.01); (9) at q = 1,2,3,5,7 within 1e-4; (13) inverts (9)",
             "0.7497",
             f"{p3:.4f}; max |ΔP| {rt14['max_abs_diff']:.1e}; "
-            f"(13) round trip {rt14['eq13_roundtrip_max_error']:.1e}",
+            f"(13) round trip {round_off(rt14['eq13_roundtrip_max_error'], 1e-9)}",
             rt14["max_abs_diff"] < 1e-4 and rt14["eq13_roundtrip_max_error"] < 1e-9,
             "formula mismatch",
         )

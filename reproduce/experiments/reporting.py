@@ -22,6 +22,14 @@ def format_checks(checks: list[dict]) -> list[str]:
     return lines
 
 
+def round_off(value: float, floor: float, spec: str = ".1e") -> str:
+    """``value`` as a report prints it: ``< floor`` when ``|value| < floor`` (floating-point
+    round-off, whose digits differ between machines' BLAS and SIMD paths, so a report that
+    printed them would change from machine to machine), else ``format(value, spec)``. The
+    JSON results keep the raw value."""
+    return f"< {floor:.0e}" if abs(value) < floor else format(value, spec)
+
+
 def save_figure(fig: Any, path: Path) -> Path:
     """Lay out, save (120 dpi) and close a matplotlib figure; return its path."""
     import matplotlib.pyplot as plt
