@@ -155,7 +155,7 @@ def _at(p, v, a, s):
     return (p[0] + v[0] * s + a[0] * h, p[1] + v[1] * s + a[1] * h, p[2] + v[2] * s + a[2] * h)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, sweep, iters):
     """Pixel-visit rule (theory §6.3) for an object ``p + v s + ½ a s²`` (``s`` from the period
     start) seen from receiver ``k`` at ``o``: iterates ``s ← T_raster(φ(s), θ(s))`` from the
@@ -181,7 +181,7 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
     return seen, s, d
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
     """``(σ_e, σ_pos, σ_vel)`` of a candidate from its ``Q = (AᵀA)⁻¹`` (``σ_e = 1``).
 
@@ -217,7 +217,7 @@ def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
     return J <= eps * eps
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, gate_q, max_speed,
                 pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, out):  # fmt: skip
     """``out[j1, jk]``: whether fixes ``j1`` (receiver 1) and ``jk`` (receiver ``k``) pass
@@ -233,7 +233,20 @@ def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, g
                     pP[npair, 0, x, y] = P[k - 1, x, y]
             npair += 1
     pair_kernel(
-        pa1, pa2, pP, pb, ones, 1.0, np.bool_(False), np.int64(0), npair, pX, pJ, pQ, pk, pM
+        pa1,
+        pa2,
+        pP,
+        pb,
+        ones,
+        1.0,
+        np.bool_(False),
+        np.int64(0),
+        np.int64(npair),
+        pX,
+        pJ,
+        pQ,
+        pk,
+        pM,
     )
     e = 0
     for j1 in range(count1):
@@ -244,24 +257,24 @@ def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, g
             e += 1
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _carve1(buf, o, a):
     """The next ``a`` entries of the scratch buffer ``buf`` from offset ``o``, and the offset
     after them."""
     return buf[o : o + a], o + a
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _carve2(buf, o, a, b):
     return buf[o : o + a * b].reshape((a, b)), o + a * b
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _carve3(buf, o, a, b, c):
     return buf[o : o + a * b * c].reshape((a, b, c)), o + a * b * c
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _carve4(buf, o, a, b, c, d):
     return buf[o : o + a * b * c * d].reshape((a, b, c, d)), o + a * b * c * d
 
@@ -519,11 +532,37 @@ def step_rows(
                     nc += 1
         if used_n == 3:
             triple_velocity_kernel(
-                a1, ak, Pc, bc, dt, 1.0, np.bool_(False), np.int64(0), nc, X, J, Q, kap, M1
+                a1,
+                ak,
+                Pc,
+                bc,
+                dt,
+                1.0,
+                np.bool_(False),
+                np.int64(0),
+                np.int64(nc),
+                X,
+                J,
+                Q,
+                kap,
+                M1,
             )
         else:
             pair_kernel(
-                a1, ak, Pc, bc, ones, 1.0, np.bool_(False), np.int64(0), nc, X, J, Q, kap, M1
+                a1,
+                ak,
+                Pc,
+                bc,
+                ones,
+                1.0,
+                np.bool_(False),
+                np.int64(0),
+                np.int64(nc),
+                X,
+                J,
+                Q,
+                kap,
+                M1,
             )
         for c in range(nc):
             ok = kap[c] <= cond_max
@@ -571,7 +610,7 @@ def step_rows(
                     cost = _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b,
                                              cdt, ctime, csig, sig, position_sigma, gate_q,
                                              max_accel, pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk,
-                                             pM, pairs_mv, npair)  # fmt: skip
+                                             pM, pairs_mv, np.int64(npair))  # fmt: skip
                 elif cost < np.inf:
                     for x in range(3):
                         pairs_mv[npair, x] = cpos[c, x]
@@ -779,7 +818,7 @@ def _predicted_sigma(i, q, s, tsig):
     return np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, cdt, gate_q,
                max_speed, max_accel):  # fmt: skip
     """ΔJ = ‖M(i, j) − (M̂_s + V̂_s (t − t_s))‖ if it passes the gate δ, else inf (000 step 3-4).
@@ -875,7 +914,7 @@ def _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b, cdt, c
     return cost if cost <= 3.0 * gate_q else np.inf
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _shares(cmem, c, fused, used_n):
     for k in range(used_n):
         if fused[k, cmem[c, k]]:
@@ -883,13 +922,13 @@ def _shares(cmem, c, fused, used_n):
     return False
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _mark(cmem, c, fused, used_n):
     for k in range(used_n):
         fused[k, cmem[c, k]] = True
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _free(tstatus, i, T):
     for q in range(T):
         if tstatus[i, q] == EMPTY:
@@ -897,7 +936,7 @@ def _free(tstatus, i, T):
     return -1
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _save(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
     for x in range(6):
         old[r, x] = tx[i, q, x]
@@ -909,7 +948,7 @@ def _save(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
         old[r, 11 + x] = tsums[i, q, x]
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _load(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
     for x in range(6):
         tx[i, q, x] = old[r, x]
@@ -921,7 +960,7 @@ def _load(old, r, i, q, tx, tt, tsig, tscore, thits, tsums):
         tsums[i, q, x] = old[r, 11 + x]
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _update(tracker, i, q, c, cost, mv, ctime, csig, cdt, tx, tt, tsig, tscore, thits, tmiss,
             tsums, max_speed):  # fmt: skip
     """Extend track ``q`` by candidate ``c``: ``I ← I + ΔJ``. Proposed (000 step 3): the track
