@@ -36,6 +36,7 @@ from numba import njit, vectorize
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.geometry_kernels import (
+    angles_from_unit_batch,
     look_at_batch,
     relative_pose_batch,
     unit_from_angles_batch,
@@ -106,7 +107,11 @@ def angles_from_unit(a: ArrayLike, *, check: bool = True) -> tuple[FloatArray, F
     callers whose vectors are unit by construction; the shape is still checked).
     """
     a = unit_vectors(a, "a") if check else finite_array(a, "a", tail=(3,), check=False)
-    return np.arctan2(a[..., 0], a[..., 2]), np.arcsin(np.clip(a[..., 1], -1.0, 1.0))
+    flat = np.ascontiguousarray(a, dtype=np.float64).reshape(-1, 3)
+    azimuth, elevation = np.empty(flat.shape[0]), np.empty(flat.shape[0])
+    # φ = atan2(a_x, a_z), θ = arcsin a_y  (compiled: geometry_kernels.angles_from_unit3)
+    angles_from_unit_batch(flat, azimuth, elevation)
+    return azimuth.reshape(a.shape[:-1]), elevation.reshape(a.shape[:-1])
 
 
 def unit_from_pixel(

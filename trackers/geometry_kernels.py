@@ -12,6 +12,8 @@ right, no fused multiply-add), so the batched functions return the same bits as 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -41,6 +43,22 @@ def unit_from_angles3(azimuth, elevation):
     """``a = (cos θ sin φ, sin θ, cos θ cos φ)`` (000 eq. 2)."""
     ct = np.cos(elevation)
     return (ct * np.sin(azimuth), np.sin(elevation), ct * np.cos(azimuth))
+
+
+@njit(**_JIT)
+def angles_from_unit3(u):
+    """``(φ, θ, has)``: azimuth ``φ = atan2(u_x, u_z)`` and elevation ``θ = arcsin u_y``
+    (000 eq. 3) of a unit ``u`` (``u_y`` clipped to ``[−1, 1]``, NaN stays NaN); the zero vector
+    (no direction) gives ``(0, 0, False)``. The one copy: :func:`.geometry.angles_from_unit` and
+    the stereo kernels (:mod:`sensorgym.trackers.stereo.kernels`) call it."""
+    if u[0] == 0.0 and u[1] == 0.0 and u[2] == 0.0:
+        return 0.0, 0.0, False
+    y = u[1]
+    if y < -1.0:
+        y = -1.0
+    elif y > 1.0:
+        y = 1.0
+    return math.atan2(u[0], u[2]), math.asin(y), True
 
 
 @njit(inline="always")
@@ -168,3 +186,10 @@ def unit_from_angles_batch(azimuth, elevation, out):
     """:func:`unit_from_angles3` over flat ``azimuth``/``elevation (N,)`` into ``out (N, 3)``."""
     for i in range(azimuth.shape[0]):
         out[i, 0], out[i, 1], out[i, 2] = unit_from_angles3(azimuth[i], elevation[i])
+
+
+@njit(**_JIT)
+def angles_from_unit_batch(a, azimuth, elevation):
+    """:func:`angles_from_unit3` over flat ``a (N, 3)`` into ``azimuth``/``elevation (N,)``."""
+    for i in range(a.shape[0]):
+        azimuth[i], elevation[i], _ = angles_from_unit3(_row(a, i))

@@ -132,7 +132,9 @@ class StereoScanningEnv(CoreEnv):
       (:mod:`sensorgym.envs.stereo_scanning.wrappers`) lets a policy choose per period between
       a sweep, an entry search and the rules' sectors on the tracks; PPO policies trained
       through it (behaviour cloning of ``cue-entry-search``, then RL; training seeds 0, 1, 2)
-      are shipped and beat every fieldable rule (``docs/environments.md``).
+      are shipped and beat every fieldable rule (``docs/environments.md``). Issue 11 (episodes
+      bit-identical): the compiled step runs out of place and writes the new state's
+      observation (``ScanningState.observation``), so ``observe`` only reads it.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from sensorgym.envs.shells.contract import OBS_CLIP
+from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_time
 from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, unit_from_angles3
 from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
 from sensorgym.trackers.stereo.kernels import clip, log_ratio_reward
@@ -78,11 +79,6 @@ def geometry(c, n):
 
 
 @njit(inline="always")
-def _wrap(a):
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
-
-
-@njit(inline="always")
 def _local(R, k, d):
     """``R_kᵀ d`` for ``R (n, 3, 3)`` (``R[k, j, c]`` = component ``j`` of column ``c``)."""
     return (
@@ -121,19 +117,6 @@ def sector_sigma(width, kappa, sigma_min):
 
 
 @njit(inline="always")
-def raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep):
-    """Time after the period start at which the raster reaches the pixel holding local angles
-    ``(φ, θ)``: ``offset + (row · L + col + ½) · dwell``, ``dwell = sweep / L²``, rows from the
-    top elevation down, columns by increasing azimuth (theory §6.1, §6.3)."""
-    pix = width / lines
-    row = np.floor((centre_el + 0.5 * width - theta) / pix)
-    col = np.floor((_wrap(phi - centre_az) + 0.5 * width) / pix)
-    row = min(max(row, 0.0), lines - 1.0)
-    col = min(max(col, 0.0), lines - 1.0)
-    return offset + (row * lines + col + 0.5) * (sweep / (lines * lines))
-
-
-@njit(inline="always")
 def _angles(d):
     """Local azimuth ``atan2(x, z)`` and elevation ``atan2(y, ‖(x, z)‖)`` of ``d`` (theory §2.2)."""
     return np.arctan2(d[0], d[2]), np.arctan2(d[1], np.hypot(d[0], d[2]))
@@ -141,11 +124,7 @@ def _angles(d):
 
 @njit(inline="always")
 def _inside(phi, theta, d, centre_az, centre_el, width):
-    return (
-        d[2] > 0.0
-        and abs(_wrap(phi - centre_az)) <= 0.5 * width
-        and abs(theta - centre_el) <= 0.5 * width
-    )
+    return d[2] > 0.0 and in_sector(phi, theta, centre_az, centre_el, width, width)
 
 
 @njit(inline="always")
@@ -169,7 +148,9 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
         phi, theta = _angles(d)
         if not _inside(phi, theta, d, centre_az, centre_el, width):
             return False, s, d
-        s_new = raster_time(phi, theta, centre_az, centre_el, width, lines, offset, sweep)
+        s_new = raster_time(
+            phi, theta, centre_az, centre_el, width, width, lines, lines, offset, sweep
+        )
         if s_new == s:
             # converged: the raster reaches this pixel at s, where the object is at d
             return norm3(d) > 0.0, s, d
@@ -490,7 +471,7 @@ def step_rows(
                 uw = _world(R, k, u)
                 fix_world[i, k, c, 0], fix_world[i, k, c, 1], fix_world[i, k, c, 2] = uw
                 fix_time[i, k, c] = t0 + raster_time(
-                    phi, theta, az, el, w, lines, offsets[k], sweep
+                    phi, theta, az, el, w, w, lines, lines, offsets[k], sweep
                 )
                 fix_drone[i, k, c] = -1
                 c += 1

@@ -12,6 +12,7 @@ import math
 
 from numba import njit
 
+from sensorgym.trackers.bearings.models import bearing_scalar
 from sensorgym.trackers.geometry import wrap_angle_scalar as wrap
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
@@ -87,7 +88,7 @@ def propagate_target(x, eps, G, T, q_tilde, out):
 # z = wrap(β + σ ε),  β = atan2(x_t − x_p, y_t − y_p)  (from North clockwise)
 @njit(**_JIT)
 def noisy_bearing(tx, ty, px, py, sigma, eps):
-    return wrap(math.atan2(tx - px, ty - py) + sigma * eps)
+    return wrap(bearing_scalar(tx, ty, px, py) + sigma * eps)
 
 
 @njit(**_JIT)

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.worlds.scanning_kernels import visit_time_batch
 from sensorgym.trackers.geometry import angles_from_unit, look_at_rotation, relative_pose
 from sensorgym.trackers.validation import finite_array
 
@@ -166,17 +167,28 @@ class RasterScan:
     def visit_time(self, azimuth: ArrayLike, elevation: ArrayLike) -> tuple[FloatArray, NDArray]:
         """Time after the period start at which the LOS reaches the given angles (radians).
 
-        Returns ``(t, inside)``; ``inside`` is False for angles outside the sector (then ``t``
-        is the clipped pixel's time, a finite fallback the caller masks out).
+        Returns ``(t, inside)``; ``inside`` is False for angles outside the sector (edges
+        belong to it; then ``t`` is the clipped pixel's time, a finite fallback the caller masks
+        out).
         """
-        phi = np.rad2deg(finite_array(azimuth, "azimuth"))
-        theta = np.rad2deg(finite_array(elevation, "elevation"))
-        u = (phi + 0.5 * self.az_span_deg) / self.az_span_deg  # 0 at the left edge
-        v = (0.5 * self.el_span_deg - theta) / self.el_span_deg  # 0 at the top line
-        inside = (u >= 0.0) & (u < 1.0) & (v >= 0.0) & (v < 1.0)
-        col = np.clip(np.floor(u * self.cols), 0, self.cols - 1)
-        row = np.clip(np.floor(v * self.rows), 0, self.rows - 1)
-        return self.offset + (row * self.cols + col + 0.5) * self.dwell, inside
+        phi, theta = np.broadcast_arrays(
+            finite_array(azimuth, "azimuth"), finite_array(elevation, "elevation")
+        )
+        t, inside = np.empty(phi.shape), np.empty(phi.shape, dtype=bool)
+        # compiled: scanning_kernels.raster_time / in_sector (the env's step calls the same)
+        visit_time_batch(
+            np.ascontiguousarray(phi, dtype=np.float64).reshape(-1),
+            np.ascontiguousarray(theta, dtype=np.float64).reshape(-1),
+            np.deg2rad(self.az_span_deg),
+            np.deg2rad(self.el_span_deg),
+            float(self.rows),
+            float(self.cols),
+            self.offset,
+            self.period,
+            t.reshape(-1),
+            inside.reshape(-1),
+        )
+        return t, inside
 
 
 @dataclass(frozen=True)

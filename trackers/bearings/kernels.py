@@ -30,6 +30,25 @@ STATE_DIM = 4
 _TWO_PI = 2.0 * np.pi
 
 
+# --- the measurement ---------------------------------------------------------------------------
+
+
+# β = atan2(x_t − x_p, y_t − y_p)  (from North clockwise, theory §2.5)
+@njit(**_JIT)
+def bearing(tx, ty, px, py):
+    """Absolute bearing (rad) of a target at ``(tx, ty)`` from a platform at ``(px, py)`` (East,
+    North, m): the one copy, called by :func:`.models.bearing`, the EKF update and the world's
+    noisy bearings."""
+    return math.atan2(tx - px, ty - py)
+
+
+@njit(**_JIT)
+def bearing_batch(target, platform, out):
+    """:func:`bearing` over flat ``target``/``platform (N, 2)`` into ``out (N,)``."""
+    for i in range(target.shape[0]):
+        out[i] = bearing(target[i, 0], target[i, 1], platform[i, 0], platform[i, 1])
+
+
 # --- constant-velocity prediction -------------------------------------------------------------
 
 
@@ -93,7 +112,7 @@ def ekf_bearing_update(x, P, z, px, py, sigma):
     r2 = dx * dx + dy * dy
     h0 = dy / r2
     h1 = -dx / r2
-    nu = wrap(z - math.atan2(dx, dy))
+    nu = wrap(z - bearing(x[0], x[1], px, py))
     # P Hᵀ
     pht0, pht1 = p00 * h0 + p01 * h1, p10 * h0 + p11 * h1
     pht2, pht3 = p20 * h0 + p21 * h1, p30 * h0 + p31 * h1

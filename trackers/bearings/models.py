@@ -132,6 +132,11 @@ def cwna_covariance_factor(T: ArrayLike, q_tilde: float) -> FloatArray:
     return np.sqrt(q_tilde) * G
 
 
+#: the compiled bearing of one target from one platform, ``bearing_scalar(tx, ty, px, py)``
+#: (:func:`.kernels.bearing`, the measurement model's one copy; worlds and kernels call it)
+bearing_scalar = kernels.bearing
+
+
 def bearing(target_position: ArrayLike, platform_position: ArrayLike) -> FloatArray:
     """Absolute bearing ``β = atan2(Δx, Δy)`` (rad, from North clockwise) of the target.
 
@@ -143,7 +148,17 @@ def bearing(target_position: ArrayLike, platform_position: ArrayLike) -> FloatAr
     )
     if np.any(np.hypot(d[..., 0], d[..., 1]) == 0.0):
         raise ValueError("target_position: coincides with the platform, bearing undefined")
-    return np.arctan2(d[..., 0], d[..., 1])
+    t, p = np.broadcast_arrays(
+        np.asarray(target_position, np.float64), np.asarray(platform_position, np.float64)
+    )
+    out = np.empty(d.shape[:-1])
+    # β = atan2(Δx, Δy)  (compiled: kernels.bearing, the one copy)
+    kernels.bearing_batch(
+        np.ascontiguousarray(t).reshape(-1, 2),
+        np.ascontiguousarray(p).reshape(-1, 2),
+        out.reshape(-1),
+    )
+    return out
 
 
 def bearing_jacobian(target_state: ArrayLike, platform_position: ArrayLike) -> FloatArray:

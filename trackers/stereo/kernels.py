@@ -24,6 +24,9 @@ import numpy as np
 from numba import njit
 
 from sensorgym.trackers.geometry import wrap_angle_scalar
+from sensorgym.trackers.geometry_kernels import (
+    angles_from_unit3 as angles_from_unit,  # noqa: F401  (one copy, re-exported for env kernels)
+)
 from sensorgym.trackers.geometry_kernels import perturbed_direction3, unit_from_angles3
 
 #: the information is regular where ``det I > CONDITION · (tr I)³``
@@ -174,15 +177,6 @@ def unit_from_angles(azimuth, elevation, u):
     """``u = (cos ε sin α, sin ε, cos ε cos α)`` (000 eq. 2, theory §2.2) into ``u (3,)``
     (:func:`sensorgym.trackers.geometry_kernels.unit_from_angles3`)."""
     u[0], u[1], u[2] = unit_from_angles3(azimuth, elevation)
-
-
-@njit(**INLINE)
-def angles_from_unit(u):
-    """``(α, ε, has)``: azimuth ``atan2(u_x, u_z)`` and elevation ``arcsin u_y`` (000 eq. 3) of a
-    unit ``u``; the zero vector (no direction) gives ``(0, 0, False)``."""
-    if u[0] == 0.0 and u[1] == 0.0 and u[2] == 0.0:
-        return 0.0, 0.0, False
-    return math.atan2(u[0], u[2]), math.asin(clip(u[1], -1.0, 1.0)), True
 
 
 @njit(**INLINE)
