@@ -58,7 +58,7 @@ def relative_headings(params: ManeuverParams, views: FloatArray) -> FloatArray:
     """Each platform's heading relative to platform 1's, ``(N, K)`` (rad), read off the views
     ``(N, K, obs_dim)``: the estimated target relative to platform ``k`` is seen by ``k`` in its
     own frame (obs 3, 4) and by platform 1 as its own relative target minus ``k``'s relative
-    position (obs 10 + 2(k − 1), 11 + 2(k − 1)); the frames differ by the heading difference
+    position (obs 13 + 2(k − 1), 14 + 2(k − 1)); the frames differ by the heading difference
     (:func:`~sensorgym.envs.bearings_maneuver.simulation.body_frame` turns by the heading)."""
     N, K = views.shape[:2]
     delta = np.zeros((N, K))
@@ -334,10 +334,9 @@ class EstimateLookahead(ManeuverRule):
 
     Everything comes from the observation, in platform 1's frame (platform 1 at the origin,
     heading 0 = ahead): the estimated relative position and velocity (obs 3–6), the position
-    covariance (obs 7–9). The observation holds no velocity covariance; the plan starts from
-    the prior's per-axis velocity spread (course uniform, speed moments of the prior:
-    ``σ_v² = (v̄² + σ_s²)/2``), uncorrelated with the position. The other
-    platforms' positions (obs 10…), headings (:func:`relative_headings`) and speeds (their
+    covariance (obs 7–9) and the velocity covariance (obs 10–12); the observation holds no
+    position–velocity cross-covariance, so the plan's bound starts block-diagonal. The other
+    platforms' positions (obs 13…), headings (:func:`relative_headings`) and speeds (their
     obs 2) place them in that frame. With ``horizon=1`` this is the one-step greedy on the
     bound; ``horizon=2`` is the two-step lookahead a reviewer asks for. Plans predicted within
     ``safety · min_range`` of the estimate are ruled out.
@@ -378,10 +377,9 @@ class EstimateLookahead(ManeuverRule):
         target[:, :2] = first[:, 3:5] * p.range_scale
         target[:, 2] = first[:, 5] * p.speed_scale
         target[:, 3] = first[:, 6] * p.speed_scale + speed[:, 0]
-        # the bound's square root from the estimate: the position block from obs 7–9, the
-        # velocity block the prior's spread
-        mean, sigma = p.prior_speed_moments
+        # the bound's square root from the estimate, block-diagonal: the position block from
+        # obs 7–9, the velocity block from obs 10–12
         L = np.zeros((n, 4, 4))
         L[:, :2, :2] = _spread_factor(first[:, 7:10], p.range_scale)
-        L[:, 2, 2] = L[:, 3, 3] = np.sqrt(0.5 * (mean * mean + sigma * sigma))
+        L[:, 2:, 2:] = _spread_factor(first[:, 10:13], p.speed_scale)
         return _joint_plans(self, pos, heading, speed, target, L)

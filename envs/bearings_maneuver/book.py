@@ -96,7 +96,8 @@ class BearingsManeuverBookEnv(BearingsManeuverEnv):
 
     ## Version History
 
-    * v0: initial version (issue 13).
+    * v0: initial version (issue 13). Issue 13 then added the velocity estimate's uncertainty
+      to the observation (13 entries; :class:`BearingsManeuverEnv`'s Version History), in place.
     """
 
     params_type = BookManeuverParams

@@ -42,11 +42,23 @@ class BearingsManeuverEnv(CoreEnv):
 
     ## Observation Space
 
-    ``Box(-10, 10, (10,), float32)``: the tracker's view, no ground truth (table in
+    ``Box(-10, 10, (13,), float32)``: the tracker's view, no ground truth (table in
     :func:`~sensorgym.envs.bearings_maneuver.simulation.observe_agents`): the last bearing relative to the
     heading (sin, cos), own speed, the estimated relative position and velocity in the
-    platform frame, and the estimate's position uncertainty (two log standard deviations and
-    their correlation).
+    platform frame, and the estimate's position and velocity uncertainty (for each, two log
+    standard deviations along the platform's axes and their correlation, from the range bank's
+    mixture covariance).
+
+    | index  | observation                                            | scale           |
+    |--------|--------------------------------------------------------|-----------------|
+    | 0, 1   | sin, cos of the last bearing relative to the heading   | —               |
+    | 2      | own speed                                              | ``max_speed``   |
+    | 3, 4   | estimated target position (starboard, ahead)           | ``range_scale`` |
+    | 5, 6   | estimated relative velocity (starboard, ahead)         | ``speed_scale`` |
+    | 7, 8   | ln of the position standard deviations (same axes)     | ``range_scale`` |
+    | 9      | correlation of the two position errors                 | —               |
+    | 10, 11 | ln of the velocity standard deviations (same axes)     | ``speed_scale`` |
+    | 12     | correlation of the two velocity errors                 | —               |
 
     ## Rewards
 
@@ -78,7 +90,7 @@ class BearingsManeuverEnv(CoreEnv):
     keywords work for ``gym.make_vec`` and :func:`parallel_env`. With ``platforms=K > 1`` one
     agent steers all ``K`` platforms: the action is every platform's ``(turn, speed change)``
     in turn, ``(2K,)``, and the observation every platform's view in turn
-    (``K · (10 + 2(K − 1))``); the PettingZoo env makes each platform an agent. ``render_mode="rgb_array"`` draws the tracks, the estimate and
+    (``K · (13 + 2(K − 1))``); the PettingZoo env makes each platform an agent. ``render_mode="rgb_array"`` draws the tracks, the estimate and
     its 2σ ellipse.
 
     ## Version History
@@ -97,7 +109,12 @@ class BearingsManeuverEnv(CoreEnv):
       ``sensorgym/BearingsManeuverBook-v0`` fixes them to the textbook scenario. Issue 13 also
       added the ``lookahead-estimate`` rule and shipped PPO policies that observe the time left
       through the ``time-feature`` wrapper (:mod:`sensorgym.train.wrappers`), imitate that rule
-      before RL, and beat it (observation, dynamics and rewards unchanged).
+      before RL, and beat it (observation, dynamics and rewards unchanged). Issue 13 then
+      gave the observation the velocity estimate's uncertainty, in place: entries 10–12 (two
+      log standard deviations and a correlation of the velocity covariance in the platform
+      frame, the position's formula), so a lone platform's observation grew from 10 to 13 and
+      other platforms' positions moved to 13+ (dynamics, rewards and episode ends unchanged;
+      the golden episodes re-recorded for the observation; the shipped policies retrained).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
@@ -145,7 +162,7 @@ class BearingsManeuverParallelEnv(CoreParallelEnv):
 
     ## Observation Space (per agent)
 
-    ``Box(-10, 10, (10 + 2(K−1),), float32)``: the agent's own view of the shared tracker
+    ``Box(-10, 10, (13 + 2(K−1),), float32)``: the agent's own view of the shared tracker
     estimate in its own frame, then the other platforms' positions relative to it
     (:func:`~sensorgym.envs.bearings_maneuver.simulation.observe`). :meth:`state` concatenates every
     agent's observation (a centralised critic's input; still no ground truth).
@@ -171,7 +188,8 @@ class BearingsManeuverParallelEnv(CoreParallelEnv):
 
     * v0: initial version; issues 10 and 11 changed its episodes in place as for
       :class:`BearingsManeuverEnv` (honest prior, square-root bound; compiled reset and step,
-      rewards moved by at most 8.3e-12 relative).
+      rewards moved by at most 8.3e-12 relative). Issue 13's velocity uncertainty (entries 10–12 of
+      each view; other platforms from entry 13) as for :class:`BearingsManeuverEnv`.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"name": "bearings_maneuver_v0", "render_modes": []}

@@ -304,10 +304,11 @@ def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, 
         v0, v1 = body_frame(s, co, x[2] - speed[b, k] * s, x[3] - speed[b, k] * co)
         _put(obs, b, k, 5, v0 / speed_scale, clip)
         _put(obs, b, k, 6, v1 / speed_scale, clip)
-        # the position covariance in the platform frame, as spreads
+        # the position and the velocity covariance in the platform frame, as spreads
         _put_spread(obs, b, k, 7, s, co, Pe[0, 0], Pe[0, 1], Pe[1, 1], range_scale, clip)
+        _put_spread(obs, b, k, 10, s, co, Pe[2, 2], Pe[2, 3], Pe[3, 3], speed_scale, clip)
         # each other platform's position relative to this one, in platform order
-        i = 10
+        i = 13
         for j in range(K):
             if j != k:
                 o0, o1 = body_frame(s, co, pos[b, j, 0] - pos[b, k, 0], pos[b, j, 1] - pos[b, k, 1])

@@ -90,7 +90,7 @@ BoolArray = NDArray[np.bool_]
 Metric = Literal["position", "relative_range"]
 
 #: observation length of a lone platform (see :func:`observe_agents`; + 2 per other platform)
-OBS_DIM = 10
+OBS_DIM = 13
 
 
 @dataclass(frozen=True)
@@ -630,7 +630,10 @@ def observe_agents(params: ManeuverParams, state: ManeuverState) -> NDArray[np.f
     | 7, 8   | ln of the position standard deviations along its axes,               |
     |        | ``ln(σ / range_scale)``                                              |
     | 9      | correlation of those two position errors                             |
-    | 10, 11 | (K > 1) each other platform's position relative to it, own frame /   |
+    | 10, 11 | ln of the velocity standard deviations along its axes,               |
+    |        | ``ln(σ_v / speed_scale)``                                            |
+    | 12     | correlation of those two velocity errors                             |
+    | 13, 14 | (K > 1) each other platform's position relative to it, own frame /   |
     | …      | ``range_scale``, in platform order                                   |
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``. Computed by the kernels with the

@@ -120,20 +120,20 @@ def test_greedy_actions_equal_the_numpy_rule(params):
 def estimated_world(rule: EstimateLookahead, obs: np.ndarray) -> SimpleNamespace:
     """What the estimate-lookahead plans on, rebuilt from the observation table by hand: the
     platform at the origin of its own frame (heading 0 = ahead), the estimated target, the
-    bound's square root from the estimate's position covariance and the prior's velocity
-    spread."""
+    bound's square root from the estimate's position and velocity covariances (block-diagonal:
+    the observation holds no cross-covariance)."""
     p, w = rule.params, rule.params.world
     n = obs.shape[0]
     v = obs[:, 2] * w.max_speed
     target = np.concatenate(
         [obs[:, 3:5] * p.range_scale, obs[:, 5:7] * p.speed_scale + np.stack([0 * v, v], -1)], -1
     )
-    sd = np.exp(obs[:, 7:9]) * p.range_scale
-    c = sd[:, 0] * sd[:, 1] * np.clip(obs[:, 9], -0.999, 0.999)
-    mean, sigma = p.prior_speed_moments
     P = np.zeros((n, 4, 4))
-    P[:, 0, 0], P[:, 1, 1], P[:, 0, 1], P[:, 1, 0] = sd[:, 0] ** 2, sd[:, 1] ** 2, c, c
-    P[:, 2, 2] = P[:, 3, 3] = 0.5 * (mean**2 + sigma**2)
+    for i, scale in ((0, p.range_scale), (2, p.speed_scale)):
+        sd = np.exp(obs[:, 7 + 3 * i // 2 : 9 + 3 * i // 2]) * scale
+        c = sd[:, 0] * sd[:, 1] * np.clip(obs[:, 9 + 3 * i // 2], -0.999, 0.999)
+        P[:, i, i], P[:, i + 1, i + 1] = sd[:, 0] ** 2, sd[:, 1] ** 2
+        P[:, i, i + 1] = P[:, i + 1, i] = c
     return SimpleNamespace(
         batch_size=n,
         platform_position=np.zeros((n, 1, 2)),
