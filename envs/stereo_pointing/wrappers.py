@@ -256,7 +256,11 @@ class AssignmentExpert:
         obs = self.wrapper.last_obs
         if obs is None or len(obs) != len(np.atleast_2d(observation)):
             raise ValueError("observation: the expert acts on the wrapped env's own batch")
-        return np.asarray(self.choose(obs), dtype=np.int64), None
+        return self.answer(self.choose(obs)), None
+
+    def answer(self, choice: NDArray[Any]) -> NDArray[np.int64]:
+        """The action for ``choice`` ``(N, n)`` (drone per receiver): the assignment itself."""
+        return np.asarray(choice, dtype=np.int64)
 
 
 def _rule_expert(env: VecEnv, name: str) -> AssignmentExpert:
@@ -267,26 +271,18 @@ def _rule_expert(env: VecEnv, name: str) -> AssignmentExpert:
     return AssignmentExpert(env, rule.assign)  # type: ignore[attr-defined]
 
 
-class PlanExpert:
+class PlanExpert(AssignmentExpert):
     """A teacher in :class:`PlanAction`'s space: SB3's ``predict``, answering with the index of
     the candidate a rule's ``assign`` picks on the base env's latest observation."""
 
     def __init__(self, env: VecEnv, choose: Any):
-        self.wrapper: PlanAction = _find(env, PlanAction, "pointing-plan")
+        self.wrapper: PlanAction = _find(env, PlanAction, "pointing-plan")  # type: ignore[assignment]
         self.choose = choose
         """``(N, obs_dim)`` base observations → ``(N, n)`` drone per receiver."""
 
-    def predict(
-        self,
-        observation: NDArray[Any],
-        state: Any = None,
-        episode_start: NDArray[np.bool_] | None = None,
-        deterministic: bool = True,
-    ) -> tuple[NDArray[np.int64], None]:
-        obs = self.wrapper.last_obs
-        if obs is None or len(obs) != len(np.atleast_2d(observation)):
-            raise ValueError("observation: the expert acts on the wrapped env's own batch")
-        return self.wrapper.index(self.choose(obs)), None
+    def answer(self, choice: NDArray[Any]) -> NDArray[np.int64]:
+        """The index of ``choice`` ``(N, n)`` in the candidate list."""
+        return self.wrapper.index(choice)
 
 
 def plan_choice_expert(env: VecEnv) -> PlanExpert:
