@@ -78,7 +78,8 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "reward_clip": 3.0,
     },
     "sensorgym/StereoPlacement-v0": {
-        "delays": (0.0, 0.2, 0.5, 0.8),
+        "n_receivers": 4,
+        "delays": (0.0, 0.2, 0.5),
         "period": 2.0,
         "max_speed": 4.0,
         "arena_radius": 150.0,

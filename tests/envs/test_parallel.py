@@ -9,7 +9,7 @@ from pettingzoo.test import parallel_api_test, parallel_seed_test
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.envs import bearings_maneuver, stereo_placement, stereo_pointing
-from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM, ManeuverParams
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
@@ -97,7 +97,7 @@ def test_observations_place_the_other_platforms_in_the_own_frame():
     obs, _ = env.reset(seed=2)
     state = env.simulator_state
     for k in range(3):
-        others = obs[f"platform_{k}"][10:].reshape(2, 2) * env.params.range_scale
+        others = obs[f"platform_{k}"][OBS_DIM:].reshape(2, 2) * env.params.range_scale
         dist = np.linalg.norm(others, axis=1)
         j = [i for i in range(3) if i != k]
         want = np.linalg.norm(state.platform_position[0, j] - state.platform_position[0, k], axis=1)

@@ -11,6 +11,7 @@ from stable_baselines3 import PPO
 
 from sensorgym.agents.bearings_maneuver import GreedyManeuver, StraightCourse
 from sensorgym.cli.main import main
+from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.benchmark import best_rule, paired_difference, paired_to_best_rule, pool
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
 from sensorgym.train.experts import Pretrain, collect, expert_factory, pretrain
@@ -24,30 +25,30 @@ ENV_ID = "sensorgym/BearingsManeuver-v0"
 def test_time_feature_counts_down_per_slot_and_keeps_the_reward():
     plain = make_sb3_env(ENV_ID, 3, seed=4)
     timed = make_sb3_env(ENV_ID, 3, seed=4, wrappers=[{"name": "time-feature"}])
-    assert timed.observation_space.shape == (11,)
+    assert timed.observation_space.shape == (OBS_DIM + 1,)
     o0, o1 = plain.reset(), timed.reset()
-    np.testing.assert_array_equal(o1[:, :10], o0)
-    np.testing.assert_array_equal(o1[:, 10], 1.0)
+    np.testing.assert_array_equal(o1[:, :OBS_DIM], o0)
+    np.testing.assert_array_equal(o1[:, OBS_DIM], 1.0)
     action = np.zeros((3, 2), dtype=np.float32)
     for t in range(1, 31):
         p, r0, _, _ = plain.step(action)
         w, r1, d1, infos = timed.step(action)
         np.testing.assert_array_equal(r0, r1)
-        np.testing.assert_array_equal(w[:, :10], p)
+        np.testing.assert_array_equal(w[:, :OBS_DIM], p)
         if t < 30:
-            np.testing.assert_allclose(w[:, 10], 1.0 - t / 30)
+            np.testing.assert_allclose(w[:, OBS_DIM], 1.0 - t / 30)
     assert d1.all()
-    np.testing.assert_array_equal(w[:, 10], 1.0)  # the next episode's first observation
-    assert infos[0]["terminal_observation"][10] == pytest.approx(0.0)
+    np.testing.assert_array_equal(w[:, OBS_DIM], 1.0)  # the next episode's first observation
+    assert infos[0]["terminal_observation"][OBS_DIM] == pytest.approx(0.0)
 
 
 def test_frame_stack_and_unknown_wrappers():
     specs = [{"name": "time-feature"}, {"name": "frame-stack", "n_stack": 3}]
     env = make_sb3_env(ENV_ID, 2, seed=0, wrappers=specs)
     plain = make_sb3_env(ENV_ID, 2, seed=0)
-    assert env.observation_space.shape == (33,)
+    assert env.observation_space.shape == (3 * (OBS_DIM + 1),)
     obs, base = env.reset(), plain.reset()
-    np.testing.assert_array_equal(obs[:, :22], 0.0)
+    np.testing.assert_array_equal(obs[:, : 2 * (OBS_DIM + 1)], 0.0)
     np.testing.assert_array_equal(base_observation(env, obs), base)
     obs, base = env.step(np.ones((2, 2)))[0], plain.step(np.ones((2, 2)))[0]
     np.testing.assert_array_equal(base_observation(env, obs), base)

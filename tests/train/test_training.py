@@ -120,11 +120,14 @@ def test_parameter_sharing_slots_are_the_pettingzoo_agents_of_every_scenario():
         if k < 2:
             np.testing.assert_array_equal(obs[1], pz_obs["platform_1"])
     assert dones.all()
-    assert all(i["TimeLimit.truncated"] and i["terminal_observation"].shape == (12,) for i in infos)
+    assert all(
+        i["TimeLimit.truncated"] and i["terminal_observation"].shape == (OBS_DIM + 2,)
+        for i in infos
+    )
     np.testing.assert_array_equal(infos[1]["terminal_observation"], pz_obs["platform_1"])
     # several scenarios: slot i is agent i mod n of scenario i div n
     venv = make_sb3_env(ENV_ID, 3, seed=7, agents=True, platforms=2)
-    assert venv.reset().shape == (6, 12)
+    assert venv.reset().shape == (6, OBS_DIM + 2)
     _, reward, _, _ = venv.step(np.zeros((6, 2), dtype=np.float32))
     np.testing.assert_array_equal(reward[0::2], reward[1::2])
 
