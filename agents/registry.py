@@ -16,6 +16,7 @@ from sensorgym.agents import bearings_maneuver as maneuver
 from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
+from sensorgym.agents import stereo_pointing_horizon as pointing_horizon
 from sensorgym.agents import stereo_scanning as scanning
 from sensorgym.agents.protocol import PolicyPredictor
 
@@ -48,6 +49,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "orthogonal-pairs": lambda params, _: pointing.OrthogonalPairs(params),
         "greedy-information": lambda params, _: pointing.GreedyPointing(params),
         "plan-estimate": lambda params, _: pointing.PlanEstimate(params),
+        "plan-horizon": lambda params, _: pointing_horizon.PlanHorizon(params),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {

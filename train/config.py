@@ -10,14 +10,28 @@ imitation before RL); every other key goes to the algorithm.
 from __future__ import annotations
 
 from importlib.resources import files
-from typing import Any
+from typing import Any, ClassVar
 
 import yaml
 from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.policies import BasePolicy
+
+from sensorgym.train.candidate_policy import CandidatePolicy
+
+#: sensorgym's own policy classes, by the name a hyperparameter set's ``policy`` gives
+POLICIES: dict[str, type[BasePolicy]] = {"CandidatePolicy": CandidatePolicy}
+
+
+class SensorgymPPO(PPO):
+    """SB3's PPO that also knows the policies of :data:`POLICIES` by name (a run folder's
+    ``config.yaml`` names its policy class; nothing else is looked up)."""
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {**PPO.policy_aliases, **POLICIES}
+
 
 #: algorithm name -> SB3 class (both handle the continuous Box actions of our envs)
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "sac": SAC}
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": SensorgymPPO, "sac": SAC}
 
 #: keys every hyperparameter set has that configure the run, not the algorithm
 RUN_KEYS = ("n_envs", "n_timesteps", "policy")

@@ -55,6 +55,7 @@ EXPERTS: dict[str, str] = {
     "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
     "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
     "plan-choice-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_choice_expert",
+    "plan-horizon-choice": "sensorgym.envs.stereo_pointing.wrappers:PlanHorizonExpert",
     "placement-oracle-target": "sensorgym.envs.stereo_placement.wrappers:oracle_target",
     "scan-entry-search": "sensorgym.envs.stereo_scanning.wrappers:entry_search_expert",
 }

@@ -295,6 +295,35 @@ def plan_choice_expert(env: VecEnv) -> PlanExpert:
     return PlanExpert(env, rule.assign)  # type: ignore[attr-defined]
 
 
+class PlanHorizonExpert:
+    """The ``plan-horizon`` rule (:class:`~sensorgym.agents.stereo_pointing_horizon.PlanHorizon`)
+    as a teacher in :class:`PlanAction`'s candidate indices: SB3's ``predict`` on the base
+    env's latest observation, its ``state`` the rule's step counts (restarted by
+    ``episode_start``), as the rule keeps them (``EXPERTS["plan-horizon-choice"]``)."""
+
+    def __init__(self, env: VecEnv):
+        from sensorgym.agents.registry import rules_for
+
+        self.wrapper: PlanAction = _find(env, PlanAction, "pointing-plan")
+        self.rule = rules_for("sensorgym/StereoPointing-v0", self.wrapper.params, lambda: None)[
+            "plan-horizon"
+        ]
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: NDArray[np.int64] | None = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+        obs = self.wrapper.last_obs
+        if obs is None or len(obs) != len(np.atleast_2d(observation)):
+            raise ValueError("observation: the expert acts on the wrapped env's own batch")
+        t = self.rule.steps(len(obs), state, episode_start)  # type: ignore[attr-defined]
+        choice = self.rule.assign(obs, t)  # type: ignore[attr-defined]
+        return self.wrapper.index(choice), t + 1
+
+
 def hold_cue_expert(env: VecEnv) -> AssignmentExpert:
     """The ``hold-cue`` rule as an assignment teacher (``EXPERTS["pointing-hold-cue"]``)."""
     return _rule_expert(env, "hold-cue")

@@ -1,0 +1,137 @@
+"""The planner on the tracker's estimate that plans to the episode's end, with hysteresis: the
+``plan-horizon`` rule of ``sensorgym/StereoPointing-v0``.
+
+:class:`~sensorgym.agents.stereo_pointing.PlanEstimate` holds the assignment whose planned
+return over the next 100 steps is best, re-planned every step. Two things it ignores cost it
+return: near the episode's end it still weighs steps that will never come (a re-pairing that
+pays off only after the time limit looks good), and between near-equal assignments it slews
+receivers away from a drone they already watch (a receiver in transit adds nothing). This rule
+counts the steps of its episode and plans over ``min(horizon, steps left)``, and adds
+``keep_bonus`` per receiver left on a drone it is aimed at.
+
+The observation carries no clock: the rule keeps its own step count as its ``state`` (an int
+array per env, restarted by ``episode_start``), as SB3 does for recurrent policies, and reads
+the episode length from the registration (``max_episode_steps``, :data:`EPISODE_STEPS`). Its
+decisions are the argmax of the :class:`~sensorgym.envs.stereo_pointing.wrappers.PlanFeatures`
+evidence at that horizon plus the hysteresis count (the wrapper counts the steps the same way).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.agents.assignment_solver import best_of, check_solver, exhaustive
+from sensorgym.agents.protocol import as_batch
+from sensorgym.agents.stereo_pointing import (
+    EPISODE_STEPS,
+    _assignments,
+    _keep_bonus,
+    _starts,
+    _View,
+    _view,
+    geometry_values,
+    plan_geometry,
+    plan_objective,
+)
+from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
+
+
+@dataclass(frozen=True)
+class PlanHorizon:
+    """Hold the assignment whose planned return over the next ``min(horizon, steps left)``
+    steps (:func:`~sensorgym.agents.stereo_pointing.plan_values` on the tracker's estimate),
+    plus ``keep_bonus`` per receiver it leaves on a drone it is aimed at, is best; re-planned
+    every step. ``horizon`` and ``keep_bonus`` were chosen on tuning seeds 500 and 600 (see
+    ``docs/environments.md``)."""
+
+    params: PointingParams = field(default_factory=PointingParams)
+    """Env settings (receiver layout, noise, slew limit, reward, observation layout)."""
+    horizon: int = 100
+    """Longest planning horizon, steps (plan-estimate's)."""
+    keep_bonus: float = 0.1
+    """Planned-return bonus per receiver left on a drone it is aimed at (hysteresis)."""
+    episode_steps: int = EPISODE_STEPS
+    """Episode length, steps (the registration's ``max_episode_steps``)."""
+    stride: int = 3
+    """Planning grid: every ``stride``-th future step is scored."""
+    solver: str = "auto"
+    """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
+    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to 4096 assignments)."""
+
+    def __post_init__(self) -> None:
+        check_solver(self.solver)
+        for name in ("horizon", "episode_steps", "stride"):
+            value = getattr(self, name)
+            if not isinstance(value, int | np.integer) or value < 1:
+                raise ValueError(f"{name}: must be an integer >= 1, got {value!r}")
+        if not (np.isfinite(self.keep_bonus) and self.keep_bonus >= 0.0):
+            raise ValueError(f"keep_bonus: must be finite and >= 0, got {self.keep_bonus!r}")
+
+    @property
+    def obs_dim(self) -> int:
+        return self.params.obs_dim
+
+    def planning_horizon(self, t: NDArray[Any]) -> NDArray[np.float64]:
+        """Steps planned over ``(N,)`` at episode steps ``t (N,)``: ``min(horizon, steps
+        left)``, at least 1 (the last step still plans over itself)."""
+        left = self.episode_steps - np.asarray(t, dtype=np.int64)
+        return np.clip(left, 1, self.horizon).astype(np.float64)
+
+    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
+        p = self.params
+        geometry = plan_geometry(
+            p,
+            view.azimuth,
+            view.elevation,
+            view.position,
+            view.velocity,
+            self.planning_horizon(t),
+            self.stride,
+        )
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones):
+            return best_of(
+                plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
+            )
+        cand = _assignments(p)
+        values = geometry_values(p, geometry) + _keep_bonus(view, cand, self.keep_bonus)
+        return cand[np.argmax(values, axis=-1)]
+
+    def assign(self, observation: NDArray[Any], t: NDArray[Any] | int) -> NDArray[np.int64]:
+        """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``, at episode step(s)
+        ``t``."""
+        obs, single = as_batch(observation, self.obs_dim)
+        steps = np.broadcast_to(np.asarray(t, dtype=np.int64), (obs.shape[0],))
+        choice = self.choose(_view(self.params, obs), steps)
+        return choice[0] if single else choice
+
+    def steps(
+        self, n: int, state: NDArray[Any] | None, episode_start: NDArray[Any] | None
+    ) -> NDArray[np.int64]:
+        """The episode step ``(n,)`` of each env: ``state`` (0 without one), 0 where
+        ``episode_start``."""
+        t = np.zeros(n, dtype=np.int64) if state is None else np.asarray(state, dtype=np.int64)
+        if t.shape != (n,):
+            raise ValueError(f"state: expected the step counts of {n} envs, got shape {t.shape}")
+        if episode_start is not None:
+            t = np.where(np.asarray(episode_start, dtype=bool).reshape(n), 0, t)
+        return t
+
+    def predict(
+        self,
+        observation: NDArray[Any],
+        state: NDArray[np.int64] | None = None,
+        episode_start: NDArray[np.bool_] | None = None,
+        deterministic: bool = True,
+    ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
+        obs, single = as_batch(observation, self.obs_dim)
+        t = self.steps(obs.shape[0], state, episode_start)
+        view = _view(self.params, obs)
+        target = self.choose(view, t)
+        action = slew_actions(self.params, view.azimuth, view.elevation, view.position, target)
+        action = np.asarray(action, dtype=np.float32)
+        return (action[0] if single else action), t + 1

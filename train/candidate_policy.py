@@ -1,0 +1,228 @@
+"""A candidate-scoring actor-critic for a choice among candidates described by their own
+features: StereoPointing's candidate assignments under the ``plan-features`` and
+``time-feature`` wrappers (:class:`~sensorgym.envs.stereo_pointing.wrappers.PlanFeatures`).
+
+The actor is permutation-equivariant: one small MLP, shared by every candidate, scores each
+candidate from its own features (its per-step plan loss and best-plan flag at every horizon of
+the features, the fraction of receivers it keeps on their drone, the time left) and the logits
+of the ``Discrete`` action are the scores. To the learned score it adds ``alpha`` times a
+*prior*: the ``plan-horizon`` rule's objective rebuilt from the same features (the planned
+return over ``min(prior_horizon, steps left)`` plus ``prior_keep`` per receiver kept, relative
+to the best candidate), ``alpha`` learned. The MLP's output layer starts at zero, so the
+untrained policy's most likely action *is* the rule's choice (up to the features' float32
+rounding): imitation and RL start from it and only have to learn where to deviate.
+
+The critic pools per-candidate embeddings (mean and max) and reads them with the env's own
+observation and the time left.
+
+It is an SB3 :class:`~stable_baselines3.common.policies.ActorCriticPolicy` whose extractor and
+action head are replaced; :data:`sensorgym.train.config.POLICIES` registers it as
+``CandidatePolicy``, so ``sensorgym train``, ``benchmark``, ``render --model`` and the shipped
+policies rebuild it from a run's ``config.yaml`` (``policy`` and ``policy_kwargs``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch as th
+from gymnasium import spaces
+from stable_baselines3.common.policies import ActorCriticPolicy
+from torch import nn
+
+
+@dataclass(frozen=True)
+class CandidateLayout:
+    """Where each candidate's features lie in the flat observation ``[env observation |
+    plan features | time left]`` of ``plan-features`` (with ``time_left``) and ``time-feature``
+    over the env."""
+
+    n_candidates: int
+    """``C``: candidates (the ``Discrete`` action's size)."""
+    horizons: tuple[int, ...]
+    """The fixed horizons of the plan features (steps), in order; the time-left block follows."""
+    base_dim: int
+    """Size of the env's own observation (first in the vector)."""
+    episode_steps: int
+    """Episode length ``T`` (steps): the time feature ``1 − t/T`` gives ``T − t`` steps left."""
+
+    @property
+    def blocks(self) -> int:
+        """Planning blocks: the fixed horizons and the time left."""
+        return len(self.horizons) + 1
+
+    @property
+    def obs_dim(self) -> int:
+        """Size of the observation this layout reads."""
+        return self.base_dim + self.n_candidates * (2 * self.blocks + 1) + 1
+
+    def split(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
+        """``(base (B, base_dim), loss (B, C, H + 1), best (B, C, H + 1), kept (B, C),
+        remaining (B, 1))`` of observations ``(B, obs_dim)``."""
+        C, H = self.n_candidates, self.blocks
+        b = obs.shape[0]
+        plan = obs[:, self.base_dim : self.base_dim + 2 * H * C].reshape(b, H, 2, C)
+        kept = obs[:, self.base_dim + 2 * H * C : -1]
+        return (
+            obs[:, : self.base_dim],
+            plan[:, :, 0].transpose(1, 2),
+            plan[:, :, 1].transpose(1, 2),
+            kept,
+            obs[:, -1:],
+        )
+
+
+class CandidateNetworks(nn.Module):
+    """The actor's scores ``(B, C)`` and the critic's latent ``(B, hidden)``, SB3's
+    ``mlp_extractor`` interface (``forward_actor``, ``forward_critic``, ``latent_dim_pi``,
+    ``latent_dim_vf``)."""
+
+    #: per-candidate inputs: loss and best flag per block, kept, time left, prior gap
+    def __init__(
+        self,
+        layout: CandidateLayout,
+        n_receivers: int,
+        prior_horizon: int,
+        prior_keep: float,
+        hidden: int,
+        alpha_init: float,
+    ):
+        super().__init__()
+        if prior_horizon not in layout.horizons:
+            raise ValueError(
+                f"prior_horizon: {prior_horizon} must be one of the plan features' horizons "
+                f"{list(layout.horizons)} (beyond the time left the prior plans over it)"
+            )
+        self.layout = layout
+        self.n_receivers = n_receivers
+        self.prior_horizon = prior_horizon
+        self.prior_block = layout.horizons.index(prior_horizon)
+        self.prior_keep = prior_keep
+        n_in = 2 * layout.blocks + 3
+        self.scorer = nn.Sequential(
+            nn.Linear(n_in, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh()
+        )
+        self.score_out = nn.Linear(hidden, 1)
+        self.log_alpha = nn.Parameter(th.tensor(float(np.log(alpha_init))))
+        self.embed = nn.Sequential(nn.Linear(n_in, hidden), nn.Tanh())
+        self.critic = nn.Sequential(
+            nn.Linear(2 * hidden + layout.base_dim + 1, hidden),
+            nn.Tanh(),
+            nn.Linear(hidden, hidden),
+            nn.Tanh(),
+        )
+        self.latent_dim_pi = layout.n_candidates
+        self.latent_dim_vf = hidden
+
+    def zero_residual(self) -> None:
+        """Start the learned score at zero: the actor's mode is the prior's argmax."""
+        nn.init.zeros_(self.score_out.weight)
+        nn.init.zeros_(self.score_out.bias)
+
+    def prior(self, loss: th.Tensor, kept: th.Tensor, remaining: th.Tensor) -> th.Tensor:
+        """The ``plan-horizon`` objective ``(B, C)``, relative to the best candidate: planned
+        return over ``h = min(prior_horizon, steps left)`` (the per-step loss times ``h``)
+        plus ``prior_keep`` per receiver kept."""
+        left = th.clamp(th.round(remaining * self.layout.episode_steps), min=1.0)  # (B, 1)
+        far = left >= self.prior_horizon
+        h = th.where(far, th.full_like(left, float(self.prior_horizon)), left)
+        per_step = th.where(far, loss[..., self.prior_block], loss[..., -1])
+        g = h * per_step + self.prior_keep * self.n_receivers * kept
+        return g - g.max(dim=1, keepdim=True).values
+
+    def inputs(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
+        """``(per-candidate inputs (B, C, F), prior (B, C), base (B, base_dim), remaining
+        (B, 1))``."""
+        base, loss, best, kept, remaining = self.layout.split(obs)
+        prior = self.prior(loss, kept, remaining)
+        C = self.layout.n_candidates
+        x = th.cat(
+            [
+                loss,
+                best,
+                kept[..., None],
+                remaining[:, None].expand(-1, C, 1),
+                th.clamp(prior / 10.0, min=-10.0)[..., None],
+            ],
+            dim=-1,
+        )
+        return x, prior, base, remaining
+
+    def forward_actor(self, obs: th.Tensor) -> th.Tensor:
+        x, prior, _, _ = self.inputs(obs)
+        return th.exp(self.log_alpha) * prior + self.score_out(self.scorer(x)).squeeze(-1)
+
+    def forward_critic(self, obs: th.Tensor) -> th.Tensor:
+        x, _, base, remaining = self.inputs(obs)
+        e = self.embed(x)
+        pooled = th.cat([e.mean(dim=1), e.max(dim=1).values, base, remaining], dim=-1)
+        return self.critic(pooled)
+
+    def forward(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        return self.forward_actor(obs), self.forward_critic(obs)
+
+
+class CandidatePolicy(ActorCriticPolicy):
+    """SB3 actor-critic over a ``Discrete`` choice of candidates whose logits are the
+    :class:`CandidateNetworks` scores (no action layer over them).
+
+    ``policy_kwargs``: ``horizons`` (the plan features' fixed horizons), ``episode_steps``
+    (the time feature's ``T``), ``n_receivers`` (the kept fraction's denominator),
+    ``prior_horizon`` and ``prior_keep`` (the prior rule's settings), ``hidden`` (width of the
+    shared MLPs) and ``alpha_init`` (initial weight of the prior, per unit of return)."""
+
+    def __init__(
+        self,
+        observation_space: spaces.Space,
+        action_space: spaces.Space,
+        lr_schedule: Any,
+        horizons: tuple[int, ...] | list[int] = (15, 50, 100),
+        episode_steps: int = 150,
+        n_receivers: int = 4,
+        prior_horizon: int = 100,
+        prior_keep: float = 0.1,
+        hidden: int = 64,
+        alpha_init: float = 3.0,
+        **kwargs: Any,
+    ):
+        if not isinstance(action_space, spaces.Discrete):
+            raise ValueError(f"CandidatePolicy: needs a Discrete action, got {action_space}")
+        if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
+            raise ValueError(
+                f"CandidatePolicy: needs a flat Box observation, got {observation_space}"
+            )
+        C, H = int(action_space.n), len(horizons) + 1
+        base_dim = observation_space.shape[0] - C * (2 * H + 1) - 1
+        self.layout = CandidateLayout(
+            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps)
+        )
+        if base_dim < 0:
+            raise ValueError(
+                f"CandidatePolicy: an observation of {observation_space.shape[0]} cannot hold "
+                f"{C} candidates' plan features at {H} horizons and the time feature"
+            )
+        if alpha_init <= 0.0:
+            raise ValueError(f"alpha_init: must be > 0, got {alpha_init}")
+        self._candidate_kwargs = dict(
+            n_receivers=int(n_receivers),
+            prior_horizon=int(prior_horizon),
+            prior_keep=float(prior_keep),
+            hidden=int(hidden),
+            alpha_init=float(alpha_init),
+        )
+        super().__init__(observation_space, action_space, lr_schedule, **kwargs)
+
+    def _build_mlp_extractor(self) -> None:
+        self.mlp_extractor = CandidateNetworks(self.layout, **self._candidate_kwargs)
+
+    def _build(self, lr_schedule: Any) -> None:
+        super()._build(lr_schedule)
+        # the scores are the logits: no action layer over them (built by SB3, dropped here,
+        # and the optimizer rebuilt without its parameters)
+        self.action_net = nn.Identity()
+        self.mlp_extractor.zero_residual()
+        self.optimizer = self.optimizer_class(
+            self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
+        )
