@@ -52,7 +52,7 @@ class PlanHorizon:
     """Env settings (receiver layout, noise, slew limit, reward, observation layout)."""
     horizon: int = 100
     """Longest planning horizon, steps (plan-estimate's)."""
-    keep_bonus: float = 0.1
+    keep_bonus: float = 0.3
     """Planned-return bonus per receiver left on a drone it is aimed at (hysteresis)."""
     episode_steps: int = EPISODE_STEPS
     """Episode length, steps (the registration's ``max_episode_steps``)."""
@@ -101,9 +101,9 @@ class PlanHorizon:
         values = geometry_values(p, geometry) + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(values, axis=-1)]
 
-    def assign(self, observation: NDArray[Any], t: NDArray[Any] | int) -> NDArray[np.int64]:
+    def assign(self, observation: NDArray[Any], t: NDArray[Any] | int = 0) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``, at episode step(s)
-        ``t``."""
+        ``t`` (default: the episode's first)."""
         obs, single = as_batch(observation, self.obs_dim)
         steps = np.broadcast_to(np.asarray(t, dtype=np.int64), (obs.shape[0],))
         choice = self.choose(_view(self.params, obs), steps)

@@ -182,7 +182,7 @@ class CandidatePolicy(ActorCriticPolicy):
         episode_steps: int = 150,
         n_receivers: int = 4,
         prior_horizon: int = 100,
-        prior_keep: float = 0.1,
+        prior_keep: float = 0.3,
         hidden: int = 64,
         alpha_init: float = 3.0,
         **kwargs: Any,
