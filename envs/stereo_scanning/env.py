@@ -32,7 +32,7 @@ class StereoScanningEnv(CoreEnv):
     box is gone for good. One step is one scan period ``τ`` (1 s). Each receiver sweeps a TV
     raster of ``L × L`` pixels (100 × 100) over the sector the action chose, in ``sweep_time``
     (0.5 s) starting ``scan_offsets[k]`` (0, 0.25, 0.5 s; evenly over ``[0, 0.5]`` s for other
-    ``n``) into the period; a drone inside the
+    ``n``, receivers 1–3 at its start, middle and end) into the period; a drone inside the
     sector is fixed when the raster reaches its pixel (theory §6.3), so each receiver's direction
     carries its own time and the delays between receivers come from the offsets, the geometry
     and the sectors, not from constants. False detections (``clutter_rate``) are optional.
@@ -130,7 +130,7 @@ class StereoScanningEnv(CoreEnv):
     |---------------------|--------------------|--------------|-------------------------------------------|
     | ``n_receivers``     | 3                  | ≥ 3 (16 tested) | receivers (agents); 1–3 form the triples |
     | ``receiver_azimuths`` | 0°, 90°, 270°    | ``n`` values | ``None``: paper 000's arc for 3, else an even spread with receivers 1–3 a third of the circle apart |
-    | ``scan_offsets``    | 0, 0.25, 0.5 s     | ``n`` values | ``None``: evenly over ``[0, 0.5]`` s      |
+    | ``scan_offsets``    | 0, 0.25, 0.5 s     | ``n`` values | ``None``: evenly over ``[0, 0.5]`` s, receivers 1–3 at 0, ≈0.25, 0.5 s |
     | ``n_drones``        | 4                  | ≥ 1 (10 tested) | drones ``m``                            |
     | ``track_slots``     | 8                  | ≥ 1          | confirmed tracks observed (raise with ``m``) |
     | ``track_capacity``  | 32                 | ≥ 1          | rows of the tracker's table               |

@@ -663,24 +663,25 @@ def step_rows(
             mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
             for x in range(3):
                 cpos[c, x] = O[0, x] + mw[x]
+            cdt[c] = dt[c, 0]
+            csig[c, 0], csig[c, 1] = sp, sv
             if used_n == 3:
                 vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
-                speed = norm3(vw)
+                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
+                if n > 3:
+                    # receivers 4 … n join; the speed check applies to the joint solution
+                    refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+                                     position_sigma, gate_q, max_speed, max_accel, cond_max,
+                                     cmem, cpos, cvel, ctime, csig, rbuf)  # fmt: skip
+                speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
                 if not speed <= max_speed:
                     continue
-                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
             else:
                 if not pair_passes(J[c], X[c, 0], X[c, 1], sig[0], sig[1], position_sigma,
                                    gate_q, max_speed, dt[c, 0]):  # fmt: skip
                     continue
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
-            cdt[c] = dt[c, 0]
-            csig[c, 0], csig[c, 1] = sp, sv
             cok[c] = True
-            if used_n == 3 and n > 3:
-                refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
-                                 position_sigma, gate_q, max_speed, max_accel, cond_max, cmem,
-                                 cpos, cvel, ctime, csig, rbuf)  # fmt: skip
         # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
         for k in range(n):
             for j in range(F):

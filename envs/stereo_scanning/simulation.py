@@ -68,22 +68,30 @@ PAPER_AZIMUTHS = (0.0, float(np.pi / 2), float(3 * np.pi / 2))
 OFFSET_SPAN = 0.5
 
 
+def _spread_order(n: int) -> list[int]:
+    """The even spread's indices ``j`` of the receivers in order: receivers 1–3 (the
+    candidates' triple) at ``j = 0, round(n/3), round(2n/3)``, the others in ascending ``j``."""
+    first = [0, round(n / 3), round(2 * n / 3)]
+    return first + [j for j in range(n) if j not in first]
+
+
 def default_azimuths(n: int) -> tuple[float, ...]:
     """The receivers' azimuths ``(n,)`` when none are given, rad: paper 000's ``(0°, 90°, 270°)``
-    for n = 3; else the even spread ``2π j/n``, ordered so that receivers 1–3 (the candidates'
-    triple) stand at ``j = 0, round(n/3), round(2n/3)`` — about a third of the circle apart
-    (n = 4: 0°, 90°, 270°, then 180°) — and the others follow in ascending ``j``."""
+    for n = 3; else the even spread ``2π j/n`` in :func:`_spread_order` — receivers 1–3 about a
+    third of the circle apart (n = 4: 0°, 90°, 270°, then 180°)."""
     if n == 3:
         return PAPER_AZIMUTHS
-    first = [0, round(n / 3), round(2 * n / 3)]
-    order = first + [j for j in range(n) if j not in first]
-    return tuple(float(2 * np.pi * j / n) for j in order)
+    return tuple(float(2 * np.pi * j / n) for j in _spread_order(n))
 
 
 def default_offsets(n: int) -> tuple[float, ...]:
-    """The sweep offsets ``(n,)`` when none are given, s: evenly over ``[0, OFFSET_SPAN]``
-    (``(0, 0.25, 0.5)`` for n = 3): distinct, so the delays keep the velocity observable."""
-    return tuple(float(x) for x in np.linspace(0.0, OFFSET_SPAN, n))
+    """The sweep offsets ``(n,)`` when none are given, s: evenly over ``[0, OFFSET_SPAN]``,
+    ``OFFSET_SPAN · j/(n − 1)``, with receivers 1–3 at the start, the middle and the end
+    (``(0, 0.25, 0.5)`` for n = 3; the others in ascending ``j``): distinct delays keep the
+    velocity observable, and the triple that forms the candidates gets the widest ones."""
+    first = [0, round((n - 1) / 2), n - 1]
+    order = first + [j for j in range(n) if j not in first]
+    return tuple(float(x) for x in np.linspace(0.0, OFFSET_SPAN, n)[order])
 
 
 def _receiver_count(
@@ -176,7 +184,7 @@ class ScanningParams:
     """Start of each receiver's sweep after the period start, s (one per receiver, each plus
     ``sweep_time`` within ``τ``); distinct offsets give the distinct delays the velocity-aware
     system needs (theory §3.5). ``None``: :func:`default_offsets` — evenly over ``[0, 0.5]`` s,
-    ``(0, 0.25, 0.5)`` for n = 3 (stored as ``None`` when given equal to those; the values in
+    receivers 1–3 at 0, 0.25 and 0.5 s (stored as ``None`` when given equal to those; the values in
     use are :attr:`offsets_array`)."""
     raster_lines: int = 100
     """``L``: the raster has ``L × L`` pixels (theory §6.2: 100 × 100)."""

@@ -44,7 +44,9 @@ def test_default_layout_of_n_receivers():
         az = np.sort(np.mod(default_azimuths(n), 2 * np.pi))
         np.testing.assert_allclose(np.diff(az), 2 * np.pi / n)  # an even spread
         off = np.asarray(default_offsets(n))
-        assert off[0] == 0.0 and off[-1] == 0.5 and np.all(np.diff(off) > 0)
+        np.testing.assert_allclose(np.diff(np.sort(off)), 0.5 / (n - 1))
+        # the triple of receivers 1–3 gets the widest delays
+        assert off[0] == 0.0 and off[2] == 0.5 and abs(off[1] - 0.25) <= 0.5 / (n - 1)
         p = ScanningParams(n_receivers=n)
         assert p.receivers.shape == (n, 3) and p.obs_dim == 88 + 4 * n
     # the count follows a given tuple; replace() re-spreads the default layout
