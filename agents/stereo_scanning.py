@@ -202,12 +202,14 @@ class OrthogonalSectors(_Periodic):
         ang, valid = _track_angles(self.params, o, i)
         idx = np.flatnonzero(valid)
         score = oc1_score(self.params, o["position"][i][idx])
-        chosen = np.zeros_like(valid)
-        for q in idx[np.argsort(score)]:
-            trial = chosen.copy()
-            trial[q] = True
-            if np.all(_cover(self.params, ang, trial)[:, 2] <= self.max_width) or not chosen.any():
-                chosen = trial
+        # by score, the tracks whose covering sectors stay within max_width (the best always)
+        S, n = valid.shape[0], self.params.n_receivers
+        lo, hi = np.empty((1, n, 2)), np.empty((1, n, 2))
+        pad_max, chosen = np.empty((1, n)), np.empty((1, S), np.bool_)
+        _greedy_cover(np.ascontiguousarray(ang[..., :2]), np.zeros((S, n)),
+                      idx[np.argsort(score)], np.array([self.max_width]), MARGIN,
+                      *self.params.sector_width, 0.0, True, lo, hi, pad_max, chosen)  # fmt: skip
+        chosen = chosen[0]
         out = _cover(self.params, ang, chosen)
         pad = _motion_margin(self.params, o["velocity"][i], ang[..., 2])
         out[:, 2] = np.clip(out[:, 2] + 2 * pad[chosen].max(axis=0), *self.params.sector_width)
@@ -215,11 +217,13 @@ class OrthogonalSectors(_Periodic):
 
 
 @njit(cache=True, nogil=True)
-def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, lo, hi, pad_max, chosen):
+def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, tol, take_first, lo, hi, pad_max,
+                  chosen):  # fmt: skip
     """For every width ``w`` of ``widths (W,)``: walk the points in ``order``, taking a point
     when every receiver's covering sector of the points taken so far and it (their angular
     extent ``[lo, hi]`` from ``ang (S, n, 2)``, plus ``2 margin``, clipped to ``[lo_w, hi_w]``)
-    widened by twice their largest motion ``pad (S, n)`` fits ``w``. Writes the extent
+    widened by twice their largest motion ``pad (S, n)`` fits ``w + tol`` (or, with
+    ``take_first``, when it is the first point taken). Writes the extent
     ``lo, hi (W, n, 2)``, the largest motion ``pad_max (W, n)`` and ``chosen (W, S)`` (what
     :func:`_cover` of the chosen points gives, without building it per trial)."""
     n = ang.shape[1]
@@ -229,6 +233,7 @@ def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, lo, hi, pad_max, 
         hi[w] = -np.inf
         pad_max[w] = -np.inf
         chosen[w] = False
+        first = take_first
         for q in order:
             fits = True
             for k in range(n):
@@ -239,12 +244,13 @@ def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, lo, hi, pad_max, 
                     width = max(width, t_hi[k, x] - t_lo[k, x])
                 cover = min(max(width + 2 * margin, lo_w), hi_w)
                 t_pad[k] = max(pad_max[w, k], pad[q, k])
-                if not cover + 2 * t_pad[k] <= widths[w] + 1e-12:
+                if not (first or cover + 2 * t_pad[k] <= widths[w] + tol):
                     fits = False
                     break
             if fits:
                 lo[w], hi[w], pad_max[w] = t_lo, t_hi, t_pad
                 chosen[w, q] = True
+                first = False
 
 
 def greedy_sectors(
@@ -270,7 +276,7 @@ def greedy_sectors(
     lo, hi = np.empty((W, n, 2)), np.empty((W, n, 2))
     pad_max, chosen = np.empty((W, n)), np.empty((W, S), np.bool_)
     _greedy_cover(np.ascontiguousarray(ang[..., :2]), pad, np.argsort(rel), widths, MARGIN,
-                  lo_w, hi_w, lo, hi, pad_max, chosen)  # fmt: skip
+                  lo_w, hi_w, 1e-12, False, lo, hi, pad_max, chosen)  # fmt: skip
     some = chosen.any(axis=1)
     if not some.any():
         return _full(params, 1)[0]
