@@ -103,6 +103,13 @@ class SeparableObjective:
         B, _, n, m = self.w.shape
         return B, n, m
 
+    @property
+    def arrays(self) -> tuple:
+        """The objective as the compiled kernels take it: ``(kind, u, w, ready, prior,
+        weight, consts)``, C-contiguous."""
+        fields = (self.u, self.w, self.ready, self.prior, self.weight, self.consts)
+        return (self.kind, *(np.ascontiguousarray(a) for a in fields))
+
     def marginals(
         self, assign: IntArray, scenarios: IntArray, rows: IntArray, cols: IntArray
     ) -> FloatArray:
@@ -115,7 +122,7 @@ class SeparableObjective:
         b = np.ascontiguousarray(scenarios, dtype=np.int64)
         k = np.ascontiguousarray(rows, dtype=np.int64)
         j = np.ascontiguousarray(cols, dtype=np.int64)
-        data = (self.kind, self.u, self.w, self.ready, self.prior, self.weight, self.consts)
+        data = self.arrays
         # rows of the batch split over threads (the kernel releases the GIL)
         run_rows(
             len(b),
@@ -140,6 +147,13 @@ class SeparableObjective:
         return total
 
 
+def _bonus(objective: SeparableObjective, bonus: FloatArray | None) -> FloatArray:
+    """``bonus (B, n, m)`` as the kernels take it (zeros for none)."""
+    if bonus is None:
+        return np.zeros(objective.shape)
+    return np.ascontiguousarray(np.broadcast_to(bonus, objective.shape), dtype=np.float64)
+
+
 def sequential_greedy(
     objective: SeparableObjective,
     bonus: FloatArray | None = None,
@@ -148,19 +162,37 @@ def sequential_greedy(
     """The locally greedy assignment ``(B, n)``: receivers in index order, each to the drone of
     largest marginal value (plus ``bonus (B, n, m)``) given the receivers assigned before it;
     ties go to the lowest drone index. Receivers with a drone in ``start (B, n)`` keep it (−1:
-    to assign; default all). At most ``n m`` drone scores per scenario."""
-    B, n, m = objective.shape
-    assign = np.full((B, n), -1, dtype=np.int64) if start is None else np.array(start)
-    for k in range(n):
-        free = np.flatnonzero(assign[:, k] < 0)
-        if free.size == 0:
-            continue
-        cols = np.broadcast_to(np.arange(m), (free.size, m))
-        value = objective.marginals(assign[free], free, np.array([k]), cols)[:, 0]
-        if bonus is not None:
-            value = value + bonus[free, k]
-        assign[free, k] = np.argmax(value, axis=-1)
+    to assign; default all). At most ``n m`` drone scores per scenario (compiled:
+    :func:`~sensorgym.trackers.stereo.kernels.assignment_greedy_batch`)."""
+    B, n, _ = objective.shape
+    assign = np.full((B, n), -1, dtype=np.int64)
+    if start is not None:
+        assign[:] = start
+    data, beta = objective.arrays, _bonus(objective, bonus)
+    run_rows(B, lambda lo, hi: kernels.assignment_greedy_batch(*data, beta, lo, hi, assign))
     return assign
+
+
+def _ascend(
+    objective: SeparableObjective,
+    starts: list[IntArray],
+    bonus: FloatArray | None,
+    max_moves: int | None,
+) -> IntArray:
+    """The compiled ascent of :func:`improve` from every start, the best end per scenario
+    (:func:`~sensorgym.trackers.stereo.kernels.assignment_ascent_batch`)."""
+    B, n, m = objective.shape
+    first = np.stack([np.asarray(s, dtype=np.int64) for s in starts])  # (T, B, n)
+    moves = n * m if max_moves is None else int(max_moves)
+    data, beta = objective.arrays, _bonus(objective, bonus)
+    out = np.empty((B, n), dtype=np.int64)
+    run_rows(
+        B,
+        lambda lo, hi: kernels.assignment_ascent_batch(
+            *data, first, beta, moves, MIN_RISE, lo, hi, out
+        ),
+    )
+    return out
 
 
 def improve(
@@ -171,42 +203,20 @@ def improve(
 ) -> IntArray:
     """Coordinate-wise ascent of ``F(a) + Σ_k bonus[k, a_k]`` from ``start (B, n)``: in every
     scenario, while some receiver can move to another drone and raise the objective by more
-    than ``MIN_RISE``, make the move that raises it most. Every move raises the objective, so
-    no assignment repeats; ``max_moves`` (default ``n · m``) bounds the moves per scenario.
-    Returns a local optimum ``(B, n)`` (unless stopped by ``max_moves``)."""
-    B, n, m = objective.shape
-    assign = np.array(start, dtype=np.int64, copy=True)
-    beta = np.zeros((B, n, m)) if bonus is None else np.asarray(bonus, dtype=np.float64)
-    every = np.arange(B)
-    # value[b, k, j]: marginal value of receiver k on drone j, plus its bonus
-    value = objective.marginals(assign, every, np.arange(n), np.broadcast_to(np.arange(m), (B, m)))
-    value += beta
-    for _ in range(n * m if max_moves is None else max_moves):
-        here = np.take_along_axis(value, assign[:, :, None], axis=-1)  # (B, n, 1)
-        rise = (value - here).reshape(B, n * m)
-        best = np.argmax(rise, axis=-1)
-        moving = np.flatnonzero(rise[every, best] > MIN_RISE)
-        if moving.size == 0:
-            break
-        k, j = np.divmod(best[moving], m)
-        cols = np.stack([assign[moving, k], j], axis=-1)  # the two drones the move touches
-        assign[moving, k] = j
-        fresh = objective.marginals(assign[moving], moving, np.arange(n), cols)
-        # (advanced indices around a slice: their axes come first, (moving, 2, n))
-        value[moving[:, None], :, cols] = np.swapaxes(fresh, 1, 2) + beta[moving[:, None], :, cols]
-    return assign
+    than ``MIN_RISE``, make the move that raises it most (the first, receiver-major, on
+    ties). Every move raises the objective, so no assignment repeats; ``max_moves`` (default
+    ``n · m``) bounds the moves per scenario. Returns a local optimum ``(B, n)`` (unless
+    stopped by ``max_moves``). One compiled pass per scenario
+    (:func:`~sensorgym.trackers.stereo.kernels.assignment_ascent_batch`): the marginals of
+    every receiver on every drone once, then only the two drones a move touches."""
+    return _ascend(objective, [start], bonus, max_moves)
 
 
 def best_of(
     objective: SeparableObjective, starts: list[IntArray], bonus: FloatArray | None = None
 ) -> IntArray:
     """:func:`improve` from each of ``starts``; per scenario the result of the highest
-    objective (plus bonus), the first on ties."""
-    results = [improve(objective, start, bonus) for start in starts]
-    B, n, _ = objective.shape
-    score = np.stack([objective.gains(a) for a in results])  # (starts, B)
-    if bonus is not None:
-        b = np.arange(B)[:, None]
-        score += np.stack([bonus[b, np.arange(n)[None, :], a].sum(axis=-1) for a in results])
-    pick = np.argmax(score - MIN_RISE * np.arange(len(results))[:, None], axis=0)
-    return np.stack(results)[pick, np.arange(B)]
+    objective ``F(a)`` (plus bonus), the first on ties (within ``MIN_RISE`` per start). The
+    ascents of one scenario share the drones' scores: a drone's receiver set met by an
+    earlier ascent is not scored again."""
+    return _ascend(objective, starts, bonus, None)

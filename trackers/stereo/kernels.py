@@ -99,51 +99,82 @@ def det3(A):
     )
 
 
-@njit(**JIT)
+@njit(**INLINE)
 def lu3(A, LU, piv):
     """``P A = L U`` of a 3×3 ``A`` by Gaussian elimination with partial pivoting: ``LU`` gets
     ``U`` on and above the diagonal and the multipliers of ``L`` below, ``piv[i]`` the row
-    swapped into row ``i`` at step ``i``. A zero pivot is left in ``U`` (a singular ``A``)."""
-    copy2(A, LU)
-    for i in range(3):
-        # pivot: the largest |a_ki| of column i at or below row i
-        p = i
-        for k in range(i + 1, 3):
-            if abs(LU[k, i]) > abs(LU[p, i]):
-                p = k
-        piv[i] = p
-        if p != i:
-            for c in range(3):
-                t = LU[i, c]
-                LU[i, c] = LU[p, c]
-                LU[p, c] = t
-        if LU[i, i] != 0.0:
-            for k in range(i + 1, 3):
-                # l_ki = a_ki / a_ii ;  a_kc −= l_ki a_ic
-                LU[k, i] /= LU[i, i]
-                for c in range(i + 1, 3):
-                    LU[k, c] -= LU[k, i] * LU[i, c]
+    swapped into row ``i`` at step ``i`` (rows swapped whole, multipliers with them). A zero
+    pivot is left in ``U`` (a singular ``A``). The entries are held in locals and written
+    once (numba reloads an array after every store: 3–4× slower)."""
+    a00, a01, a02 = A[0, 0], A[0, 1], A[0, 2]
+    a10, a11, a12 = A[1, 0], A[1, 1], A[1, 2]
+    a20, a21, a22 = A[2, 0], A[2, 1], A[2, 2]
+    # step 0: pivot, the first largest |a_k0|
+    p0 = 0
+    if abs(a10) > abs(a00):
+        p0 = 1
+    if abs(a20) > abs(a10 if p0 == 1 else a00):
+        p0 = 2
+    if p0 == 1:
+        a00, a01, a02, a10, a11, a12 = a10, a11, a12, a00, a01, a02
+    elif p0 == 2:
+        a00, a01, a02, a20, a21, a22 = a20, a21, a22, a00, a01, a02
+    if a00 != 0.0:
+        # l_k0 = a_k0 / a_00 ;  a_kc −= l_k0 a_0c
+        a10 /= a00
+        a11 -= a10 * a01
+        a12 -= a10 * a02
+        a20 /= a00
+        a21 -= a20 * a01
+        a22 -= a20 * a02
+    # step 1
+    p1 = 1
+    if abs(a21) > abs(a11):
+        p1 = 2
+        a10, a11, a12, a20, a21, a22 = a20, a21, a22, a10, a11, a12
+    if a11 != 0.0:
+        a21 /= a11
+        a22 -= a21 * a12
+    LU[0, 0], LU[0, 1], LU[0, 2] = a00, a01, a02
+    LU[1, 0], LU[1, 1], LU[1, 2] = a10, a11, a12
+    LU[2, 0], LU[2, 1], LU[2, 2] = a20, a21, a22
+    piv[0], piv[1], piv[2] = p0, p1, 2
 
 
-@njit(**JIT)
+@njit(**INLINE)
+def lu_solve_column3(LU, piv, x0, x1, x2):
+    """``A⁻¹ x`` of one column ``x = (x0, x1, x2)`` from :func:`lu3`'s factors: row swaps,
+    then ``L y = P x`` and ``U z = y``; returns ``z`` (in locals, as :func:`lu3`)."""
+    p0, p1, p2 = piv[0], piv[1], piv[2]
+    # row i swapped with row piv[i], i = 0, 1, 2 in turn
+    if p0 == 1:
+        x0, x1 = x1, x0
+    elif p0 == 2:
+        x0, x2 = x2, x0
+    if p1 == 0:
+        x1, x0 = x0, x1
+    elif p1 == 2:
+        x1, x2 = x2, x1
+    if p2 == 0:
+        x2, x0 = x0, x2
+    elif p2 == 1:
+        x2, x1 = x1, x2
+    # forward: y_i = x_i − Σ_{j<i} l_ij y_j
+    x1 -= LU[1, 0] * x0
+    x2 -= LU[2, 0] * x0 + LU[2, 1] * x1
+    # back: z_i = (y_i − Σ_{j>i} u_ij z_j) / u_ii
+    x2 /= LU[2, 2]
+    x1 = (x1 - LU[1, 2] * x2) / LU[1, 1]
+    x0 = (x0 - LU[0, 1] * x1 - LU[0, 2] * x2) / LU[0, 0]
+    return x0, x1, x2
+
+
+@njit(**INLINE)
 def lu_solve3(LU, piv, X):
-    """``X ← A⁻¹ X`` in place (``X`` of shape ``(3, k)``) from :func:`lu3`'s factors: row
-    swaps, then ``L y = P b`` and ``U x = y`` per column."""
-    for i in range(3):
-        p = piv[i]
-        if p != i:
-            for c in range(X.shape[1]):
-                t = X[i, c]
-                X[i, c] = X[p, c]
-                X[p, c] = t
+    """``X ← A⁻¹ X`` in place (``X`` of shape ``(3, k)``) from :func:`lu3`'s factors, column
+    by column (:func:`lu_solve_column3`)."""
     for c in range(X.shape[1]):
-        # forward: y_i = b_i − Σ_{j<i} l_ij y_j
-        X[1, c] -= LU[1, 0] * X[0, c]
-        X[2, c] -= LU[2, 0] * X[0, c] + LU[2, 1] * X[1, c]
-        # back: x_i = (y_i − Σ_{j>i} u_ij x_j) / u_ii
-        X[2, c] /= LU[2, 2]
-        X[1, c] = (X[1, c] - LU[1, 2] * X[2, c]) / LU[1, 1]
-        X[0, c] = (X[0, c] - LU[0, 1] * X[1, c] - LU[0, 2] * X[2, c]) / LU[0, 0]
+        X[0, c], X[1, c], X[2, c] = lu_solve_column3(LU, piv, X[0, c], X[1, c], X[2, c])
 
 
 @njit(**INLINE)
@@ -154,6 +185,18 @@ def inverse3(A, LU, piv, out):
         for j in range(3):
             out[i, j] = 1.0 if i == j else 0.0
     lu_solve3(LU, piv, out)
+
+
+@njit(**INLINE)
+def trace_inverse3(A, LU, piv):
+    """``tr A⁻¹`` of a regular 3×3 ``A`` (scratch ``LU (3, 3)``, ``piv (3,)``): the diagonal
+    of :func:`inverse3`, each entry by the same operations (the solves for the columns of
+    ``I``, of which only entry ``c`` of column ``c`` is kept), summed in order."""
+    lu3(A, LU, piv)
+    d0 = lu_solve_column3(LU, piv, 1.0, 0.0, 0.0)[0]
+    d1 = lu_solve_column3(LU, piv, 0.0, 1.0, 0.0)[1]
+    d2 = lu_solve_column3(LU, piv, 0.0, 0.0, 1.0)[2]
+    return d0 + d1 + d2
 
 
 # ---------------------------------------------------------------- lines of sight and angles
@@ -288,8 +331,7 @@ def position_sigma(info, ok, sigma, LU, piv, inv):
     """Position RMS bound ``σ √tr I⁻¹`` (m) where ``ok``, ``+inf`` elsewhere (theory §4.1)."""
     if not ok:
         return np.inf
-    inverse3(info, LU, piv, inv)
-    tr = inv[0, 0] + inv[1, 1] + inv[2, 2]
+    tr = trace_inverse3(info, LU, piv)
     return sigma * math.sqrt(max(tr, 0.0))
 
 
@@ -376,43 +418,110 @@ LOG_DET, GAIN, REWARD, ORTHOGONALITY = 0, 1, 2, 3
 
 
 @njit(**INLINE)
-def set_score(kind, u, w, ready, prior, consts, members, count, skip, extra, work, piv):
-    """Score of one drone's receiver set on one step (the objective ``kind``, above): the
-    receivers ``members[:count]`` without ``skip`` and with ``extra`` (−1: none), counted
-    where ``ready[k]``, their information ``λ I + Σ_k w_k (I − u_k u_kᵀ)``
-    (:func:`add_projection`, ``λ = prior``). ``u (n, 3)``, ``w``/``ready (n,)``; ``consts``
-    holds ``no_fix`` (LOG_DET) or ``σ_ref, R`` (REWARD); scratch ``work (3, 3, 3)``,
-    ``piv (3,)``."""
-    info, LU, inv = work[0], work[1], work[2]
+def set_information(u, w, ready, prior, members, count, skip, extra, info):
+    """``info = λ I + Σ_k w_k (I − u_k u_kᵀ)`` (:func:`add_projection`, ``λ = prior``) of the
+    receivers ``members[:count]`` without ``skip`` and with ``extra`` (−1: none), each counted
+    where ``ready[k]``, added in that order; returns how many were counted. ``u (n, 3)``,
+    ``w``/``ready (n,)``, ``info (3, 3)``."""
     for a in range(3):
         for c in range(3):
             info[a, c] = prior if a == c else 0.0
     views = 0
-    best = 0.0
     for i in range(count + 1):
         k = members[i] if i < count else extra
         if k < 0 or k == skip or not ready[k]:
             continue
         views += 1
-        if kind == ORTHOGONALITY:
-            # Σ_l sin²γ_kl over the set, for the best reference receiver k
-            acc = 0.0
-            for i2 in range(count + 1):
-                l = members[i2] if i2 < count else extra
-                if l >= 0 and l != skip and ready[l]:
-                    acc += sin2_between(u[k], u[l])
-            best = max(best, acc)
-        else:
-            add_projection(u[k], w[k], info)
+        add_projection(u[k], w[k], info)
+    return views
+
+
+@njit(**INLINE)
+def information_score(kind, info, views, prior, consts, LU, piv, inv):
+    """Score ``kind`` (LOG_DET, GAIN or REWARD, above) of one drone's information ``info``
+    from ``views`` receivers over the prior ``λ = prior``; ``consts`` holds ``no_fix``
+    (LOG_DET) or ``σ_ref, R`` (REWARD); scratch ``LU``/``inv (3, 3)``, ``piv (3,)``."""
     if kind == LOG_DET:
         d = det3(info)
         return math.log(d) if views >= 2 and d > 0.0 else -consts[0]
     if kind == GAIN:
         return math.log(det3(info)) - 3.0 * math.log(prior)
-    if kind == REWARD:
-        sigma = position_sigma(info, observable(info, views), 1.0, LU, piv, inv)
-        return log_ratio_reward(sigma, consts[0], consts[1])
+    sigma = position_sigma(info, observable(info, views), 1.0, LU, piv, inv)
+    return log_ratio_reward(sigma, consts[0], consts[1])
+
+
+@njit(**INLINE)
+def orthogonality_score(u, ready, members, count, skip, extra):
+    """``½ ln max_k Σ_l sin²γ_kl`` (floored at 1e-300) over the receivers of
+    :func:`set_information`'s set (:func:`assignment_orthogonality_batch`)."""
+    best = 0.0
+    for i in range(count + 1):
+        k = members[i] if i < count else extra
+        if k < 0 or k == skip or not ready[k]:
+            continue
+        # Σ_l sin²γ_kl over the set, for the best reference receiver k
+        acc = 0.0
+        for i2 in range(count + 1):
+            l = members[i2] if i2 < count else extra
+            if l >= 0 and l != skip and ready[l]:
+                acc += sin2_between(u[k], u[l])
+        best = max(best, acc)
     return 0.5 * math.log(max(best, 1e-300))
+
+
+@njit(**JIT)
+def drone_marginals(
+    kind, u, w, ready, prior, weight, consts, assign, j, rows, out, members, work, piv
+):
+    """Marginal values on drone ``j`` of one scenario under the separable objective of
+    :func:`assignment_marginals_batch`: ``out[a] = V_j(S ∪ {k}) − V_j(S ∖ {k})`` for receiver
+    ``k = rows[a]``, ``S`` drone ``j``'s receivers under ``assign (n,)`` (−1: not assigned);
+    returns ``V_j(S)``. ``u (S, n, m, 3)``, ``w``/``ready (S, n, m)``, ``weight (S,)``,
+    ``prior`` drone ``j``'s ``λ``; scratch ``members (n,)``, ``work (4, 3, 3)``, ``piv (3,)``.
+
+    Per step, the set's information is summed once; a receiver outside the set adds its term
+    to it (the order :func:`set_information` adds them in, so the sum is the same to the
+    bit), a receiver inside is summed without. A step where ``k`` does not count, or of
+    weight 0, adds nothing to ``out[a]`` and is not scored twice."""
+    count = 0
+    for k in range(assign.shape[0]):
+        if assign[k] == j:
+            members[count] = k
+            count += 1
+    for a in range(rows.shape[0]):
+        out[a] = 0.0
+    base_info, info, LU, inv = work[0], work[1], work[2], work[3]
+    value = 0.0
+    for s in range(u.shape[0]):
+        if weight[s] == 0.0:
+            continue
+        us, ws, rs = u[s, :, j], w[s, :, j], ready[s, :, j]
+        views = 0
+        if kind == ORTHOGONALITY:
+            base = orthogonality_score(us, rs, members, count, -1, -1)
+        else:
+            views = set_information(us, ws, rs, prior, members, count, -1, -1, base_info)
+            base = information_score(kind, base_info, views, prior, consts, LU, piv, inv)
+        value += weight[s] * base
+        for a in range(rows.shape[0]):
+            k = rows[a]
+            if not rs[k]:
+                continue
+            inside = assign[k] == j
+            # the set with k minus the set without k, on this step
+            if kind == ORTHOGONALITY:
+                other = orthogonality_score(
+                    us, rs, members, count, k if inside else -1, -1 if inside else k
+                )
+            elif inside:
+                v = set_information(us, ws, rs, prior, members, count, k, -1, info)
+                other = information_score(kind, info, v, prior, consts, LU, piv, inv)
+            else:
+                copy2(base_info, info)
+                add_projection(us[k], ws[k], info)
+                other = information_score(kind, info, views + 1, prior, consts, LU, piv, inv)
+            out[a] += weight[s] * (base - other if inside else other - base)
+    return value
 
 
 @njit(**JIT)
@@ -420,49 +529,157 @@ def assignment_marginals_batch(
     kind, u, w, ready, prior, weight, consts, assign, scenarios, rows, cols, out
 ):
     """Marginal values of receivers on drones under a separable assignment objective
-    ``F(a) = Σ_j V_j({k : a_k = j})``, ``V_j(S) = Σ_s weight_s · score_s(S)`` with the
-    :func:`set_score` of ``kind`` on each step ``s``: for row ``i`` — scenario
+    ``F(a) = Σ_j V_j({k : a_k = j})``, ``V_j(S) = Σ_s weight_s · score_s(S)`` with the score
+    of ``kind`` on each step ``s`` (:func:`information_score`, :func:`orthogonality_score`)
+    of the receivers of ``S`` that count there: for row ``i`` — scenario
     ``b = scenarios[i]`` under the assignment ``assign[i] (n,)`` (−1: not assigned) — receiver
     ``k = rows[a]`` and drone ``j = cols[i, c]``, ``out[i, a, c] = V_j(S ∪ {k}) − V_j(S)`` with
-    ``S`` drone ``j``'s receivers other than ``k``. Moving ``k`` from drone ``j₀`` to ``j``
-    changes ``F`` by ``out[.., j] − out[.., j₀]``. ``u (B, S, n, m, 3)``, ``w``/``ready
-    (B, S, n, m)``, ``prior (B, m)``, ``weight (B, S)``. A step where ``k`` does not count, or
-    of weight 0, adds nothing to the difference and is not scored twice."""
-    n, S = assign.shape[1], u.shape[1]
+    ``S`` drone ``j``'s receivers other than ``k`` (:func:`drone_marginals`). Moving ``k``
+    from drone ``j₀`` to ``j`` changes ``F`` by ``out[.., j] − out[.., j₀]``.
+    ``u (B, S, n, m, 3)``, ``w``/``ready (B, S, n, m)``, ``prior (B, m)``, ``weight (B, S)``."""
+    n = assign.shape[1]
     members = np.empty(n, np.int64)
-    base = np.empty(S)
-    work, piv = np.empty((3, 3, 3)), np.empty(3, np.int64)
+    column = np.empty(rows.shape[0])
+    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
     for i in range(scenarios.shape[0]):
         b = scenarios[i]
         for c in range(cols.shape[1]):
             j = cols[i, c]
-            count = 0
-            for k in range(n):
-                if assign[i, k] == j:
-                    members[count] = k
-                    count += 1
-            pj = prior[b, j]
-            for s in range(S):
-                base[s] = 0.0
-                if weight[b, s] != 0.0:
-                    base[s] = set_score(
-                        kind, u[b, s, :, j], w[b, s, :, j], ready[b, s, :, j], pj, consts,
-                        members, count, -1, -1, work, piv,
-                    )  # fmt: skip
+            drone_marginals(
+                kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, assign[i], j, rows,
+                column, members, work, piv,
+            )  # fmt: skip
             for a in range(rows.shape[0]):
-                k = rows[a]
-                inside = assign[i, k] == j
-                total = 0.0
-                for s in range(S):
-                    if weight[b, s] == 0.0 or not ready[b, s, k, j]:
-                        continue
-                    # the set with k minus the set without k, on this step
-                    other = set_score(
-                        kind, u[b, s, :, j], w[b, s, :, j], ready[b, s, :, j], pj, consts,
-                        members, count, k if inside else -1, -1 if inside else k, work, piv,
+                out[i, a, c] = column[a]
+
+
+@njit(**JIT)
+def assignment_greedy_batch(kind, u, w, ready, prior, weight, consts, bonus, lo, hi, assign):
+    """Sequential greedy (:func:`sensorgym.agents.assignment_solver.sequential_greedy`) for
+    scenarios ``lo ≤ b < hi``: receivers in index order, each unassigned one (``assign[b, k]
+    < 0``) to the drone of largest marginal value (:func:`drone_marginals`) plus
+    ``bonus[b, k, j]``, given the receivers assigned before it; ties go to the lowest drone.
+    Arrays as :func:`assignment_marginals_batch`; ``assign (B, n)`` is updated in place."""
+    n, m = assign.shape[1], u.shape[3]
+    members = np.empty(n, np.int64)
+    row, column = np.empty(1, np.int64), np.empty(1)
+    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
+    for b in range(lo, hi):
+        for k in range(n):
+            if assign[b, k] >= 0:
+                continue
+            row[0] = k
+            best, best_value = 0, -np.inf
+            for j in range(m):
+                drone_marginals(
+                    kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, assign[b], j,
+                    row, column, members, work, piv,
+                )  # fmt: skip
+                value = column[0] + bonus[b, k, j]
+                if j == 0 or value > best_value:
+                    best, best_value = j, value
+            assign[b, k] = best
+
+
+@njit(**JIT)
+def _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, members, work,
+                   piv, keys, columns, size):  # fmt: skip
+    """Row of ``columns`` holding ``V_j(S)`` and the marginals of every receiver on drone
+    ``j`` (:func:`drone_marginals`) under ``assign``, computed unless a row of the same drone
+    and receiver set (``keys[:size]``: drone, bitmask; ``n ≤ 62``) holds it already; returns
+    the row and the new size. Without a key (``n > 62``) the last row is scratch."""
+    n = assign.shape[0]
+    scratch = columns.shape[0] - 1
+    mask = 0
+    if n <= 62:
+        for k in range(n):
+            if assign[k] == j:
+                mask |= 1 << k
+        for i in range(size):
+            if keys[i, 0] == j and keys[i, 1] == mask:
+                return i, size
+    at = size if n <= 62 and size < scratch else scratch
+    columns[at, 0] = drone_marginals(
+        kind, u, w, ready, prior, weight, consts, assign, j, rows, columns[at, 1:], members,
+        work, piv,
+    )  # fmt: skip
+    if at == scratch:
+        return at, size
+    keys[at, 0], keys[at, 1] = j, mask
+    return at, size + 1
+
+
+@njit(**JIT)
+def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bonus, max_moves,
+                            min_rise, lo, hi, out):  # fmt: skip
+    """Coordinate-wise ascent (:func:`sensorgym.agents.assignment_solver.improve`) of
+    ``F(a) + Σ_k bonus[b, k, a_k]`` from every start ``starts[t, b] (n,)``, for scenarios
+    ``lo ≤ b < hi``: while some receiver can move to another drone and raise the objective by
+    more than ``min_rise``, make the move that raises it most (the first in receiver-major
+    order on ties), at most ``max_moves`` moves; then the end of the highest objective,
+    less ``min_rise · t`` (the first start on ties), into ``out[b] (n,)``. Arrays as
+    :func:`assignment_marginals_batch`.
+
+    Only the two drones a move touches are re-scored, and every drone's column (its value and
+    the marginals of all receivers on it, :func:`drone_marginals`) is kept per receiver set
+    within a scenario: an ascent that comes back to a set, or another start's ascent passing
+    through it, reads it instead of scoring it again."""
+    T, n, m = starts.shape[0], starts.shape[2], u.shape[3]
+    rows = np.arange(n)
+    members = np.empty(n, np.int64)
+    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
+    # every column one scenario may need: T starts × (m + two per move), plus the scratch row
+    cap = T * (m + 2 * max_moves) + 1
+    keys = np.empty((cap, 2), np.int64)
+    columns = np.empty((cap, n + 1))
+    value = np.empty((n, m))
+    held = np.empty(m)
+    a = np.empty(n, np.int64)
+    for b in range(lo, hi):
+        size = 0
+        best_score = -np.inf
+        for t in range(T):
+            for k in range(n):
+                a[k] = starts[t, b, k]
+            for j in range(m):
+                at, size = _cached_column(
+                    kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, a, j, rows,
+                    members, work, piv, keys, columns, size,
+                )  # fmt: skip
+                held[j] = columns[at, 0]
+                for k in range(n):
+                    value[k, j] = columns[at, 1 + k] + bonus[b, k, j]
+            for _ in range(max_moves):
+                # the move of largest rise (receiver-major, first on ties)
+                mk, mj, rise = 0, 0, -np.inf
+                for k in range(n):
+                    here = value[k, a[k]]
+                    for j in range(m):
+                        r = value[k, j] - here
+                        if r > rise:
+                            mk, mj, rise = k, j, r
+                if not rise > min_rise:
+                    break
+                j0 = a[mk]
+                a[mk] = mj
+                for j in (j0, mj):
+                    at, size = _cached_column(
+                        kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, a, j, rows,
+                        members, work, piv, keys, columns, size,
                     )  # fmt: skip
-                    total += weight[b, s] * (base[s] - other if inside else other - base[s])
-                out[i, a, c] = total
+                    held[j] = columns[at, 0]
+                    for k in range(n):
+                        value[k, j] = columns[at, 1 + k] + bonus[b, k, j]
+            score = 0.0
+            for j in range(m):
+                score += held[j]
+            for k in range(n):
+                score += bonus[b, k, a[k]]
+            score -= min_rise * t
+            if t == 0 or score > best_score:
+                best_score = score
+                for k in range(n):
+                    out[b, k] = a[k]
 
 
 # ---------------------------------------------------------------- constant-velocity Kalman filter
