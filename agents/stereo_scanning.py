@@ -25,6 +25,7 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
@@ -201,16 +202,55 @@ class OrthogonalSectors(_Periodic):
         ang, valid = _track_angles(self.params, o, i)
         idx = np.flatnonzero(valid)
         score = oc1_score(self.params, o["position"][i][idx])
-        chosen = np.zeros_like(valid)
-        for q in idx[np.argsort(score)]:
-            trial = chosen.copy()
-            trial[q] = True
-            if np.all(_cover(self.params, ang, trial)[:, 2] <= self.max_width) or not chosen.any():
-                chosen = trial
+        # by score, the tracks whose covering sectors stay within max_width (the best always)
+        S, n = valid.shape[0], self.params.n_receivers
+        lo, hi = np.empty((1, n, 2)), np.empty((1, n, 2))
+        pad_max, chosen = np.empty((1, n)), np.empty((1, S), np.bool_)
+        _greedy_cover(np.ascontiguousarray(ang[..., :2]), np.zeros((S, n)),
+                      idx[np.argsort(score)], np.array([self.max_width]), MARGIN,
+                      *self.params.sector_width, 0.0, True, lo, hi, pad_max, chosen)  # fmt: skip
+        chosen = chosen[0]
         out = _cover(self.params, ang, chosen)
         pad = _motion_margin(self.params, o["velocity"][i], ang[..., 2])
         out[:, 2] = np.clip(out[:, 2] + 2 * pad[chosen].max(axis=0), *self.params.sector_width)
         return out
+
+
+@njit(cache=True, nogil=True)
+def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, tol, take_first, lo, hi, pad_max,
+                  chosen):  # fmt: skip
+    """For every width ``w`` of ``widths (W,)``: walk the points in ``order``, taking a point
+    when every receiver's covering sector of the points taken so far and it (their angular
+    extent ``[lo, hi]`` from ``ang (S, n, 2)``, plus ``2 margin``, clipped to ``[lo_w, hi_w]``)
+    widened by twice their largest motion ``pad (S, n)`` fits ``w + tol`` (or, with
+    ``take_first``, when it is the first point taken). Writes the extent
+    ``lo, hi (W, n, 2)``, the largest motion ``pad_max (W, n)`` and ``chosen (W, S)`` (what
+    :func:`_cover` of the chosen points gives, without building it per trial)."""
+    n = ang.shape[1]
+    t_lo, t_hi, t_pad = np.empty((n, 2)), np.empty((n, 2)), np.empty(n)
+    for w in range(widths.shape[0]):
+        lo[w] = np.inf
+        hi[w] = -np.inf
+        pad_max[w] = -np.inf
+        chosen[w] = False
+        first = take_first
+        for q in order:
+            fits = True
+            for k in range(n):
+                width = -np.inf
+                for x in range(2):
+                    t_lo[k, x] = min(lo[w, k, x], ang[q, k, x])
+                    t_hi[k, x] = max(hi[w, k, x], ang[q, k, x])
+                    width = max(width, t_hi[k, x] - t_lo[k, x])
+                cover = min(max(width + 2 * margin, lo_w), hi_w)
+                t_pad[k] = max(pad_max[w, k], pad[q, k])
+                if not (first or cover + 2 * t_pad[k] <= widths[w] + tol):
+                    fits = False
+                    break
+            if fits:
+                lo[w], hi[w], pad_max[w] = t_lo, t_hi, t_pad
+                chosen[w, q] = True
+                first = False
 
 
 def greedy_sectors(
@@ -218,38 +258,42 @@ def greedy_sectors(
 ) -> FloatArray:
     """Sectors ``(n, 3)`` maximising ``Σ_points [covered ? ln(σ_ref/σ̂(w)) : −R]`` over a grid of
     common maximum widths: for each, the points are taken greedily by OC-1 score while every
-    receiver's covering sector fits the width (module docstring)."""
+    receiver's covering sector fits the width (module docstring).
+
+    The greedy walk runs compiled on the running angular extent of each width's chosen set
+    (:func:`_greedy_cover`: the ``min``/``max`` that :func:`_cover` takes, so the same
+    sectors), ``O(W S n)`` for ``W`` widths and ``S`` points; the value of every width's choice
+    is one array expression."""
     if points.shape[0] == 0:
         return _full(params, 1)[0]
+    widths = np.asarray(widths, dtype=np.float64)
+    W, S, n = widths.shape[0], points.shape[0], params.n_receivers
+    lo_w, hi_w = params.sector_width
     mid = points + velocity * (0.5 * params.period)
     ang = local_angles(params, mid)
     pad = _motion_margin(params, velocity, ang[..., 2])
     rel = oc1_score(params, points)
-    order = np.argsort(rel)
-    best, best_value = _full(params, 1)[0], -np.inf
-    for w in widths:
-        chosen = np.zeros(points.shape[0], bool)
-        for q in order:
-            trial = chosen.copy()
-            trial[q] = True
-            cov = _cover(params, ang, trial)
-            if np.all(cov[:, 2] + 2 * pad[trial].max(axis=0) <= w + 1e-12):
-                chosen = trial
-        if not chosen.any():
-            continue
-        sec = _cover(params, ang, chosen)
-        sec[:, 2] = np.clip(sec[:, 2] + 2 * pad[chosen].max(axis=0), *params.sector_width)
-        sig = np.maximum(params.noise_per_width * sec[:, 2], params.sigma_ang_min)  # (n,)
-        r = ang[..., 2]  # (S, n)
-        sigma_e = np.sqrt(params.position_sigma**2 + np.mean((sig * r) ** 2, axis=-1))
-        sigma_pos = sigma_e * np.sqrt(rel**2 + 2.0)
-        with np.errstate(divide="ignore"):
-            gain = np.clip(np.log(params.sigma_ref / sigma_pos), -params.reward_clip,
-                           params.reward_clip)  # fmt: skip
-        value = np.sum(np.where(chosen, gain, -params.reward_clip))
-        if value > best_value:
-            best, best_value = sec, value
-    return best
+    lo, hi = np.empty((W, n, 2)), np.empty((W, n, 2))
+    pad_max, chosen = np.empty((W, n)), np.empty((W, S), np.bool_)
+    _greedy_cover(np.ascontiguousarray(ang[..., :2]), pad, np.argsort(rel), widths, MARGIN,
+                  lo_w, hi_w, 1e-12, False, lo, hi, pad_max, chosen)  # fmt: skip
+    some = chosen.any(axis=1)
+    if not some.any():
+        return _full(params, 1)[0]
+    lo, hi, pad_max, chosen = lo[some], hi[some], pad_max[some], chosen[some]
+    sec = np.empty((lo.shape[0], n, 3))
+    sec[..., :2] = 0.5 * (lo + hi)
+    cover = np.clip(np.max(hi - lo, axis=-1) + 2 * MARGIN, lo_w, hi_w)
+    sec[..., 2] = np.clip(cover + 2 * pad_max, lo_w, hi_w)
+    sig = np.maximum(params.noise_per_width * sec[..., 2], params.sigma_ang_min)  # (W', n)
+    r = ang[..., 2]  # (S, n)
+    sigma_e = np.sqrt(params.position_sigma**2 + np.mean((sig[:, None] * r) ** 2, axis=-1))
+    sigma_pos = sigma_e * np.sqrt(rel**2 + 2.0)
+    with np.errstate(divide="ignore"):
+        gain = np.clip(np.log(params.sigma_ref / sigma_pos), -params.reward_clip,
+                       params.reward_clip)  # fmt: skip
+    value = np.sum(np.where(chosen, gain, -params.reward_clip), axis=1)
+    return sec[int(np.argmax(value))]
 
 
 class GreedyInformation(_Periodic):

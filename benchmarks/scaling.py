@@ -4,8 +4,8 @@ Run: ``.venv/bin/python benchmarks/scaling.py [--batch 256] [--steps 5] [--repea
 ``benchmarks/results/scaling.json`` and ``benchmarks/results/scaling.png`` (log-log).
 
 For every env, sizes are set through the env's own params (what ``--param`` sets on the
-command line): receivers × drones for StereoPointing, receivers (evenly spaced azimuths, staggered
-scan offsets) × drones for StereoScanning, receiver vehicles for StereoPlacement, platforms for
+command line): receivers × drones for StereoPointing and StereoScanning (its default layout of ``n``
+receivers: evenly spread azimuths, staggered scan offsets), receiver vehicles for StereoPlacement, platforms for
 BearingsManeuver. At each size the native vector env of ``--batch`` scenarios is stepped with
 random actions (µs per scenario-step) and every registered rule decides on its observations
 (µs per scenario-decision), best of ``--repeat``, in wall time and in this process's CPU time
@@ -34,13 +34,6 @@ import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.registry import RULES
 from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
 
-
-def _scanning(n: int, m: int) -> dict[str, Any]:
-    azimuths = tuple(float(a) for a in np.linspace(0.0, 2 * np.pi, n, endpoint=False))
-    offsets = tuple(float(o) for o in np.linspace(0.0, 0.5, n))
-    return {"receiver_azimuths": azimuths, "scan_offsets": offsets, "n_drones": m}
-
-
 #: env id → [(size label, receivers·drones (or platforms), params fields)]
 SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
     "sensorgym/StereoPointing-v0": [
@@ -49,7 +42,8 @@ SIZES: dict[str, list[tuple[str, int, dict[str, Any]]]] = {
         for n, m in ((4, 2), (4, 4), (6, 3), (8, 4), (12, 6), (16, 10))
     ],
     "sensorgym/StereoScanning-v0": [
-        (f"{n} receivers × {m} drones", n * m, _scanning(n, m))
+        # the default layout of n receivers (evenly spread, staggered scan offsets)
+        (f"{n} receivers × {m} drones", n * m, {"n_receivers": n, "n_drones": m})
         for n, m in ((3, 4), (4, 4), (8, 6), (16, 10))
     ],
     "sensorgym/StereoPlacement-v0": [

@@ -24,22 +24,28 @@ class StereoScanningEnv(CoreEnv):
 
     ## Description
 
-    Three passive receivers stand on a circle (radius ``circle_radius`` = 120 m, azimuths 0°,
-    90°, 270°: paper 000's arc, orthogonal lines of sight possible), each with a fixed frame
-    looking at the scene centre ``(0, aim_height, 0)``. ``m = n_drones`` (4) drones fly straight,
+    ``n = n_receivers`` passive receivers (3) stand on a circle (radius ``circle_radius`` =
+    120 m, azimuths 0°, 90°, 270°: paper 000's arc, orthogonal lines of sight possible), each
+    with a fixed frame looking at the scene centre ``(0, aim_height, 0)``. ``m = n_drones`` (4) drones fly straight,
     gently accelerating paths over the scene: one (``close_drones``) a few metres from another
     on a near-parallel path, one (``late_drones``) entering later; a drone that leaves the scene
     box is gone for good. One step is one scan period ``τ`` (1 s). Each receiver sweeps a TV
     raster of ``L × L`` pixels (100 × 100) over the sector the action chose, in ``sweep_time``
-    (0.5 s) starting ``scan_offsets[k]`` (0, 0.25, 0.5 s) into the period; a drone inside the
+    (0.5 s) starting ``scan_offsets[k]`` (0, 0.25, 0.5 s; evenly over ``[0, 0.5]`` s for other
+    ``n``, receivers 1–3 at its start, middle and end) into the period; a drone inside the
     sector is fixed when the raster reaches its pixel (theory §6.3), so each receiver's direction
     carries its own time and the delays between receivers come from the offsets, the geometry
     and the sectors, not from constants. False detections (``clutter_rate``) are optional.
 
     The agent sees the world only through the tracker of paper 000 (theory §5.3, compiled in
-    :mod:`sensorgym.envs.stereo_scanning.kernels`): every triple of fixes (one per receiver) is
-    solved by the velocity-aware conjugation (``n = 3`` closed form, theory §3.5) for position,
-    velocity and ``Q = σ_e² (AᵀA)⁻¹``; implausible candidates (non-positive range, speed above
+    :mod:`sensorgym.envs.stereo_scanning.kernels`): every triple of fixes of receivers 1–3 (one
+    per receiver, pairs pre-gated) is solved by the velocity-aware conjugation (``n = 3`` closed
+    form, theory §3.5) for position, velocity and ``Q = σ_e² (AᵀA)⁻¹``; with ``n > 3`` each
+    receiver 4 … n then adds the fix whose line of sight passes nearest the triple's predicted
+    position (gated by its covariance) and the candidate is re-solved by least squares over all
+    its receivers (the normal equations of theory §3.3 with the ranges eliminated, ``Q`` of
+    the same form) — ``O(F³ + C n F)`` per period for ``F`` fixes per receiver and ``C``
+    gated triples, never a product over the receivers; implausible candidates (non-positive range, speed above
     ``max_speed``, ``κ_F > cond_max``) are dropped; confirmed tracks take the candidate with the
     smallest ``ΔJ = ‖M − (M̂ + V̂ Δ)‖`` within the gate ``δ`` whose velocity agrees with the
     track's (paper 003's velocity consistency; one-to-one, no shared direction vector);
@@ -55,8 +61,8 @@ class StereoScanningEnv(CoreEnv):
 
     ## Action Space
 
-    ``Box(-1, 1, (3n,), float32)`` (9 for n = 3); values outside ``[-1, 1]`` are clipped, NaN
-    raises.
+    ``Box(-1, 1, (3n,), float32)`` (9 for n = 3, 48 for n = 16); values outside ``[-1, 1]`` are
+    clipped, NaN raises.
 
     | index  | action                               | scaled to                              | unit |
     |--------|--------------------------------------|----------------------------------------|------|
@@ -70,8 +76,8 @@ class StereoScanningEnv(CoreEnv):
     wider sector has coarser pixels: a fix from a sector of width ``w`` carries angular noise
     ``σ_k = max(κ w, σ_min)`` (``κ = noise_per_width`` = 1e-3: 1.6 mrad at 90°, 0.09 mrad at 5°).
     A wide sector finds every drone but locates it coarsely; a narrow one locates well what it
-    covers and misses the rest (a drone must be in all three sectors in the same period to be
-    fixed by a triple).
+    covers and misses the rest (a drone must be in the sectors of receivers 1–3 in the same
+    period to be fixed by a triple; other receivers only refine it).
 
     ## Observation Space
 
@@ -116,8 +122,20 @@ class StereoScanningEnv(CoreEnv):
 
     ``gym.make("sensorgym/StereoScanning-v0", render_mode=None, **fields)`` — every setting is a
     field of :class:`~sensorgym.envs.stereo_scanning.simulation.ScanningParams` (units in its
-    docstrings), given as a keyword or as ``params=ScanningParams(...)``; the same keywords work
-    for ``gym.make_vec`` and :func:`parallel_env`. ``render_mode="rgb_array"`` draws a top view
+    docstrings), given as a keyword or as ``params=ScanningParams(...)`` (on the command line
+    ``--param NAME=VALUE``); the same keywords work for ``gym.make_vec`` and
+    :func:`parallel_env`. The sizes:
+
+    | field               | default            | range        | meaning                                   |
+    |---------------------|--------------------|--------------|-------------------------------------------|
+    | ``n_receivers``     | 3                  | ≥ 3 (16 tested) | receivers (agents); 1–3 form the triples |
+    | ``receiver_azimuths`` | 0°, 90°, 270°    | ``n`` values | ``None``: paper 000's arc for 3, else an even spread with receivers 1–3 a third of the circle apart |
+    | ``scan_offsets``    | 0, 0.25, 0.5 s     | ``n`` values | ``None``: evenly over ``[0, 0.5]`` s, receivers 1–3 at 0, ≈0.25, 0.5 s |
+    | ``n_drones``        | 4                  | ≥ 1 (10 tested) | drones ``m``                            |
+    | ``track_slots``     | 8                  | ≥ 1          | confirmed tracks observed (raise with ``m``) |
+    | ``track_capacity``  | 32                 | ≥ 1          | rows of the tracker's table               |
+
+    The observation has ``11 · track_slots + 4n`` entries (152 at 16 receivers). ``render_mode="rgb_array"`` draws a top view
     and a side view: the receivers' sectors and raster sweep, the rays at their fix times, the
     true paths and the confirmed tracks with their covariance ellipses.
 
@@ -134,7 +152,12 @@ class StereoScanningEnv(CoreEnv):
       through it (behaviour cloning of ``cue-entry-search``, then RL; training seeds 0, 1, 2)
       are shipped and beat every fieldable rule (``docs/environments.md``). Issue 11 (episodes
       bit-identical): the compiled step runs out of place and writes the new state's
-      observation (``ScanningState.observation``), so ``observe`` only reads it.
+      observation (``ScanningState.observation``), so ``observe`` only reads it. Issue 15
+      (the registered default's episodes bit-identical): any ``n_receivers ≥ 3`` (field added;
+      ``receiver_azimuths`` and ``scan_offsets`` default to ``None``, the layout of
+      :func:`~sensorgym.envs.stereo_scanning.simulation.default_azimuths` and
+      :func:`~sensorgym.envs.stereo_scanning.simulation.default_offsets`); receivers 4 … n
+      refine the triples of receivers 1–3 by least squares over all receivers' fixes.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

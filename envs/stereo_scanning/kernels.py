@@ -33,7 +33,11 @@ from numba import njit
 from sensorgym.envs.shells.contract import OBS_CLIP
 from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_time
 from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, unit_from_angles3
-from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
+from sensorgym.trackers.stereo.conjugation_kernels import (
+    pair_kernel,
+    triple_velocity_kernel,
+    velocity_kernel,
+)
 from sensorgym.trackers.stereo.kernels import clip, log_ratio_reward
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
@@ -45,6 +49,9 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": Fal
 EMPTY, TENTATIVE, CONFIRMED = 0, 1, 2
 #: tracker codes
 PROPOSED, ALTERNATIVE, ALGORITHMIC = 0, 1, 2
+#: floor of the tracker's gates, m (and m/s): noise-free fixes of an unaccelerated drone give
+#: zero gates, which rounding would fail
+GATE_FLOOR = 1e-3
 
 #: layout of the per-params constants (``simulation.ScanningParams.kernel_constants``): the
 #: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, then the
@@ -169,7 +176,8 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
     ``σ_e² = σ_x² + (1/n) Σ_k (σ_k r̂_k)²`` maps the direction noise to the papers' i.i.d.
     conjugation error (theory §13.4) plus the apparent-position error ``σ_x``;
     ``σ_pos = σ_e √([(AᵀA)⁻¹]_11 + 2)``: the range error along receiver 1's line of sight and
-    ``σ_e`` on each axis across it; ``σ_vel = σ_e √tr Q_VV`` (order-1 systems; else 0).
+    ``σ_e`` on each axis across it; ``σ_vel = σ_e √tr Q_VV`` (order-1 systems, ``Q`` of
+    ``n_used + 3`` unknowns ``(r_1 … r_n, V)``; else 0).
     """
     s2 = position_sigma * position_sigma
     acc = 0.0
@@ -180,8 +188,9 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
     sigma_e = np.sqrt(s2)
     sp = sigma_e * np.sqrt(max(Q[0, 0], 0.0) + 2.0)
     sv = 0.0
-    if Q.shape[0] == 6:
-        sv = sigma_e * np.sqrt(max(Q[3, 3] + Q[4, 4] + Q[5, 5], 0.0))
+    if Q.shape[0] == n_used + 3:
+        v = n_used
+        sv = sigma_e * np.sqrt(max(Q[v, v] + Q[v + 1, v + 1] + Q[v + 2, v + 2], 0.0))
     return sigma_e, sp, sv
 
 
@@ -258,6 +267,98 @@ def _carve3(buf, o, a, b, c):
 @njit(**_JIT)
 def _carve4(buf, o, a, b, c, d):
     return buf[o : o + a * b * c * d].reshape((a, b, c, d)), o + a * b * c * d
+
+
+@njit(**_JIT)
+def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, position_sigma,
+                     gate_q, max_speed, max_accel, cond_max, cmem, cpos, cvel, ctime, csig,
+                     buf):  # fmt: skip
+    """Receivers 4 … n join candidate ``c`` (a triple of receivers 1–3), which is then re-solved
+    by least squares over all its fixes (theory §3.3, any n ≥ 3).
+
+    Receiver ``k`` contributes the fix whose line of sight passes nearest the candidate's
+    prediction ``p = M + V (t_k − t_1)`` at that fix's time: the miss ``e = ‖d − (d·u) u‖``
+    (``d = p − O_k``, ``u`` the measured direction, in front of the receiver) within
+    ``q √(σ_pos² + (σ_vel Δ)² + (σ_k d·u)²) + ½ a_max Δ²`` (floored at
+    :data:`GATE_FLOOR`); ``cmem[c, k]`` records it (−1: none). With at least one joined,
+    the velocity-aware system of all ``n_used`` receivers (normal equations with the ranges
+    ``r_2 … r_n`` eliminated, :func:`velocity_kernel`) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
+    (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
+    positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
+    joined fixes are released. O(n F) per candidate; ``buf`` holds at least
+    ``3 + 16 (n − 1) + (n + 3)(n + 4) + 5 + n`` floats of scratch."""
+    n = la.shape[0]
+    t1 = ctime[c]
+    sp, sv = csig[c, 0], csig[c, 1]
+    mk = 2
+    for k in range(3, n):
+        best, bj = np.inf, -1
+        for j in range(fix_count[i, k]):
+            s = fix_time[i, k, j] - t1
+            d = (
+                cpos[c, 0] + cvel[c, 0] * s - O[k, 0],
+                cpos[c, 1] + cvel[c, 1] * s - O[k, 1],
+                cpos[c, 2] + cvel[c, 2] * s - O[k, 2],
+            )
+            u = (fix_world[i, k, j, 0], fix_world[i, k, j, 1], fix_world[i, k, j, 2])
+            along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
+            if not along > 0.0:
+                continue
+            miss2 = max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along, 0.0)
+            spread = np.sqrt(sp * sp + (sv * s) ** 2 + (sig[k] * along) ** 2)
+            tol = max(gate_q * spread + 0.5 * max_accel * s * s, GATE_FLOOR)
+            if miss2 <= tol * tol and miss2 < best:
+                best, bj = miss2, j
+        cmem[c, k] = bj
+        if bj >= 0:
+            mk += 1
+    if mk == 2:
+        return
+    nu = mk + 1
+    o = 0
+    a1, o = _carve2(buf, o, 1, 3)
+    ak, o = _carve3(buf, o, 1, mk, 3)
+    Pk, o = _carve4(buf, o, 1, mk, 3, 3)
+    bk, o = _carve3(buf, o, 1, mk, 3)
+    dt, o = _carve2(buf, o, 1, mk)
+    X, o = _carve2(buf, o, 1, nu + 3)
+    J, o = _carve1(buf, o, 1)
+    Q, o = _carve3(buf, o, 1, nu + 3, nu + 3)
+    kap, o = _carve1(buf, o, 1)
+    M1, o = _carve2(buf, o, 1, 3)
+    sg, o = _carve1(buf, o, nu)
+    sg[0] = sig[0]
+    for x in range(3):
+        a1[0, x] = la[0, cmem[c, 0], x]
+    r = 0
+    for k in range(1, n):
+        j = cmem[c, k]
+        if j < 0:
+            continue
+        for x in range(3):
+            ak[0, r, x] = la[k, j, x]
+            bk[0, r, x] = b[k - 1, x]
+            for y in range(3):
+                Pk[0, r, x, y] = P[k - 1, x, y]
+        dt[0, r] = fix_time[i, k, j] - t1
+        sg[r + 1] = sig[k]
+        r += 1
+    velocity_kernel(a1, ak, Pk, bk, dt, 1.0, np.bool_(False), np.int64(0), np.int64(1), X, J, Q,
+                    kap, M1)  # fmt: skip
+    ok = kap[0] <= cond_max
+    for k in range(nu):
+        ok = ok and X[0, k] > 0.0
+    vw = _world(R, 0, (X[0, nu], X[0, nu + 1], X[0, nu + 2]))
+    if not (ok and norm3(vw) <= max_speed):
+        for k in range(3, n):
+            cmem[c, k] = -1
+        return
+    _, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma)
+    mw = _world(R, 0, (M1[0, 0], M1[0, 1], M1[0, 2]))
+    for x in range(3):
+        cpos[c, x] = O[0, x] + mw[x]
+        cvel[c, x] = vw[x]
+    csig[c, 0], csig[c, 1] = sp, sv
 
 
 @njit(**_JIT)
@@ -350,7 +451,9 @@ def step_rows(
         + T * (20 + m + 3 + 1)
         + FF * 30
     )
-    ibuf = np.empty(C * 4 + TC * 4 + T, np.int64)
+    ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
+    # the refinement's scratch (receivers 4 … n, :func:`refine_candidate`)
+    rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n)
     bbuf = np.empty(2 * C + n * F + T + 2 * FF, np.bool_)
     o = 0
     la, o = _carve3(fbuf, o, n, F, 3)
@@ -393,7 +496,7 @@ def step_rows(
     pk, o = _carve1(fbuf, o, FF)
     pM, o = _carve2(fbuf, o, FF, 3)
     o = 0
-    cmem, o = _carve2(ibuf, o, C, 3)
+    cmem, o = _carve2(ibuf, o, C, n)
     rng_idx, o = _carve1(ibuf, o, C)
     pairs_t, o = _carve1(ibuf, o, TC)
     pairs_c, o = _carve1(ibuf, o, TC)
@@ -500,7 +603,9 @@ def step_rows(
                         for y in range(3):
                             Pc[nc, 0, x, y] = P[0, x, y]
                     dt[nc, 0] = fix_time[i, 1, j2] - fix_time[i, 0, j1]
-                    cmem[nc, 0], cmem[nc, 1], cmem[nc, 2] = j1, j2, -1
+                    for k in range(n):
+                        cmem[nc, k] = -1
+                    cmem[nc, 0], cmem[nc, 1] = j1, j2
                     if used_n == 3:
                         for x in range(3):
                             ak[nc, 1, x] = la[2, j3, x]
@@ -558,19 +663,24 @@ def step_rows(
             mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
             for x in range(3):
                 cpos[c, x] = O[0, x] + mw[x]
+            cdt[c] = dt[c, 0]
+            csig[c, 0], csig[c, 1] = sp, sv
             if used_n == 3:
                 vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
-                speed = norm3(vw)
+                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
+                if n > 3:
+                    # receivers 4 … n join; the speed check applies to the joint solution
+                    refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+                                     position_sigma, gate_q, max_speed, max_accel, cond_max,
+                                     cmem, cpos, cvel, ctime, csig, rbuf)  # fmt: skip
+                speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
                 if not speed <= max_speed:
                     continue
-                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
             else:
                 if not pair_passes(J[c], X[c, 0], X[c, 1], sig[0], sig[1], position_sigma,
                                    gate_q, max_speed, dt[c, 0]):  # fmt: skip
                     continue
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
-            cdt[c] = dt[c, 0]
-            csig[c, 0], csig[c, 1] = sp, sv
             cok[c] = True
         # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
         for k in range(n):
@@ -603,10 +713,10 @@ def step_rows(
         # confirmed tracks: greedy by ΔJ
         for e in order:
             q, c = pairs_t[e], pairs_c[e]
-            if tstatus[i, q] != CONFIRMED or t_took[q] or _shares(cmem, c, fused, used_n):
+            if tstatus[i, q] != CONFIRMED or t_took[q] or _shares(cmem, c, fused):
                 continue
             t_took[q] = True
-            _mark(cmem, c, fused, used_n)
+            _mark(cmem, c, fused)
             ctaken[c] = True
             _update(tracker, i, q, c, pairs_s[e], pairs_mv[e], ctime, csig, cdt, tx, tt, tsig, tscore,
                     thits, tmiss, tsums, max_speed)  # fmt: skip
@@ -615,7 +725,7 @@ def step_rows(
         n_child = 0
         for e in order:
             q, c = pairs_t[e], pairs_c[e]
-            if tstatus[i, q] != TENTATIVE or _shares(cmem, c, fused, used_n):
+            if tstatus[i, q] != TENTATIVE or _shares(cmem, c, fused):
                 continue
             child_t[n_child], child_c[n_child] = q, c
             child_s[n_child] = tscore[i, q] + pairs_s[e]
@@ -633,7 +743,7 @@ def step_rows(
                 tstatus[i, q] = EMPTY
         for e in child_order:
             q, c = child_t[e], child_c[e]
-            if _shares(cmem, c, fused, used_n):
+            if _shares(cmem, c, fused):
                 continue
             slot = _free(tstatus, i, T)
             if slot < 0:
@@ -648,7 +758,7 @@ def step_rows(
                 tid[i, slot] = next_id[i]
                 next_id[i] += 1
                 t_took[slot] = True
-                _mark(cmem, c, fused, used_n)
+                _mark(cmem, c, fused)
             else:
                 tstatus[i, slot] = TENTATIVE
                 t_took[slot] = True
@@ -661,7 +771,7 @@ def step_rows(
         # births: candidates sharing no vector with a continued track open tentative tracks
         nb = 0
         for c in range(nc):
-            if cok[c] and not ctaken[c] and not _shares(cmem, c, fused, used_n):
+            if cok[c] and not ctaken[c] and not _shares(cmem, c, fused):
                 rng_idx[nb] = c
                 nb += 1
         for e in range(nb):
@@ -808,7 +918,9 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, c
     (proposed) or ``v_max |Δt|`` (the alternative's dynamic error may drift by its size); the
     proposed also needs ``‖V − V̂_s‖ ≤ q √((σ_vel,c² + σ_vel,s²)/3) + a_max Δ``. An
     alternative track of one point has no velocity: any candidate within ``2 v_max Δ`` continues
-    it at zero cost (000 temporal step 1, theory §13.11)."""
+    it at zero cost (000 temporal step 1, theory §13.11). Both gates are floored at
+    :data:`GATE_FLOOR` (noise-free fixes of an unaccelerated drone would otherwise need an
+    exact zero)."""
     s = ctime[c] - tt[i, q]
     if not s > 0.0:
         return np.inf
@@ -832,9 +944,10 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, c
         # velocity consistency (003's J_3, theory §5.5): a ghost triple of two close drones
         # fixes near them with a velocity of neither
         dv = norm3((cvel[c, 0] - tx[i, q, 3], cvel[c, 1] - tx[i, q, 4], cvel[c, 2] - tx[i, q, 5]))
-        if not dv <= gate_q * np.sqrt((csig[c, 1] ** 2 + tsig[i, q, 1] ** 2) / 3.0) + max_accel * s:
+        dv_gate = gate_q * np.sqrt((csig[c, 1] ** 2 + tsig[i, q, 1] ** 2) / 3.0) + max_accel * s
+        if not dv <= max(dv_gate, GATE_FLOOR):
             return np.inf
-    return d if d <= gate_q * spread + margin else np.inf
+    return d if d <= max(gate_q * spread + margin, GATE_FLOOR) else np.inf
 
 
 @njit(**_JIT)
@@ -896,17 +1009,21 @@ def _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b, cdt, c
 
 
 @njit(**_JIT)
-def _shares(cmem, c, fused, used_n):
-    for k in range(used_n):
-        if fused[k, cmem[c, k]]:
+def _shares(cmem, c, fused):
+    """Whether candidate ``c`` uses a fix already taken (``cmem[c, k] = −1``: none of ``k``)."""
+    for k in range(cmem.shape[1]):
+        j = cmem[c, k]
+        if j >= 0 and fused[k, j]:
             return True
     return False
 
 
 @njit(**_JIT)
-def _mark(cmem, c, fused, used_n):
-    for k in range(used_n):
-        fused[k, cmem[c, k]] = True
+def _mark(cmem, c, fused):
+    for k in range(cmem.shape[1]):
+        j = cmem[c, k]
+        if j >= 0:
+            fused[k, j] = True
 
 
 @njit(**_JIT)

@@ -7,9 +7,10 @@ and :func:`info`. One step is one scan period ``τ``; the compiled pass is
 :func:`.kernels.step_rows` (split over threads by :func:`~sensorgym.envs.shells.rows.run_rows`),
 which also writes the new state's observation, so :func:`observe` only reads it.
 
-World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (theory §2.2). Three receivers stand on
-a circle (default radius 120 m at azimuths 0°, 90°, 270°: paper 000's arc with orthogonal lines
-of sight), each with a fixed frame looking at the scene centre ``(0, h_aim, 0)``. Per period:
+World frame: ``Y`` up, azimuth from ``+Z`` towards ``+X`` (theory §2.2). ``n`` receivers (3 by
+default) stand on a circle (default radius 120 m at azimuths 0°, 90°, 270°: paper 000's arc with
+orthogonal lines of sight; :func:`default_azimuths` for other ``n``), each with a fixed frame
+looking at the scene centre ``(0, h_aim, 0)``. Per period:
 
 1. the action sets each receiver's *sector* — centre (azimuth, elevation) about its boresight
    and a width ``w`` — and the receiver sweeps a ``L × L`` TV raster over it in ``sweep_time``,
@@ -19,8 +20,9 @@ of sight), each with a fixed frame looking at the scene centre ``(0, h_aim, 0)``
    sector covers more but measures coarser (the sector trade-off) — plus, optionally, a shared
    apparent-position error ``σ_x`` (paper 000's model) and false detections;
 3. the tracker (paper 000's proposed velocity-aware algorithm, theory §5.3, or its alternative
-   of §5.2) conjugates every triple (pair) of fixes, associates candidates to tracks over
-   periods, initiates and confirms tracks (:mod:`.kernels`);
+   of §5.2) conjugates every triple (pair) of fixes of receivers 1–3 (1–2), lets receivers
+   4 … n refine each triple by least squares over all their fixes (proposed only), associates
+   candidates to tracks over periods, initiates and confirms tracks (:mod:`.kernels`);
 4. the reward: per present drone ``clip(ln(σ_ref/σ_pos), −R, R)`` for the confirmed track
    assigned to it (nearest within ``truth_gate`` at the period end), ``σ_pos`` the track's own
    ``σ_e √([(AᵀA)⁻¹]_11 + 2)`` predicted to the period end; ``−R`` without a track; averaged
@@ -60,13 +62,88 @@ TRACK_FEATURES = 11
 RECEIVER_FEATURES = 4
 
 
+#: paper 000's arc: receivers at azimuths 0°, 90°, 270° (orthogonal lines of sight possible)
+PAPER_AZIMUTHS = (0.0, float(np.pi / 2), float(3 * np.pi / 2))
+#: span of the default sweep offsets, s: ``(0, 0.25, 0.5)`` for three receivers
+OFFSET_SPAN = 0.5
+
+
+def _spread_order(n: int) -> list[int]:
+    """The even spread's indices ``j`` of the receivers in order: receivers 1–3 (the
+    candidates' triple) at ``j = 0, round(n/3), round(2n/3)``, the others in ascending ``j``."""
+    first = [0, round(n / 3), round(2 * n / 3)]
+    return first + [j for j in range(n) if j not in first]
+
+
+def default_azimuths(n: int) -> tuple[float, ...]:
+    """The receivers' azimuths ``(n,)`` when none are given, rad: paper 000's ``(0°, 90°, 270°)``
+    for n = 3; else the even spread ``2π j/n`` in :func:`_spread_order` — receivers 1–3 about a
+    third of the circle apart (n = 4: 0°, 90°, 270°, then 180°)."""
+    if n == 3:
+        return PAPER_AZIMUTHS
+    return tuple(float(2 * np.pi * j / n) for j in _spread_order(n))
+
+
+def default_offsets(n: int) -> tuple[float, ...]:
+    """The sweep offsets ``(n,)`` when none are given, s: evenly over ``[0, OFFSET_SPAN]``,
+    ``OFFSET_SPAN · j/(n − 1)``, with receivers 1–3 at the start, the middle and the end
+    (``(0, 0.25, 0.5)`` for n = 3; the others in ascending ``j``): distinct delays keep the
+    velocity observable, and the triple that forms the candidates gets the widest ones."""
+    first = [0, round((n - 1) / 2), n - 1]
+    order = first + [j for j in range(n) if j not in first]
+    return tuple(float(x) for x in np.linspace(0.0, OFFSET_SPAN, n)[order])
+
+
+def _receiver_count(
+    n: int | None, azimuths: tuple[float, ...] | None, offsets: tuple[float, ...] | None
+) -> int:
+    """``n``: :attr:`ScanningParams.n_receivers`, else the length of the first given tuple,
+    else 3."""
+    if n is not None:
+        if isinstance(n, bool) or not isinstance(n, int | np.integer):
+            raise ValueError(f"n_receivers: must be an integer, got {n!r}")
+        if n < 3:
+            raise ValueError(f"n_receivers: need at least 3 (velocity-aware conjugation), got {n}")
+        return int(n)
+    for given in (azimuths, offsets):
+        if given is not None:
+            return len(given)
+    return 3
+
+
+def _per_receiver(name: str, value, n: int, default) -> tuple[float, ...]:
+    """One float per receiver: ``value`` checked against ``n``, or ``default(n)``."""
+    if value is None:
+        return default(n)
+    try:
+        out = tuple(float(x) for x in value)
+    except TypeError as exc:
+        raise ValueError(f"{name}: need a tuple of {n} numbers, got {value!r}") from exc
+    if len(out) < 3:
+        raise ValueError(
+            f"{name}: the velocity-aware tracker needs at least 3 receivers, got {len(out)}"
+        )
+    if len(out) != n:
+        raise ValueError(
+            f"{name}: {len(out)} values for n_receivers = {n} (give one per receiver, or leave "
+            f"{name} unset for the default layout)"
+        )
+    return out
+
+
 @dataclass(frozen=True)
 class ScanningParams:
     """Receivers, rasters, drones, noise, tracker and reward of the scanning environments."""
 
-    receiver_azimuths: tuple[float, ...] = (0.0, float(np.pi / 2), float(3 * np.pi / 2))
-    """Azimuths of the receivers on their circle, rad; their number is ``n`` (3: the proposed
-    algorithm's square system). The first is the conjugation's reference receiver."""
+    n_receivers: int | None = None
+    """Number of receivers ``n`` (≥ 3: the velocity-aware conjugation needs three; receivers
+    1–3 form the candidates, the others refine them). ``None``: one per given azimuth, else 3."""
+    receiver_azimuths: tuple[float, ...] | None = None
+    """Azimuths of the receivers on their circle, rad, one per receiver; the first is the
+    conjugation's reference receiver. ``None``: :func:`default_azimuths` — paper 000's
+    ``(0°, 90°, 270°)`` for n = 3, else an even spread with receivers 1–3 about a third of the
+    circle apart (stored as ``None`` when given equal to those; the values in use are
+    :attr:`azimuths_array`)."""
     circle_radius: float = 120.0
     """Radius of the receivers' circle around the origin, m (ground level)."""
     aim_height: float = 40.0
@@ -103,10 +180,12 @@ class ScanningParams:
     """Scan period ``τ`` = one step, s."""
     sweep_time: float = 0.5
     """Duration of one raster sweep of the sector, s (fixed: a fixed pixel count and dwell)."""
-    scan_offsets: tuple[float, ...] = (0.0, 0.25, 0.5)
+    scan_offsets: tuple[float, ...] | None = None
     """Start of each receiver's sweep after the period start, s (one per receiver, each plus
     ``sweep_time`` within ``τ``); distinct offsets give the distinct delays the velocity-aware
-    system needs (theory §3.5)."""
+    system needs (theory §3.5). ``None``: :func:`default_offsets` — evenly over ``[0, 0.5]`` s,
+    receivers 1–3 at 0, 0.25 and 0.5 s (stored as ``None`` when given equal to those; the values in
+    use are :attr:`offsets_array`)."""
     raster_lines: int = 100
     """``L``: the raster has ``L × L`` pixels (theory §6.2: 100 × 100)."""
     pixel_iterations: int = 4
@@ -159,14 +238,20 @@ class ScanningParams:
     period end (one-to-one, greedy), m."""
 
     def __post_init__(self) -> None:
-        n = len(self.receiver_azimuths)
-        if n != 3:
-            raise ValueError(
-                f"receiver_azimuths: the velocity-aware tracker needs exactly 3 receivers, got {n}"
-            )
-        if not np.all(np.isfinite(self.receiver_azimuths)):
+        n = _receiver_count(self.n_receivers, self.receiver_azimuths, self.scan_offsets)
+        azimuths = _per_receiver("receiver_azimuths", self.receiver_azimuths, n, default_azimuths)
+        offsets = _per_receiver("scan_offsets", self.scan_offsets, n, default_offsets)
+        # normalised, so that equal settings compare equal: n_receivers always the count, the
+        # per-receiver tuples None where they are the defaults (dataclasses.replace(params,
+        # n_receivers=8) then spreads the default layout over the new count)
+        object.__setattr__(self, "n_receivers", n)
+        object.__setattr__(
+            self, "receiver_azimuths", None if azimuths == default_azimuths(n) else azimuths
+        )
+        object.__setattr__(self, "scan_offsets", None if offsets == default_offsets(n) else offsets)
+        if not np.all(np.isfinite(azimuths)):
             raise ValueError("receiver_azimuths: must be finite")
-        if len(set(np.round(np.mod(self.receiver_azimuths, 2 * np.pi), 9))) != n:
+        if len(set(np.round(np.mod(azimuths, 2 * np.pi), 9))) != n:
             raise ValueError("receiver_azimuths: receivers may not share a place on the circle")
         for name in ("circle_radius", "period", "sweep_time", "scene_half_width",
                      "scene_height", "max_speed", "sigma_ref", "truth_gate", "field_of_regard",
@@ -204,11 +289,9 @@ class ScanningParams:
             raise ValueError("start_altitude: must lie inside (scene_floor, scene_height)")
         if self.start_spread >= self.scene_half_width:
             raise ValueError("start_spread: must be smaller than scene_half_width")
-        if len(self.scan_offsets) != n:
-            raise ValueError(f"scan_offsets: need one per receiver ({n}), got {self.scan_offsets}")
-        off = np.asarray(self.scan_offsets, dtype=np.float64)
+        off = np.asarray(offsets, dtype=np.float64)
         if not (np.all(np.isfinite(off)) and np.all(off >= 0.0)):
-            raise ValueError(f"scan_offsets: must be finite and >= 0, got {self.scan_offsets}")
+            raise ValueError(f"scan_offsets: must be finite and >= 0, got {offsets}")
         if np.any(off + self.sweep_time > self.period + 1e-12):
             raise ValueError("scan_offsets: every sweep must end within the period")
         for name, low in (("n_drones", 1), ("raster_lines", 1), ("pixel_iterations", 1),
@@ -234,11 +317,6 @@ class ScanningParams:
             )
 
     @property
-    def n_receivers(self) -> int:
-        """Number of receivers ``n``."""
-        return len(self.receiver_azimuths)
-
-    @property
     def max_fixes(self) -> int:
         """Most fixes of one receiver in one period: every drone plus ``max_clutter``."""
         return self.n_drones + self.max_clutter
@@ -250,8 +328,17 @@ class ScanningParams:
 
     @functools.cached_property
     def offsets_array(self) -> FloatArray:
-        """:attr:`scan_offsets` as a float array ``(n,)``."""
-        return np.asarray(self.scan_offsets, dtype=np.float64)
+        """The sweep offsets in use ``(n,)``, s: :attr:`scan_offsets`, or
+        :func:`default_offsets`."""
+        off = default_offsets(self.n_receivers) if self.scan_offsets is None else self.scan_offsets
+        return np.asarray(off, dtype=np.float64)
+
+    @functools.cached_property
+    def azimuths_array(self) -> FloatArray:
+        """The receivers' azimuths in use ``(n,)``, rad: :attr:`receiver_azimuths`, or
+        :func:`default_azimuths`."""
+        az = self.receiver_azimuths
+        return np.asarray(default_azimuths(self.n_receivers) if az is None else az, np.float64)
 
     @functools.cached_property
     def centre(self) -> FloatArray:
@@ -315,7 +402,7 @@ class ScanningParams:
     @functools.cached_property
     def receivers(self) -> FloatArray:
         """Receiver positions ``(n, 3)``, m."""
-        az = np.asarray(self.receiver_azimuths, dtype=np.float64)
+        az = self.azimuths_array
         rho = self.circle_radius
         return np.stack([rho * np.sin(az), np.zeros_like(az), rho * np.cos(az)], -1)
 

@@ -94,6 +94,7 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "reward_clip": 3.0,
     },
     "sensorgym/StereoScanning-v0": {
+        "n_receivers": 4,
         "receiver_azimuths": (0.0, 2.0, 4.0),
         "circle_radius": 100.0,
         "aim_height": 30.0,

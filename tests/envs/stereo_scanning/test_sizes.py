@@ -1,0 +1,194 @@
+"""StereoScanning-v0 at any n ≥ 3 receivers (issue 15): the default layout, the least-squares
+refinement over every receiver's fixes, and the env and rules at 16 receivers × 10 drones."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+from pettingzoo.test import parallel_api_test
+
+import sensorgym.envs  # noqa: F401  (registers the ids)
+from sensorgym.agents.registry import RULES
+from sensorgym.envs import stereo_scanning
+from sensorgym.envs.stereo_scanning import simulation as sim
+from sensorgym.envs.stereo_scanning.simulation import (
+    PAPER_AZIMUTHS,
+    ScanningParams,
+    default_azimuths,
+    default_offsets,
+)
+from sensorgym.trackers.stereo.conjugation import solve_conjugation
+from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
+
+ENV_ID = "sensorgym/StereoScanning-v0"
+#: the issue's size: 16 receivers, 10 drones (10 observed track rows)
+LARGE = {"n_receivers": 16, "n_drones": 10, "track_slots": 10}
+
+
+def _full(params: ScanningParams, B: int) -> np.ndarray:
+    """Every receiver sweeps its whole field of regard."""
+    return np.broadcast_to(np.array([0.0, 0.0, 1.0]), (B, params.n_receivers, 3)).copy()
+
+
+def test_default_layout_of_n_receivers():
+    assert ScanningParams().n_receivers == 3
+    np.testing.assert_array_equal(ScanningParams().azimuths_array, PAPER_AZIMUTHS)
+    np.testing.assert_array_equal(ScanningParams().offsets_array, (0.0, 0.25, 0.5))
+    # four receivers: paper 000's arc plus the opposite point
+    np.testing.assert_allclose(np.rad2deg(default_azimuths(4)), (0.0, 90.0, 270.0, 180.0))
+    for n in (4, 5, 8, 16):
+        az = np.sort(np.mod(default_azimuths(n), 2 * np.pi))
+        np.testing.assert_allclose(np.diff(az), 2 * np.pi / n)  # an even spread
+        off = np.asarray(default_offsets(n))
+        np.testing.assert_allclose(np.diff(np.sort(off)), 0.5 / (n - 1))
+        # the triple of receivers 1–3 gets the widest delays
+        assert off[0] == 0.0 and off[2] == 0.5 and abs(off[1] - 0.25) <= 0.5 / (n - 1)
+        p = ScanningParams(n_receivers=n)
+        assert p.receivers.shape == (n, 3) and p.obs_dim == 88 + 4 * n
+    # the count follows a given tuple; replace() re-spreads the default layout
+    assert ScanningParams(receiver_azimuths=(0.0, 1.0, 2.0, 3.0)).n_receivers == 4
+    assert dataclasses.replace(ScanningParams(), n_receivers=6).offsets_array.shape == (6,)
+    # given equal to the default, stored as the default (equal settings compare equal)
+    assert ScanningParams(receiver_azimuths=PAPER_AZIMUTHS) == ScanningParams()
+
+
+@pytest.mark.parametrize(
+    "fields, match",
+    [
+        ({"n_receivers": 2}, "n_receivers"),
+        ({"n_receivers": 3.0}, "n_receivers"),
+        ({"n_receivers": 4, "receiver_azimuths": (0.0, 1.0, 2.0)}, "receiver_azimuths"),
+        ({"n_receivers": 5, "scan_offsets": (0.0, 0.25, 0.5)}, "scan_offsets"),
+        ({"receiver_azimuths": (0.0, 1.0, 2.0, 1.0)}, "share a place"),
+    ],
+)
+def test_bad_sizes_name_the_field(fields, match):
+    with pytest.raises(ValueError, match=match):
+        ScanningParams(**fields)
+
+
+def _noiseless(n: int, **fields) -> ScanningParams:
+    return ScanningParams(n_receivers=n, noise_per_width=0.0, close_drones=0, late_drones=0,
+                          max_acceleration=0.0, **fields)  # fmt: skip
+
+
+def test_noiseless_tracks_recover_position_and_velocity_exactly_with_five_receivers():
+    params = _noiseless(5)
+    B = 16
+    s = sim.reset(params, np.random.default_rng(4), B)
+    for _ in range(4):
+        s, reward, _ = sim.step(params, s, _full(params, B), np.random.default_rng(0))
+        assert np.all(np.isfinite(reward))
+    checked = 0
+    for i in range(B):
+        for j in np.flatnonzero(s.assigned[i] >= 0):
+            q = s.assigned[i, j]
+            # the drones fly straight: the track at its own time against the truth then
+            dt = s.track_t[i, q] - s.t[i]
+            truth = s.drone_position[i, j] + s.drone_velocity[i, j] * dt
+            np.testing.assert_allclose(s.track_x[i, q, :3], truth, rtol=0, atol=1e-9)
+            np.testing.assert_allclose(s.track_x[i, q, 3:], s.drone_velocity[i, j], atol=1e-9)
+            checked += 1
+    assert checked >= 2 * B
+
+
+def _one_drone(n: int, B: int, rng_seed: int) -> tuple[ScanningParams, sim.ScanningState]:
+    """``B`` scenarios of one straight-flying drone under angle noise, after one period of
+    narrow sectors (each scenario's single candidate opened a tentative track)."""
+    params = ScanningParams(n_receivers=n, n_drones=1, close_drones=0, late_drones=0,
+                            noise_per_width=2e-3, max_acceleration=0.0,
+                            climb_rate=(0.0, 0.0))  # fmt: skip
+    p = np.broadcast_to(np.array([5.0, 45.0, -3.0]), (B, 1, 3)).copy()
+    v = np.broadcast_to(np.array([4.0, 0.0, 2.0]), (B, 1, 3)).copy()
+    s = sim.start(params, p, v, np.zeros((B, 1, 3)), np.zeros((B, 1)))
+    # sectors of about 40° centred on the drone's direction from each receiver
+    ang = sim.local_angles(params, p[0, 0] + 0.25 * v[0, 0])
+    sectors = np.concatenate([ang[:, :2], np.full((n, 1), np.deg2rad(40.0))], -1)
+    action = np.broadcast_to(sim.sector_action(params, sectors), (B, n, 3)).copy()
+    s1, _, _ = sim.step(params, s, action, np.random.default_rng(rng_seed))
+    return params, s1
+
+
+def test_four_receiver_covariance_matches_monte_carlo_and_the_generic_solver():
+    """The refined candidate's ``σ_e² (AᵀA)⁻¹`` over 4 receivers: its position and velocity
+    sds against the Monte Carlo spread, and its ``(AᵀA)⁻¹`` against the generic SVD solver of
+    the same four fixes."""
+    B = 3000
+    params, s1 = _one_drone(4, B, 11)
+    assert np.all(s1.fix_count == 1)
+    idx = np.arange(B)
+    row = np.argmax(s1.track_status > 0, axis=1)
+    assert np.all(s1.track_status[idx, row] > 0)
+    p0, v0 = np.array([5.0, 45.0, -3.0]), np.array([4.0, 0.0, 2.0])
+    t_fix = s1.track_t[idx, row]
+    err = s1.track_x[idx, row, :3] - (p0 + v0 * t_fix[:, None])
+    ratio = np.sqrt(np.mean(np.sum(err**2, -1))) / np.mean(s1.track_sigma[idx, row, 0])
+    assert 0.9 < ratio < 1.1
+    verr = s1.track_x[idx, row, 3:] - v0
+    vratio = np.sqrt(np.mean(np.sum(verr**2, -1))) / np.mean(s1.track_sigma[idx, row, 1])
+    assert 0.9 < vratio < 1.35
+    # scenario 0's σ_pos is the generic solver's on all four fixes (so all four were used)
+    P, b = params.relative
+    u = s1.fix_world[0, :, 0]
+    a_local = np.einsum("kjc,kj->kc", params.rotations, u)
+    dt = s1.fix_time[0, 1:, 0] - s1.fix_time[0, 0, 0]
+    sol = solve_conjugation(a_local[0], a_local[1:], P, b, dt, order=1)
+    sig = 2e-3 * s1.sectors[0, :, 2]
+    sigma_e = np.sqrt(np.mean((sig * sol.ranges) ** 2))
+    expected = sigma_e * np.sqrt(sol.covariance[0, 0] + 2.0)
+    np.testing.assert_allclose(s1.track_sigma[0, row[0], 0], expected, rtol=1e-9)
+    np.testing.assert_allclose(s1.track_x[0, row[0], :3],
+                               params.receivers[0] + params.rotations[0] @ sol.position,
+                               rtol=1e-9)  # fmt: skip
+
+
+def test_more_receivers_shrink_the_covariance():
+    """The same drones seen by receivers 1–3 alone and with two more: the least squares over
+    five receivers has the smaller ``σ_pos`` and ``σ_vel`` (and no larger error)."""
+    B = 1000
+    _, three = _one_drone(3, B, 3)
+    _, five = _one_drone(5, B, 3)
+    idx = np.arange(B)
+    r3, r5 = np.argmax(three.track_status > 0, 1), np.argmax(five.track_status > 0, 1)
+    s3, s5 = three.track_sigma[idx, r3], five.track_sigma[idx, r5]
+    assert np.mean(s5[:, 0]) < 0.9 * np.mean(s3[:, 0])
+    assert np.mean(s5[:, 1]) < 0.9 * np.mean(s3[:, 1])
+
+
+def test_gymnasium_check_env_passes_with_five_receivers():
+    env = gym.make(ENV_ID, n_receivers=5)
+    assert env.action_space.shape == (15,)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_pettingzoo_api_test_passes_at_16_receivers_and_10_drones():
+    env = stereo_scanning.parallel_env(max_episode_steps=12, **LARGE)
+    assert len(env.possible_agents) == 16
+    parallel_api_test(env, num_cycles=12)
+
+
+def test_every_rule_decides_finitely_at_16_receivers_and_10_drones():
+    B = 4
+    env = make_sb3_env(ENV_ID, B, seed=7, **LARGE)
+    obs = env.reset()
+    rules = {name: make(env_params(env), simulator_state(env)) for name, make in
+             RULES[ENV_ID].items()}  # fmt: skip
+    states = dict.fromkeys(rules)
+    start = np.ones(B, bool)
+    confirmed = 0.0
+    for _ in range(6):
+        actions = {}
+        for name, rule in rules.items():
+            a, states[name] = rule.predict(obs, states[name], start, deterministic=True)
+            assert a.shape == (B, 48) and np.all(np.isfinite(a)), name
+            actions[name] = a
+        start[:] = False
+        obs, reward, _, infos = env.step(actions["oracle-sectors"])
+        assert np.all(np.isfinite(reward))
+        confirmed += sum(info["confirmed_tracks"] for info in infos)
+    assert confirmed > 0  # the tracker runs at this size
+    env.close()
