@@ -150,11 +150,14 @@ def drive(receivers, action, period, max_speed, radius, end):
 @njit(inline="always")
 def _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position):
     """Row ``s``'s order-1 conjugation (checked): the n = 3 closed form, else the normal
-    equations; returns the kernel's input-check code."""
+    equations; returns the kernel's input-check code. The row is passed as a plain int64: the
+    literal row 0 of :func:`period_rows` would compile the kernels once more (numba
+    specialises a call on a literal integer argument; 3.5 s of cold compile)."""
+    lo = np.int64(s)
     if ak.shape[1] == 2:
-        return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q,
+        return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q,
                                       kappa, position)  # fmt: skip
-    return velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), s, s + 1, X, J, Q, kappa,
+    return velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q, kappa,
                            position)  # fmt: skip
 
 

@@ -21,6 +21,7 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.extending import register_jitable
 
 from sensorgym.trackers.geometry import wrap_angle_scalar as wrap
 
@@ -88,8 +89,9 @@ def _rows23(P):
     return P[2, 0], P[2, 1], P[2, 2], P[2, 3], P[3, 0], P[3, 1], P[3, 2], P[3, 3]
 
 
-# P_ij = P_ji = ½ (a + b): the symmetrised pair
-@njit(**_JIT)
+# P_ij = P_ji = ½ (a + b): the symmetrised pair (called with constant indices: register_jitable
+# types it on plain integers, one compile where a dispatcher compiles one per index pair)
+@register_jitable(**_JIT)
 def _sym(P, i, j, a, b):
     s = 0.5 * (a + b)
     P[i, j] = s
