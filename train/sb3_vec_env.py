@@ -43,7 +43,8 @@ class SB3VecEnv(VecEnv):
             )
         self.venv = venv
         self.scenarios = venv.num_envs
-        self.agents_per_scenario = venv.n_agents if getattr(venv, "agent_view", False) else 1
+        self.agent_view = bool(getattr(venv, "agent_view", False))
+        self.agents_per_scenario = venv.n_agents if self.agent_view else 1
         self._actions: np.ndarray | None = None
         super().__init__(
             self.scenarios * self.agents_per_scenario,
@@ -52,8 +53,9 @@ class SB3VecEnv(VecEnv):
         )
 
     def _slots(self, per_scenario: np.ndarray) -> np.ndarray:
-        """``(B, ...)`` per-scenario values (or ``(B, n, ...)`` per-agent ones) → per slot."""
-        if self.agents_per_scenario == 1:
+        """``(B, ...)`` per-scenario values (or ``(B, n, ...)`` per-agent ones) → per slot
+        (also for one agent per scenario: its ``(B, 1, ...)`` values lose the agent axis)."""
+        if not self.agent_view:
             return per_scenario
         a = np.asarray(per_scenario)
         if a.ndim >= 2 and a.shape[1] == self.agents_per_scenario and a.shape[0] == self.scenarios:
@@ -75,7 +77,7 @@ class SB3VecEnv(VecEnv):
         if self._actions is None:
             raise RuntimeError("step_wait: call step_async first")
         actions = self._actions
-        if self.agents_per_scenario > 1:
+        if self.agent_view:
             actions = actions.reshape(self.scenarios, self.agents_per_scenario, *actions.shape[1:])
         obs, reward, terminated, truncated, infos = self.venv.step(actions)
         self._actions = None

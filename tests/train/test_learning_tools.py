@@ -11,6 +11,7 @@ from stable_baselines3 import PPO
 
 from sensorgym.agents.bearings_maneuver import GreedyManeuver, StraightCourse
 from sensorgym.cli.main import main
+from sensorgym.envs import ENV_IDS
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.benchmark import best_rule, paired_difference, paired_to_best_rule, pool
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
@@ -179,3 +180,23 @@ def test_parameter_sharing_runs_take_their_own_recipe():
     assert "wrappers" not in shared and "pretrain" not in shared
     assert shared["policy_kwargs"] == {"net_arch": [128, 128]}
     assert single["gamma"] == shared["gamma"]
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_parameter_sharing_recipe_builds_and_steps(env_id):
+    """`sensorgym train --agents` on every env: the recipe's wrappers (and expert, if any) take
+    one agent's own view and action (a joint-action wrapper on the agent view raised)."""
+    from sensorgym.train.config import for_mode, load_hyperparams
+
+    hp = for_mode(load_hyperparams("ppo", env_id), agents=True)
+    env = make_sb3_env(env_id, 2, seed=0, agents=True, wrappers=hp.get("wrappers") or ())
+    obs = env.reset()
+    assert obs.shape == (env.num_envs, *env.observation_space.shape)
+    if hp.get("pretrain"):
+        expert = expert_factory(hp["pretrain"]["expert"])(env)
+        actions, _ = expert.predict(obs, deterministic=True)
+    else:
+        env.action_space.seed(0)
+        actions = np.stack([env.action_space.sample() for _ in range(env.num_envs)])
+    obs, rewards, _, _ = env.step(actions)
+    assert np.isfinite(obs).all() and np.isfinite(rewards).all()
