@@ -35,6 +35,8 @@ from sensorgym.trackers.bearings.kernels import (
     bank_update,
     bound_predict,
     bound_update,
+    late_bearing_information,
+    late_update_root,
     position_update,
     psd_square_root,
     range_bank_prior,
@@ -397,6 +399,45 @@ def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc
     return accuracy(c[RELATIVE_RANGE] > 0.0, Lc, path[H, 0], path[H, 1], ox, oy, c[FLOOR])
 
 
+# q̃ = 0: the plan's own bearings fuse last (trackers.bearings.kernels.late_bearing_information),
+# so the recursion of the prior and the other platforms' bearings runs once per platform, not
+# once per candidate: ``Lo`` is its square root at the end of the horizon
+@njit(**_JIT)
+def _others_root(c, L0, others, horizon, Lo, L_pred, A_pred, A_update):
+    dt, q_tilde = c[DT], c[Q_TILDE]
+    Lo[:, :] = L0
+    for s in range(horizon):
+        bound_predict(Lo, dt, q_tilde, L_pred, A_pred)
+        i00, i01, i11 = others[s, 0], others[s, 1], others[s, 2]
+        if i00 > 0.0:
+            g = math.sqrt(i00)
+            position_update(L_pred, 1.0, g, i01 / g, Lo, A_update)
+            L_pred[:, :] = Lo
+            i11 = i11 - i01 * i01 / i00
+        if i11 > 0.0:
+            position_update(L_pred, 1.0, 0.0, math.sqrt(i11), Lo, A_update)
+        else:
+            Lo[:, :] = L_pred
+
+
+@njit(**_JIT)
+def _late_plan_accuracy(c, Lo, path, track, too_close, ox, oy, C, u, Lc):
+    """:func:`_plan_accuracy` for ``q̃ = 0`` from the others' root ``Lo`` (:func:`_others_root`):
+    the plan's bearings enter at the end in one update (equal up to rounding)."""
+    dt, sigma = c[DT], c[SIGMA]
+    H = path.shape[0]
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            C[i, j] = 1.0 if i == j else 0.0
+    for s in range(H):
+        if math.hypot(path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]) < too_close:
+            return np.inf
+        late_bearing_information(Lo, path[s, 0], path[s, 1], track[s, 0], track[s, 1], sigma,
+                                 (H - 1 - s) * dt, C, u)  # fmt: skip
+    late_update_root(Lo, C, Lc)
+    return accuracy(c[RELATIVE_RANGE] > 0.0, Lc, path[H - 1, 0], path[H - 1, 1], ox, oy, c[FLOOR])
+
+
 @njit(**_JIT)
 def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close, out):
     """The oracle's plans for one platform (:meth:`sensorgym.agents.bearings_maneuver.
@@ -417,15 +458,26 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
     L_pred = np.empty((STATE_DIM, STATE_DIM))
     A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
     A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
+    late = c[Q_TILDE] == 0.0
+    no_others = np.zeros((horizon, 3))
+    Lo = np.empty((STATE_DIM, STATE_DIM))
+    u = np.empty(STATE_DIM)
     for b in range(lo, hi):
         _mean_path(c, target[b], path, x, x_next, G)
+        if late:
+            _others_root(c, L[b], no_others, horizon, Lo, L_pred, A_pred, A_update)
         for j in range(command.shape[0]):
             _fly_hold(c, pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0], command[j, 0],
                       command[j, 1], track)  # fmt: skip
-            out[b, j] = _plan_accuracy(
-                c, L[b], path, track, none, False, too_close, track[-1, 0], track[-1, 1], Lc,
-                L_pred, A_pred, A_update,
-            )  # fmt: skip
+            if late:
+                out[b, j] = _late_plan_accuracy(
+                    c, Lo, path, track, too_close, track[-1, 0], track[-1, 1], L_pred, u, Lc
+                )
+            else:
+                out[b, j] = _plan_accuracy(
+                    c, L[b], path, track, none, False, too_close, track[-1, 0], track[-1, 1],
+                    Lc, L_pred, A_pred, A_update,
+                )  # fmt: skip
 
 
 @njit(**_JIT)
@@ -439,7 +491,10 @@ def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizo
     ``command (C, 2)`` whose ``horizon``-step plan ends with the smallest bound, the others
     flying their current plans (platforms before it their chosen ones, after it straight on),
     their bearings' information fused at every step. Cost ``O(K·C·horizon + K²·horizon)`` per
-    scenario (the others' information is summed once per platform, a 2×2 per step). For
+    scenario (the others' information is summed once per platform, a 2×2 per step; with
+    ``q̃ = 0`` the prior and the others' bearings run their square-root recursion once per
+    platform and each candidate's own bearings enter at the end, :func:`_late_plan_accuracy`,
+    so a candidate costs ``horizon`` rank-one sums instead of ``horizon`` triangularisations). For
     ``K = 1`` this is :func:`plan_kernel`'s argmin. Writes each platform's command index into
     ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out."""
     K = heading.shape[1]
@@ -456,6 +511,9 @@ def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizo
     L_pred = np.empty((STATE_DIM, STATE_DIM))
     A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
     A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
+    late = c[Q_TILDE] == 0.0
+    Lo = np.empty((STATE_DIM, STATE_DIM))
+    u = np.empty(STATE_DIM)
     for b in range(lo, hi):
         _mean_path(c, target[b], path, x, x_next, G)
         for k in range(K):
@@ -469,15 +527,31 @@ def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizo
                     for s in range(horizon):
                         for e in range(3):
                             others[s, e] += info[i, s, e]
+            if late:
+                _others_root(c, L[b], others, horizon, Lo, L_pred, A_pred, A_update)
             best, best_value = 0, np.inf
             for j in range(command.shape[0]):
                 _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
                           command[j, 0], command[j, 1], track)  # fmt: skip
                 origin = track if k == 0 else tracks[0]
-                value = _plan_accuracy(
-                    c, L[b], path, track, others, K > 1, too_close, origin[-1, 0],
-                    origin[-1, 1], Lc, L_pred, A_pred, A_update,
-                )  # fmt: skip
+                if late:
+                    value = _late_plan_accuracy(
+                        c,
+                        Lo,
+                        path,
+                        track,
+                        too_close,
+                        origin[-1, 0],
+                        origin[-1, 1],
+                        L_pred,
+                        u,
+                        Lc,
+                    )
+                else:
+                    value = _plan_accuracy(
+                        c, L[b], path, track, others, K > 1, too_close, origin[-1, 0],
+                        origin[-1, 1], Lc, L_pred, A_pred, A_update,
+                    )  # fmt: skip
                 if value < best_value:
                     best, best_value = j, value
             choice[b, k] = best

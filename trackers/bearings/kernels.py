@@ -368,6 +368,49 @@ def position_update(L, a, g0, g1, out, A):
             out[i, j] = A[j + 1, i + 1] if j <= i else 0.0
 
 
+# Without process noise (q̃ = 0) the state τ before the end is x(t − τ) = Φ(−τ) x(t) exactly, so a
+# bearing taken then is the row h = (n̂, −τ n̂)/(r σ) on the final state, and bearings fuse in any
+# order: from the bound P_o = L_o L_oᵀ at the end without them (P_o may be singular),
+#   P = (P_o⁻¹ + Σ h hᵀ)⁻¹ = L_o N⁻¹ L_oᵀ,  N = I + Σ u uᵀ,  u = L_oᵀ h   (push-through identity)
+# N = C Cᵀ is kept as its Cholesky factor, C ← chol(C Cᵀ + u uᵀ) by Givens rotations (dchud:
+# never squares the data, so 1e-8-rad bearings on 1e4-m spreads stay exact; C_kk ≥ 1), and
+# P = L Lᵀ with L = L_o C⁻ᵀ
+@njit(**_JIT)
+def late_bearing_information(Lo, tx, ty, px, py, sigma, tau, C, u):
+    """Updates the lower-triangular ``C (4, 4)`` to ``chol(C Cᵀ + u uᵀ)`` for the bearing from
+    ``(px, py)`` on ``(tx, ty)`` taken ``tau`` (s) before the end, ``u = L_oᵀ h`` from the end's
+    square root ``Lo (4, 4)``; ``u (4,)`` is scratch."""
+    dx = tx - px
+    dy = ty - py
+    r = math.hypot(dx, dy)
+    a = 1.0 / (r * r * sigma)
+    h0, h1 = dy * a, -dx * a
+    h2, h3 = -tau * h0, -tau * h1
+    for j in range(STATE_DIM):
+        u[j] = Lo[0, j] * h0 + Lo[1, j] * h1 + Lo[2, j] * h2 + Lo[3, j] * h3
+    # a Givens rotation of (column k of C, u) onto C_kk = ‖(C_kk, u_k)‖ for each k in turn
+    for k in range(STATE_DIM):
+        rk = math.sqrt(C[k, k] * C[k, k] + u[k] * u[k])
+        cos, sin = C[k, k] / rk, u[k] / rk
+        C[k, k] = rk
+        for i in range(k + 1, STATE_DIM):
+            cik = C[i, k]
+            C[i, k] = cos * cik + sin * u[i]
+            u[i] = cos * u[i] - sin * cik
+
+
+@njit(**_JIT)
+def late_update_root(Lo, C, out):
+    """Square root ``out (4, 4)`` of ``L_o (C Cᵀ)⁻¹ L_oᵀ``: each row ``l`` of ``L_o`` solves
+    ``C xᵀ = lᵀ`` by forward substitution."""
+    for i in range(STATE_DIM):
+        for j in range(STATE_DIM):
+            s = Lo[i, j]
+            for k in range(j):
+                s -= C[j, k] * out[i, k]
+            out[i, j] = s / C[j, j]
+
+
 # √(P_xx + P_yy) = ‖L_pos‖ (the position rows of L)
 @njit(**_JIT)
 def position_rms(L):

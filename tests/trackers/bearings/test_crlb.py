@@ -220,6 +220,32 @@ def test_square_root_recursion_equals_the_information_recursion(q_tilde):
     )
 
 
+@pytest.mark.parametrize("singular_prior, sigma", [(False, SIGMA), (True, SIGMA), (False, 1e-8)])
+def test_late_bearings_equal_the_step_by_step_recursion(singular_prior, sigma):
+    """Without process noise, bearings fused at the end as rows on the final state
+    (``late_bearing_information``, ``late_update_root``: what the planners use) give the bound
+    of fusing each at its own step; also from a singular prior (a known velocity), where the
+    information form has no inverse; and with 1e-8-rad bearings, where ``N`` spans 1e20."""
+    from sensorgym.trackers.bearings.kernels import late_bearing_information, late_update_root
+
+    t, p, x0 = _geometry(manoeuvre=True)
+    traj = np.einsum("kij,j->ki", cv_transition(t), x0)
+    P0 = np.diag([4e6, 9e4, 0.0 if singular_prior else 4.0, 0.0 if singular_prior else 9.0])
+    P0[0, 1] = P0[1, 0] = 1e5
+    L0 = covariance_square_root(P0)
+    L = L0
+    for k in range(1, t.size):
+        L = update_bound_factor(predict_bound_factor(L, t[k] - t[k - 1], 0.0), traj[k], p[k], sigma)
+    Lo = predict_bound_factor(L0, t[-1] - t[0], 0.0)  # the bound at the end with no bearings
+    C, u, out = np.eye(4), np.empty(4), np.empty((4, 4))
+    for k in range(1, t.size):
+        late_bearing_information(Lo, *traj[k, :2], *p[k], sigma, t[-1] - t[k], C, u)
+    late_update_root(Lo, C, out)
+    P = _outer(L)
+    np.testing.assert_allclose(_outer(out), P, rtol=1e-9, atol=1e-12 * np.abs(P).max())
+    assert np.all(np.isfinite(out))
+
+
 def test_square_root_bound_is_finite_where_the_information_form_loses_it():
     """A full-rank prior makes the bound finite; with 1e-8 rad bearings against a 10-km range
     spread the information's eigenvalues span more than the float range, and ``crlb`` of the
