@@ -211,6 +211,10 @@ def test_greedy_solver_field_is_validated():
         GreedyPlacement(params, max_sweeps=0)
     assert GreedyPlacement(PlacementParams()).exhaustive  # the registered size: as before
     assert not GreedyPlacement(params).exhaustive
+    # 9^4 = 6561 joint moves: "auto" goes coordinate-wise, "exhaustive" stays a reference
+    four = PlacementParams(n_receivers=4)
+    assert not GreedyPlacement(four).exhaustive
+    assert GreedyPlacement(four, solver="exhaustive").exhaustive
 
 
 def _random_instances(params: PlacementParams, rng: np.random.Generator, count: int, spread: float):
