@@ -209,17 +209,26 @@ def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
 
 
 @njit(**_JIT)
-def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, gate_q, max_speed,
-                pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, out):  # fmt: skip
-    """``out[j1, jk]``: whether fixes ``j1`` (receiver 1) and ``jk`` (receiver ``k``) pass
-    :func:`pair_passes` — the cheap pre-gate of the triples (a true triple's pairs pass it)."""
+def _pair_gates(i, h, k, la, fix_time, count_h, count_k, P, b, sig, position_sigma, gate_q,
+                max_speed, pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, out):  # fmt: skip
+    """``out[jh, jk]``: whether fixes ``jh`` (receiver ``h``) and ``jk`` (receiver ``k > h``)
+    pass :func:`pair_passes` — the cheap pre-gate of the triples (a true triple's three pairs
+    pass it). In receiver 1's frame receiver ``h``'s line of sight is ``P_h a`` from ``b_h``
+    (``P_1 = I``, ``b_1 = 0``), so the pair solves ``r_h (P_h a_h) − r_k (P_k a_k) = b_k − b_h``."""
     npair = 0
-    for j1 in range(count1):
-        for jk in range(countk):
+    for jh in range(count_h):
+        for jk in range(count_k):
             for x in range(3):
-                pa1[npair, x] = la[0, j1, x]
+                if h == 0:
+                    pa1[npair, x] = la[0, jh, x]
+                else:
+                    pa1[npair, x] = (
+                        P[h - 1, x, 0] * la[h, jh, 0]
+                        + P[h - 1, x, 1] * la[h, jh, 1]
+                        + P[h - 1, x, 2] * la[h, jh, 2]
+                    )
                 pa2[npair, 0, x] = la[k, jk, x]
-                pb[npair, 0, x] = b[k - 1, x]
+                pb[npair, 0, x] = b[k - 1, x] - (b[h - 1, x] if h > 0 else 0.0)
                 for y in range(3):
                     pP[npair, 0, x, y] = P[k - 1, x, y]
             npair += 1
@@ -240,10 +249,10 @@ def _pair_gates(i, k, la, fix_time, count1, countk, P, b, sig, position_sigma, g
         pM,
     )
     e = 0
-    for j1 in range(count1):
-        for jk in range(countk):
-            dt = fix_time[i, k, jk] - fix_time[i, 0, j1]
-            out[j1, jk] = pair_passes(pJ[e], pX[e, 0], pX[e, 1], sig[0], sig[k], position_sigma,
+    for jh in range(count_h):
+        for jk in range(count_k):
+            dt = fix_time[i, k, jk] - fix_time[i, h, jh]
+            out[jh, jk] = pair_passes(pJ[e], pX[e, 0], pX[e, 1], sig[h], sig[k], position_sigma,
                                       gate_q, max_speed, dt)  # fmt: skip
             e += 1
 
@@ -458,7 +467,7 @@ def step_rows(
     ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
     # the refinement's scratch (receivers 4 … n, :func:`refine_candidate`)
     rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n)
-    bbuf = np.empty(2 * C + n * F + T + 2 * FF, np.bool_)
+    bbuf = np.empty(2 * C + n * F + T + 3 * FF, np.bool_)
     o = 0
     la, o = _carve3(fbuf, o, n, F, 3)
     sig, o = _carve1(fbuf, o, n)
@@ -514,8 +523,10 @@ def step_rows(
     t_took, o = _carve1(bbuf, o, T)
     g12, o = _carve2(bbuf, o, F, F)
     g13, o = _carve2(bbuf, o, F, F)
+    g23, o = _carve2(bbuf, o, F, F)
     g12[:] = True
     g13[:] = True
+    g23[:] = True
     for i in range(lo, hi):
         # the state before the period, copied into the outputs (then updated there)
         t[i] = t_in[i]
@@ -589,16 +600,21 @@ def step_rows(
         c2 = fix_count[i, 1]
         c3 = fix_count[i, 2] if used_n == 3 else 1
         if used_n == 3:
-            _pair_gates(i, np.int64(1), la, fix_time, c1, c2, P, b, sig, position_sigma, gate_q, max_speed,
-                        pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g12)  # fmt: skip
-            _pair_gates(i, np.int64(2), la, fix_time, c1, c3, P, b, sig, position_sigma, gate_q, max_speed,
-                        pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM, g13)  # fmt: skip
+            _pair_gates(i, np.int64(0), np.int64(1), la, fix_time, c1, c2, P, b, sig,
+                        position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
+                        pk, pM, g12)  # fmt: skip
+            _pair_gates(i, np.int64(0), np.int64(2), la, fix_time, c1, c3, P, b, sig,
+                        position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
+                        pk, pM, g13)  # fmt: skip
+            _pair_gates(i, np.int64(1), np.int64(2), la, fix_time, c2, c3, P, b, sig,
+                        position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
+                        pk, pM, g23)  # fmt: skip
         for j1 in range(c1):
             for j2 in range(c2):
                 if used_n == 3 and not g12[j1, j2]:
                     continue
                 for j3 in range(c3):
-                    if used_n == 3 and not g13[j1, j3]:
+                    if used_n == 3 and not (g13[j1, j3] and g23[j2, j3]):
                         continue
                     for x in range(3):
                         a1[nc, x] = la[0, j1, x]
