@@ -37,7 +37,8 @@ from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, uni
 from sensorgym.trackers.stereo.conjugation_kernels import (
     pair_kernel,
     triple_velocity_kernel,
-    velocity_kernel,
+    velocity_element,
+    velocity_work,
 )
 from sensorgym.trackers.stereo.kernels import clip, log_ratio_reward
 
@@ -295,11 +296,12 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     ``q √(σ_pos² + (σ_vel Δ)² + (σ_k d·u)²) + ½ a_max Δ²`` (floored at
     :data:`GATE_FLOOR`); ``cmem[c, k]`` records it (−1: none). With at least one joined,
     the velocity-aware system of all ``n_used`` receivers (normal equations with the ranges
-    ``r_2 … r_n`` eliminated, :func:`velocity_kernel`) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
+    ``r_2 … r_n`` eliminated, :func:`velocity_element` on this scratch, the block of ``(r_1, V)``
+    only) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
     (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
     positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
     joined fixes are released. O(n F) per candidate; ``buf`` holds at least
-    ``3 + 16 (n − 1) + (n + 3)(n + 4) + 5 + n`` floats of scratch."""
+    ``3 + 16 (n − 1) + (n + 3)(n + 4) + 5 + n + velocity_work(n − 1)`` floats of scratch."""
     n = la.shape[0]
     t1 = ctime[c]
     sp, sv = csig[c, 0], csig[c, 1]
@@ -356,8 +358,9 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         dt[0, r] = fix_time[i, k, j] - t1
         sg[r + 1] = sig[k]
         r += 1
-    velocity_kernel(a1, ak, Pk, bk, dt, 1.0, np.bool_(False), np.int64(0), np.int64(1), X, J, Q,
-                    kap, M1)  # fmt: skip
+    work, o = _carve1(buf, o, velocity_work(mk))
+    velocity_element(np.int64(0), a1, ak, Pk, bk, dt, 1.0, np.bool_(False), X, J, Q, kap, M1,
+                     work, np.bool_(False))  # fmt: skip
     ok = kap[0] <= cond_max
     for k in range(nu):
         ok = ok and X[0, k] > 0.0
@@ -466,7 +469,7 @@ def step_rows(
     )
     ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
     # the refinement's scratch (receivers 4 … n, :func:`refine_candidate`)
-    rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n)
+    rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n + velocity_work(n - 1))
     bbuf = np.empty(2 * C + n * F + T + 3 * FF, np.bool_)
     o = 0
     la, o = _carve3(fbuf, o, n, F, 3)

@@ -337,121 +337,147 @@ def velocity_kernel(a1: Array, ak: Array, P: Array, b: Array, dt: Array, sigma2:
     path solves them.
     """
     m = ak.shape[1]
-    n = m + 1
-    c = np.empty((m, 3))
-    g = np.empty((m, 4))
-    D = np.empty(m)
-    hr = np.empty(m)
-    S, L, Si = np.empty((4, 4)), np.empty((4, 4)), np.empty((4, 4))
-    hy, y, sg = np.empty(4), np.empty(4), np.empty((m, 4))
+    work = np.empty(velocity_work(m))
     for i in range(lo, hi):
-        a = _vec(a1, i)
-        if check and _not_unit(a):
-            return 1
-        aa = _dot(a, a)
-        for k in range(m):
-            x = (ak[i, k, 0], ak[i, k, 1], ak[i, k, 2])
-            ck = _rotate(P, i, k, x)
-            bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
-            if check:
-                if _not_unit(x):
-                    return 2
-                if _not_unit(ck):
-                    return 3
-                if _not_finite(bk):
-                    return 4
-                if not np.isfinite(dt[i, k]):
-                    return 5
-            c[k, 0], c[k, 1], c[k, 2] = ck
-        # E, h_y and the trace of AᵀA
-        for r in range(4):
-            hy[r] = 0.0
-            for q in range(4):
-                S[r, q] = 0.0
-        trace = 0.0
-        for k in range(m):
-            d = dt[i, k]
-            ck = (c[k, 0], c[k, 1], c[k, 2])
-            bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
-            D[k] = _dot(ck, ck)
-            hr[k] = -_dot(ck, bk)
-            g[k, 0] = -_dot(a, ck)
-            S[0, 0] += aa
-            hy[0] += _dot(a, bk)
-            for j in range(3):
-                g[k, 1 + j] = -d * ck[j]
-                S[0, 1 + j] += d * a[j]
-                S[1 + j, 1 + j] += d * d
-                hy[1 + j] += d * bk[j]
-            trace += aa + D[k] + 3.0 * d * d
+        code = velocity_element(i, a1, ak, P, b, dt, sigma2, check, X, J, Q, kappa, position,
+                                work, np.bool_(True))  # fmt: skip
+        if code:
+            return code
+    return 0
+
+
+@njit(**_JIT)
+def velocity_work(m: int) -> int:
+    """Floats of scratch :func:`velocity_element` needs for ``m = n − 1`` receivers past the
+    first."""
+    return 13 * m + 56
+
+
+@njit(**_JIT)
+def velocity_element(i: int, a1: Array, ak: Array, P: Array, b: Array, dt: Array,
+                     sigma2: float, check: bool, X: Array, J: Array, Q: Array, kappa: Array,
+                     position: Array, work: Array, full_q: bool) -> int:  # fmt: skip
+    """Element ``i`` of :func:`velocity_kernel` on the caller's scratch ``work`` (at least
+    :func:`velocity_work` floats: a caller solving one system at a time allocates nothing).
+    With ``full_q`` false only ``Q``'s block of the shared unknowns ``(r_1, V)`` (rows and
+    columns ``0, n, n+1, n+2``) is written — all :func:`candidate_sigmas`-style readers need."""
+    m = ak.shape[1]
+    n = m + 1
+    c = work[0 : 3 * m].reshape((m, 3))
+    g = work[3 * m : 7 * m].reshape((m, 4))
+    D = work[7 * m : 8 * m]
+    hr = work[8 * m : 9 * m]
+    sg = work[9 * m : 13 * m].reshape((m, 4))
+    o = 13 * m
+    S = work[o : o + 16].reshape((4, 4))
+    L = work[o + 16 : o + 32].reshape((4, 4))
+    Si = work[o + 32 : o + 48].reshape((4, 4))
+    hy = work[o + 48 : o + 52]
+    y = work[o + 52 : o + 56]
+    a = _vec(a1, i)
+    if check and _not_unit(a):
+        return 1
+    aa = _dot(a, a)
+    for k in range(m):
+        x = (ak[i, k, 0], ak[i, k, 1], ak[i, k, 2])
+        ck = _rotate(P, i, k, x)
+        bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
+        if check:
+            if _not_unit(x):
+                return 2
+            if _not_unit(ck):
+                return 3
+            if _not_finite(bk):
+                return 4
+            if not np.isfinite(dt[i, k]):
+                return 5
+        c[k, 0], c[k, 1], c[k, 2] = ck
+    # E, h_y and the trace of AᵀA
+    for r in range(4):
+        hy[r] = 0.0
+        for q in range(4):
+            S[r, q] = 0.0
+    trace = 0.0
+    for k in range(m):
+        d = dt[i, k]
+        ck = (c[k, 0], c[k, 1], c[k, 2])
+        bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
+        D[k] = _dot(ck, ck)
+        hr[k] = -_dot(ck, bk)
+        g[k, 0] = -_dot(a, ck)
+        S[0, 0] += aa
+        hy[0] += _dot(a, bk)
         for j in range(3):
-            S[1 + j, 0] = S[0, 1 + j]
-        # S = E − Σ_k g_k g_kᵀ / D_k ;  h_y − Σ_k g_k h_k / D_k
-        for k in range(m):
-            w = 1.0 / D[k]
-            for r in range(4):
-                hy[r] -= g[k, r] * hr[k] * w
-                for q in range(4):
-                    S[r, q] -= g[k, r] * g[k, q] * w
-        if not _cholesky_inverse4(S, L, Si):
-            kappa[i] = np.inf
-            continue
-        # tr (AᵀA)⁻¹ = tr S⁻¹ + Σ_k (1/D_k + g_kᵀ S⁻¹ g_k / D_k²)
-        inv_trace = Si[0, 0] + Si[1, 1] + Si[2, 2] + Si[3, 3]
-        for k in range(m):
-            quad = 0.0
-            for r in range(4):
-                x = 0.0
-                for q in range(4):
-                    x += Si[r, q] * g[k, q]
-                sg[k, r] = x  # S⁻¹ g_k
-                quad += g[k, r] * x
-            inv_trace += 1.0 / D[k] + quad / (D[k] * D[k])
-        kap = np.sqrt(trace * inv_trace)
-        if not kap <= NORMAL_EQUATIONS_COND:
-            kappa[i] = np.inf
-            continue
-        kappa[i] = kap
+            g[k, 1 + j] = -d * ck[j]
+            S[0, 1 + j] += d * a[j]
+            S[1 + j, 1 + j] += d * d
+            hy[1 + j] += d * bk[j]
+        trace += aa + D[k] + 3.0 * d * d
+    for j in range(3):
+        S[1 + j, 0] = S[0, 1 + j]
+    # S = E − Σ_k g_k g_kᵀ / D_k ;  h_y − Σ_k g_k h_k / D_k
+    for k in range(m):
+        w = 1.0 / D[k]
+        for r in range(4):
+            hy[r] -= g[k, r] * hr[k] * w
+            for q in range(4):
+                S[r, q] -= g[k, r] * g[k, q] * w
+    if not _cholesky_inverse4(S, L, Si):
+        kappa[i] = np.inf
+        return 0
+    # tr (AᵀA)⁻¹ = tr S⁻¹ + Σ_k (1/D_k + g_kᵀ S⁻¹ g_k / D_k²)
+    inv_trace = Si[0, 0] + Si[1, 1] + Si[2, 2] + Si[3, 3]
+    for k in range(m):
+        quad = 0.0
         for r in range(4):
             x = 0.0
             for q in range(4):
-                x += Si[r, q] * hy[q]
-            y[r] = x
-        # X = (r_1, r_2 … r_n, V): y holds r_1 and V
-        X[i, 0] = y[0]
+                x += Si[r, q] * g[k, q]
+            sg[k, r] = x  # S⁻¹ g_k
+            quad += g[k, r] * x
+        inv_trace += 1.0 / D[k] + quad / (D[k] * D[k])
+    kap = np.sqrt(trace * inv_trace)
+    if not kap <= NORMAL_EQUATIONS_COND:
+        kappa[i] = np.inf
+        return 0
+    kappa[i] = kap
+    for r in range(4):
+        x = 0.0
+        for q in range(4):
+            x += Si[r, q] * hy[q]
+        y[r] = x
+    # X = (r_1, r_2 … r_n, V): y holds r_1 and V
+    X[i, 0] = y[0]
+    for j in range(3):
+        X[i, n + j] = y[1 + j]
+    for k in range(m):
+        X[i, 1 + k] = (hr[k] - (g[k, 0] * y[0] + g[k, 1] * y[1] + g[k, 2] * y[2]
+                                + g[k, 3] * y[3])) / D[k]  # fmt: skip
+    # Q = σ_e² (AᵀA)⁻¹ in X's order (y ↦ columns 0, n, n+1, n+2)
+    for r in range(4):
+        ir = 0 if r == 0 else n + r - 1
+        for q in range(4):
+            iq = 0 if q == 0 else n + q - 1
+            Q[i, ir, iq] = sigma2 * Si[r, q]
+        if not full_q:
+            continue
+        for k in range(m):
+            Q[i, ir, 1 + k] = Q[i, 1 + k, ir] = -sigma2 * sg[k, r] / D[k]
+    for k in range(m if full_q else 0):
+        for l in range(k, m):
+            x = g[l, 0] * sg[k, 0] + g[l, 1] * sg[k, 1] + g[l, 2] * sg[k, 2] + g[l, 3] * sg[k, 3]
+            x /= D[k] * D[l]
+            if k == l:
+                x += 1.0 / D[k]
+            Q[i, 1 + k, 1 + l] = Q[i, 1 + l, 1 + k] = sigma2 * x
+    # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = Σ_k ‖E_k‖²
+    total = 0.0
+    r1 = X[i, 0]
+    for k in range(m):
+        rk, d = X[i, 1 + k], dt[i, k]
         for j in range(3):
-            X[i, n + j] = y[1 + j]
-        for k in range(m):
-            X[i, 1 + k] = (hr[k] - (g[k, 0] * y[0] + g[k, 1] * y[1] + g[k, 2] * y[2]
-                                    + g[k, 3] * y[3])) / D[k]  # fmt: skip
-        # Q = σ_e² (AᵀA)⁻¹ in X's order (y ↦ columns 0, n, n+1, n+2)
-        for r in range(4):
-            ir = 0 if r == 0 else n + r - 1
-            for q in range(4):
-                iq = 0 if q == 0 else n + q - 1
-                Q[i, ir, iq] = sigma2 * Si[r, q]
-            for k in range(m):
-                Q[i, ir, 1 + k] = Q[i, 1 + k, ir] = -sigma2 * sg[k, r] / D[k]
-        for k in range(m):
-            for l in range(k, m):
-                x = (
-                    g[l, 0] * sg[k, 0]
-                    + g[l, 1] * sg[k, 1]
-                    + g[l, 2] * sg[k, 2]
-                    + g[l, 3] * sg[k, 3]
-                )
-                x /= D[k] * D[l]
-                if k == l:
-                    x += 1.0 / D[k]
-                Q[i, 1 + k, 1 + l] = Q[i, 1 + l, 1 + k] = sigma2 * x
-        # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = Σ_k ‖E_k‖²
-        total = 0.0
-        r1 = X[i, 0]
-        for k in range(m):
-            rk, d = X[i, 1 + k], dt[i, k]
-            for j in range(3):
-                e = r1 * a[j] - rk * c[k, j] + d * X[i, n + j] - b[i, k, j]
-                total += e * e
-        J[i] = total
-        position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
+            e = r1 * a[j] - rk * c[k, j] + d * X[i, n + j] - b[i, k, j]
+            total += e * e
+    J[i] = total
+    position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
     return 0
