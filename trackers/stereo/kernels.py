@@ -610,6 +610,20 @@ def _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, me
 
 
 @njit(**JIT)
+def _score_drone(kind, u, w, ready, prior, weight, consts, assign, j, rows, members, work, piv,
+                 keys, columns, size, bonus, held, value):  # fmt: skip
+    """Drone ``j``'s value ``held[j]`` and every receiver's value of joining it,
+    ``value[k, j] = marginal + bonus[k, j]``, from its (cached) column under ``assign``;
+    returns the cache's new size."""
+    at, size = _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, members,
+                              work, piv, keys, columns, size)  # fmt: skip
+    held[j] = columns[at, 0]
+    for k in range(assign.shape[0]):
+        value[k, j] = columns[at, 1 + k] + bonus[k, j]
+    return size
+
+
+@njit(**JIT)
 def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bonus, max_moves,
                             min_rise, lo, hi, out):  # fmt: skip
     """Coordinate-wise ascent (:func:`sensorgym.agents.assignment_solver.improve`) of
@@ -642,13 +656,9 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
             for k in range(n):
                 a[k] = starts[t, b, k]
             for j in range(m):
-                at, size = _cached_column(
-                    kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, a, j, rows,
-                    members, work, piv, keys, columns, size,
-                )  # fmt: skip
-                held[j] = columns[at, 0]
-                for k in range(n):
-                    value[k, j] = columns[at, 1 + k] + bonus[b, k, j]
+                size = _score_drone(kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts,
+                                    a, j, rows, members, work, piv, keys, columns, size,
+                                    bonus[b], held, value)  # fmt: skip
             for _ in range(max_moves):
                 # the move of largest rise (receiver-major, first on ties)
                 mk, mj, rise = 0, 0, -np.inf
@@ -663,13 +673,9 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
                 j0 = a[mk]
                 a[mk] = mj
                 for j in (j0, mj):
-                    at, size = _cached_column(
-                        kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, a, j, rows,
-                        members, work, piv, keys, columns, size,
-                    )  # fmt: skip
-                    held[j] = columns[at, 0]
-                    for k in range(n):
-                        value[k, j] = columns[at, 1 + k] + bonus[b, k, j]
+                    size = _score_drone(kind, u[b], w[b], ready[b], prior[b, j], weight[b],
+                                        consts, a, j, rows, members, work, piv, keys, columns,
+                                        size, bonus[b], held, value)  # fmt: skip
             score = 0.0
             for j in range(m):
                 score += held[j]
