@@ -254,6 +254,42 @@ def cold_start() -> str:
     return "\n".join(lines)
 
 
+def scaling() -> str:
+    """At each env's largest size of ``benchmarks/scaling.py``: µs per scenario of the env step
+    and of every rule's decision (batch of 256, steady state), against the issue-15 targets,
+    with the growth exponent over the three largest sizes."""
+    doc = json.loads((RESULTS / "scaling.json").read_text())["results"]
+    rows, slopes = doc["rows"], doc["exponents_largest"]
+    lines = [
+        "| env, largest size | what | µs per scenario (wall) | CPU µs | target µs | growth exponent |",
+        "| --- | --- | ---: | ---: | ---: | ---: |",
+    ]
+    for env in dict.fromkeys(r["env"] for r in rows):
+        row = max((r for r in rows if r["env"] == env), key=lambda r: r["size"])
+        head = f"`{env.split('/')[1]}`, {row['case']}"
+        k = slopes.get(env, {})
+
+        def fmt(x: float | None) -> str:
+            return "—" if x is None else f"{x:.2f}"
+
+        if row.get("step_us") is None:
+            lines.append(f"| {head} | env step | {row.get('error', '—')} | | 50 | |")
+            continue
+        lines.append(
+            f"| {head} | env step | {row['step_us']:.1f} | {row['step_cpu_us']:.1f} | 50 "
+            f"| {fmt(k.get('env step'))} |"
+        )
+        for name, t in row["rules"].items():
+            if "decision_us" not in t:
+                lines.append(f"| | `{name}` | {t['error']} | | 1000 | |")
+                continue
+            lines.append(
+                f"| | `{name}` | {t['decision_us']:.1f} | {t['decision_cpu_us']:.1f} | 1000 "
+                f"| {fmt(k.get(name))} |"
+            )
+    return "\n".join(lines)
+
+
 def bot_control() -> str:
     """PCRLB at 16 and 32 min of every policy of ``sensorgym reproduce bot-control``
     (``docs/reproduction/bot_control.json``)."""
@@ -294,6 +330,7 @@ TABLES = {
     "scores-book": lambda: scores("BearingsManeuverBook-v0"),
     "env-speed": env_speed,
     "cold-start": cold_start,
+    "scaling": scaling,
     "training-speed": training_speed,
     "scores-bearings": lambda: scores("BearingsManeuver-v0"),
     "scores-pointing": lambda: scores("StereoPointing-v0"),
