@@ -172,14 +172,14 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
 
 
 @njit(**_JIT)
-def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
+def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma, velocity):
     """``(σ_e, σ_pos, σ_vel)`` of a candidate from its ``Q = (AᵀA)⁻¹`` (``σ_e = 1``).
 
     ``σ_e² = σ_x² + (1/n) Σ_k (σ_k r̂_k)²`` maps the direction noise to the papers' i.i.d.
     conjugation error (theory §13.4) plus the apparent-position error ``σ_x``;
     ``σ_pos = σ_e √([(AᵀA)⁻¹]_11 + 2)``: the range error along receiver 1's line of sight and
-    ``σ_e`` on each axis across it; ``σ_vel = σ_e √tr Q_VV`` (order-1 systems, ``Q`` of
-    ``n_used + 3`` unknowns ``(r_1 … r_n, V)``; else 0).
+    ``σ_e`` on each axis across it; ``σ_vel = σ_e √tr Q_VV`` (``velocity``: order-1 systems,
+    ``Q`` of ``n_used + 3`` unknowns ``(r_1 … r_n, V)`` in its first rows; else 0).
     """
     s2 = position_sigma * position_sigma
     acc = 0.0
@@ -190,7 +190,7 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma):
     sigma_e = np.sqrt(s2)
     sp = sigma_e * np.sqrt(max(Q[0, 0], 0.0) + 2.0)
     sv = 0.0
-    if Q.shape[0] == n_used + 3:
+    if velocity:
         v = n_used
         sv = sigma_e * np.sqrt(max(Q[v, v] + Q[v + 1, v + 1] + Q[v + 2, v + 2], 0.0))
     return sigma_e, sp, sv
@@ -286,7 +286,7 @@ def _carve4(buf, o, a, b, c, d):
 @njit(**_JIT)
 def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, position_sigma,
                      gate_q, max_speed, max_accel, cond_max, cmem, cpos, cvel, ctime, csig,
-                     buf):  # fmt: skip
+                     a1, ak, Pk, bk, dt, X, J, Q, kap, M1, sg, work):  # fmt: skip
     """Receivers 4 … n join candidate ``c`` (a triple of receivers 1–3), which is then re-solved
     by least squares over all its fixes (theory §3.3, any n ≥ 3).
 
@@ -300,8 +300,11 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     only) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
     (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
     positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
-    joined fixes are released. O(n F) per candidate; ``buf`` holds at least
-    ``3 + 16 (n − 1) + (n + 3)(n + 4) + 5 + n + velocity_work(n − 1)`` floats of scratch."""
+    joined fixes are released. O(n F) per candidate. The system's arrays come from the step's
+    scratch, sized for all ``n`` receivers (``a1 (1, 3)``, ``ak``, ``bk (1, n − 1, 3)``, ``Pk
+    (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``, ``J``, ``kap (1,)``, ``Q (1, n + 3,
+    n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of :func:`velocity_work` ``(n − 1)``): a
+    candidate fills their first rows."""
     n = la.shape[0]
     t1 = ctime[c]
     sp, sv = csig[c, 0], csig[c, 1]
@@ -330,18 +333,6 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     if mk == 2:
         return
     nu = mk + 1
-    o = 0
-    a1, o = _carve2(buf, o, 1, 3)
-    ak, o = _carve3(buf, o, 1, mk, 3)
-    Pk, o = _carve4(buf, o, 1, mk, 3, 3)
-    bk, o = _carve3(buf, o, 1, mk, 3)
-    dt, o = _carve2(buf, o, 1, mk)
-    X, o = _carve2(buf, o, 1, nu + 3)
-    J, o = _carve1(buf, o, 1)
-    Q, o = _carve3(buf, o, 1, nu + 3, nu + 3)
-    kap, o = _carve1(buf, o, 1)
-    M1, o = _carve2(buf, o, 1, 3)
-    sg, o = _carve1(buf, o, nu)
     sg[0] = sig[0]
     for x in range(3):
         a1[0, x] = la[0, cmem[c, 0], x]
@@ -358,9 +349,8 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         dt[0, r] = fix_time[i, k, j] - t1
         sg[r + 1] = sig[k]
         r += 1
-    work, o = _carve1(buf, o, velocity_work(mk))
-    velocity_element(np.int64(0), a1, ak, Pk, bk, dt, 1.0, np.bool_(False), X, J, Q, kap, M1,
-                     work, np.bool_(False))  # fmt: skip
+    velocity_element(np.int64(0), mk, a1, ak, Pk, bk, dt, 1.0, np.bool_(False), X, J, Q, kap,
+                     M1, work, np.bool_(False))  # fmt: skip
     ok = kap[0] <= cond_max
     for k in range(nu):
         ok = ok and X[0, k] > 0.0
@@ -369,7 +359,7 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         for k in range(3, n):
             cmem[c, k] = -1
         return
-    _, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma)
+    _, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, True)
     mw = _world(R, 0, (M1[0, 0], M1[0, 1], M1[0, 2]))
     for x in range(3):
         cpos[c, x] = O[0, x] + mw[x]
@@ -468,8 +458,21 @@ def step_rows(
         + FF * 30
     )
     ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
-    # the refinement's scratch (receivers 4 … n, :func:`refine_candidate`)
+    # the refinement's system, sized for all n receivers (receivers 4 … n, :func:`refine_candidate`)
     rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n + velocity_work(n - 1))
+    o = 0
+    r_a1, o = _carve2(rbuf, o, 1, 3)
+    r_ak, o = _carve3(rbuf, o, 1, n - 1, 3)
+    r_P, o = _carve4(rbuf, o, 1, n - 1, 3, 3)
+    r_b, o = _carve3(rbuf, o, 1, n - 1, 3)
+    r_dt, o = _carve2(rbuf, o, 1, n - 1)
+    r_X, o = _carve2(rbuf, o, 1, n + 3)
+    r_J, o = _carve1(rbuf, o, 1)
+    r_Q, o = _carve3(rbuf, o, 1, n + 3, n + 3)
+    r_kap, o = _carve1(rbuf, o, 1)
+    r_M1, o = _carve2(rbuf, o, 1, 3)
+    r_sg, o = _carve1(rbuf, o, n)
+    r_work, o = _carve1(rbuf, o, velocity_work(n - 1))
     bbuf = np.empty(2 * C + n * F + T + 3 * FF, np.bool_)
     o = 0
     la, o = _carve3(fbuf, o, n, F, 3)
@@ -681,7 +684,7 @@ def step_rows(
             ctaken[c] = False
             if not ok:
                 continue
-            _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma)
+            _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma, used_n == 3)
             # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
             mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
             for x in range(3):
@@ -695,7 +698,8 @@ def step_rows(
                     # receivers 4 … n join; the speed check applies to the joint solution
                     refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
                                      position_sigma, gate_q, max_speed, max_accel, cond_max,
-                                     cmem, cpos, cvel, ctime, csig, rbuf)  # fmt: skip
+                                     cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt,
+                                     r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work)  # fmt: skip
                 speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
                 if not speed <= max_speed:
                     continue

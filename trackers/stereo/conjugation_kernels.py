@@ -339,8 +339,8 @@ def velocity_kernel(a1: Array, ak: Array, P: Array, b: Array, dt: Array, sigma2:
     m = ak.shape[1]
     work = np.empty(velocity_work(m))
     for i in range(lo, hi):
-        code = velocity_element(i, a1, ak, P, b, dt, sigma2, check, X, J, Q, kappa, position,
-                                work, np.bool_(True))  # fmt: skip
+        code = velocity_element(i, m, a1, ak, P, b, dt, sigma2, check, X, J, Q, kappa,
+                                position, work, np.bool_(True))  # fmt: skip
         if code:
             return code
     return 0
@@ -354,14 +354,15 @@ def velocity_work(m: int) -> int:
 
 
 @njit(**_JIT)
-def velocity_element(i: int, a1: Array, ak: Array, P: Array, b: Array, dt: Array,
+def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, dt: Array,
                      sigma2: float, check: bool, X: Array, J: Array, Q: Array, kappa: Array,
                      position: Array, work: Array, full_q: bool) -> int:  # fmt: skip
-    """Element ``i`` of :func:`velocity_kernel` on the caller's scratch ``work`` (at least
-    :func:`velocity_work` floats: a caller solving one system at a time allocates nothing).
-    With ``full_q`` false only ``Q``'s block of the shared unknowns ``(r_1, V)`` (rows and
-    columns ``0, n, n+1, n+2``) is written — all :func:`candidate_sigmas`-style readers need."""
-    m = ak.shape[1]
+    """Element ``i`` of :func:`velocity_kernel` for the first ``m`` receivers past the first
+    (``m ≤ ak.shape[1]``: a caller may keep arrays sized for the most receivers and fill only
+    the first rows; ``X``, ``Q`` are written in their first ``m + 4`` entries), on the caller's
+    scratch ``work`` (at least :func:`velocity_work` floats: a caller solving one system at a
+    time allocates nothing). With ``full_q`` false only ``Q``'s block of the shared unknowns
+    ``(r_1, V)`` (rows and columns ``0, n, n+1, n+2``) is written."""
     n = m + 1
     c = work[0 : 3 * m].reshape((m, 3))
     g = work[3 * m : 7 * m].reshape((m, 4))
