@@ -157,7 +157,12 @@ class StereoScanningEnv(CoreEnv):
       ``receiver_azimuths`` and ``scan_offsets`` default to ``None``, the layout of
       :func:`~sensorgym.envs.stereo_scanning.simulation.default_azimuths` and
       :func:`~sensorgym.envs.stereo_scanning.simulation.default_offsets`); receivers 4 … n
-      refine the triples of receivers 1–3 by least squares over all receivers' fixes.
+      refine the triples of receivers 1–3 by least squares over all receivers' fixes. Later in
+      issue 15 a triple must pass the pair gate on all three of its pairs (receivers 2–3 as
+      well as 1–2 and 1–3): fewer ghost triples reach the refinement. The registered default's
+      episodes stay bit-identical (golden, and 256 held-out episodes of every rule and shipped
+      policy); at 16 receivers × 10 drones episodes may differ (over 64 episodes of seed 500
+      every rule's mean return is unchanged to 0.02).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
