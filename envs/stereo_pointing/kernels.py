@@ -59,7 +59,8 @@ def in_view(boresight, u, cos_fov):
 def pointing_offset(azimuth, elevation, u):
     """World-angle offset ``(wrap(α_u − α), ε_u − ε)`` of the direction ``u`` from a boresight at
     ``(α, ε)``; a zero ``u`` (no direction) reads as ``(0, 0)``."""
-    az, el, has = angles_from_unit(u)
+    # as a tuple: angles_from_unit compiles once, for the tuples geometry_kernels passes too
+    az, el, has = angles_from_unit((u[0], u[1], u[2]))
     if not has:
         return 0.0, 0.0
     return wrap_angle(az - azimuth), el - elevation
