@@ -57,11 +57,12 @@ def check_solver(solver: str) -> None:
         raise ValueError(f"solver: expected one of {SOLVERS}, got {solver!r}")
 
 
-def exhaustive(solver: str, n: int, m: int) -> bool:
+def exhaustive(solver: str, n: int, m: int, auto_limit: int = MAX_ASSIGNMENTS) -> bool:
     """Whether ``solver`` searches all ``m^n`` assignments of ``n`` receivers to ``m`` drones
-    (``"auto"``: when there are at most ``MAX_ASSIGNMENTS``)."""
+    (``"auto"``: when there are at most ``auto_limit``, by default ``MAX_ASSIGNMENTS``; a rule
+    whose every candidate costs much passes a lower one)."""
     check_solver(solver)
-    return solver == "exhaustive" or (solver == "auto" and m**n <= MAX_ASSIGNMENTS)
+    return solver == "exhaustive" or (solver == "auto" and m**n <= min(auto_limit, MAX_ASSIGNMENTS))
 
 
 def assignments(n: int, m: int) -> IntArray:

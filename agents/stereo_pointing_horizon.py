@@ -28,6 +28,7 @@ from sensorgym.agents.assignment_solver import best_of, check_solver, exhaustive
 from sensorgym.agents.protocol import as_batch
 from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
+    PLAN_ASSIGNMENTS,
     _assignments,
     _keep_bonus,
     _starts,
@@ -60,7 +61,8 @@ class PlanHorizon:
     """Planning grid: every ``stride``-th future step is scored."""
     solver: str = "auto"
     """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
-    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to 4096 assignments)."""
+    (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to
+    :data:`~sensorgym.agents.stereo_pointing.PLAN_ASSIGNMENTS` assignments)."""
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
@@ -93,7 +95,7 @@ class PlanHorizon:
             self.planning_horizon(t),
             self.stride,
         )
-        if not exhaustive(self.solver, p.n_receivers, p.n_drones):
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
             return best_of(
                 plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
             )

@@ -211,14 +211,17 @@ def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
 
 @njit(**_JIT)
 def _pair_gates(i, h, k, la, fix_time, count_h, count_k, P, b, sig, position_sigma, gate_q,
-                max_speed, pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, out):  # fmt: skip
+                max_speed, pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM, need, out):  # fmt: skip
     """``out[jh, jk]``: whether fixes ``jh`` (receiver ``h``) and ``jk`` (receiver ``k > h``)
     pass :func:`pair_passes` — the cheap pre-gate of the triples (a true triple's three pairs
-    pass it). In receiver 1's frame receiver ``h``'s line of sight is ``P_h a`` from ``b_h``
-    (``P_1 = I``, ``b_1 = 0``), so the pair solves ``r_h (P_h a_h) − r_k (P_k a_k) = b_k − b_h``."""
+    pass it) — for the pairs with ``need[jh, jk]`` (the others are left unset). In receiver 1's
+    frame receiver ``h``'s line of sight is ``P_h a`` from ``b_h`` (``P_1 = I``, ``b_1 = 0``),
+    so the pair solves ``r_h (P_h a_h) − r_k (P_k a_k) = b_k − b_h``."""
     npair = 0
     for jh in range(count_h):
         for jk in range(count_k):
+            if not need[jh, jk]:
+                continue
             for x in range(3):
                 if h == 0:
                     pa1[npair, x] = la[0, jh, x]
@@ -252,6 +255,8 @@ def _pair_gates(i, h, k, la, fix_time, count_h, count_k, P, b, sig, position_sig
     e = 0
     for jh in range(count_h):
         for jk in range(count_k):
+            if not need[jh, jk]:
+                continue
             dt = fix_time[i, k, jk] - fix_time[i, h, jh]
             out[jh, jk] = pair_passes(pJ[e], pX[e, 0], pX[e, 1], sig[h], sig[k], position_sigma,
                                       gate_q, max_speed, dt)  # fmt: skip
@@ -473,7 +478,7 @@ def step_rows(
     r_M1, o = _carve2(rbuf, o, 1, 3)
     r_sg, o = _carve1(rbuf, o, n)
     r_work, o = _carve1(rbuf, o, velocity_work(n - 1))
-    bbuf = np.empty(2 * C + n * F + T + 3 * FF, np.bool_)
+    bbuf = np.empty(2 * C + n * F + T + 5 * FF, np.bool_)
     o = 0
     la, o = _carve3(fbuf, o, n, F, 3)
     sig, o = _carve1(fbuf, o, n)
@@ -530,9 +535,12 @@ def step_rows(
     g12, o = _carve2(bbuf, o, F, F)
     g13, o = _carve2(bbuf, o, F, F)
     g23, o = _carve2(bbuf, o, F, F)
+    every, o = _carve2(bbuf, o, F, F)
+    need23, o = _carve2(bbuf, o, F, F)
     g12[:] = True
     g13[:] = True
     g23[:] = True
+    every[:] = True
     for i in range(lo, hi):
         # the state before the period, copied into the outputs (then updated there)
         t[i] = t_in[i]
@@ -608,13 +616,23 @@ def step_rows(
         if used_n == 3:
             _pair_gates(i, np.int64(0), np.int64(1), la, fix_time, c1, c2, P, b, sig,
                         position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
-                        pk, pM, g12)  # fmt: skip
+                        pk, pM, every, g12)  # fmt: skip
             _pair_gates(i, np.int64(0), np.int64(2), la, fix_time, c1, c3, P, b, sig,
                         position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
-                        pk, pM, g13)  # fmt: skip
+                        pk, pM, every, g13)  # fmt: skip
+            # receivers 2–3: only the pairs some fix of receiver 1 joins through both its gates
+            for j2 in range(c2):
+                for j3 in range(c3):
+                    need23[j2, j3] = False
+            for j1 in range(c1):
+                for j2 in range(c2):
+                    if g12[j1, j2]:
+                        for j3 in range(c3):
+                            if g13[j1, j3]:
+                                need23[j2, j3] = True
             _pair_gates(i, np.int64(1), np.int64(2), la, fix_time, c2, c3, P, b, sig,
                         position_sigma, gate_q, max_speed, pa1, pa2, pP, pb, pones, pX, pJ, pQ,
-                        pk, pM, g23)  # fmt: skip
+                        pk, pM, need23, g23)  # fmt: skip
         for j1 in range(c1):
             for j2 in range(c2):
                 if used_n == 3 and not g12[j1, j2]:
