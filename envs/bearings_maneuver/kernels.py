@@ -359,6 +359,18 @@ def _bearing_information(path, track, sigma, info):
         info[s, 0], info[s, 1], info[s, 2] = a * n0 * n0, a * n0 * n1, a * n1 * n1
 
 
+# position information [[i00, i01], [i01, i11]] fused into the square root ``L_pred`` as two
+# rank-one updates, the columns of its Cholesky factor (``L_pred`` is overwritten)
+@njit(**_JIT)
+def _fuse_position_information(L_pred, i00, i01, i11, out, A):
+    if i00 > 0.0:
+        g = math.sqrt(i00)
+        position_update(L_pred, 1.0, g, i01 / g, out, A)
+        L_pred[:, :] = out
+        i11 = i11 - i01 * i01 / i00
+    position_update(L_pred, 1.0, 0.0, math.sqrt(max(i11, 0.0)), out, A)
+
+
 @njit(**_JIT)
 def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc, L_pred, A_pred,
                    A_update):  # fmt: skip
@@ -382,12 +394,7 @@ def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc
             i00 = others[s, 0] + a * n0 * n0
             i01 = others[s, 1] + a * n0 * n1
             i11 = others[s, 2] + a * n1 * n1
-            if i00 > 0.0:
-                g = math.sqrt(i00)
-                position_update(L_pred, 1.0, g, i01 / g, Lc, A_update)
-                L_pred[:, :] = Lc
-                i11 = i11 - i01 * i01 / i00
-            position_update(L_pred, 1.0, 0.0, math.sqrt(max(i11, 0.0)), Lc, A_update)
+            _fuse_position_information(L_pred, i00, i01, i11, Lc, A_update)
         else:
             bound_update(L_pred, path[s, 0], path[s, 1], track[s, 0], track[s, 1], sigma, Lc,
                          A_update)  # fmt: skip
@@ -408,16 +415,7 @@ def _others_root(c, L0, others, horizon, Lo, L_pred, A_pred, A_update):
     Lo[:, :] = L0
     for s in range(horizon):
         bound_predict(Lo, dt, q_tilde, L_pred, A_pred)
-        i00, i01, i11 = others[s, 0], others[s, 1], others[s, 2]
-        if i00 > 0.0:
-            g = math.sqrt(i00)
-            position_update(L_pred, 1.0, g, i01 / g, Lo, A_update)
-            L_pred[:, :] = Lo
-            i11 = i11 - i01 * i01 / i00
-        if i11 > 0.0:
-            position_update(L_pred, 1.0, 0.0, math.sqrt(i11), Lo, A_update)
-        else:
-            Lo[:, :] = L_pred
+        _fuse_position_information(L_pred, others[s, 0], others[s, 1], others[s, 2], Lo, A_update)
 
 
 @njit(**_JIT)

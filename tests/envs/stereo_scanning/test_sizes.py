@@ -192,3 +192,35 @@ def test_every_rule_decides_finitely_at_16_receivers_and_10_drones():
         confirmed += sum(info["confirmed_tracks"] for info in infos)
     assert confirmed > 0  # the tracker runs at this size
     env.close()
+
+
+@pytest.mark.parametrize("h, k", [(0, 1), (0, 2), (1, 2)])
+def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
+    """The triples' pair pre-gate for receivers ``h < k`` (receiver 2–3 included): noise-free
+    simultaneous lines of sight on one point pass and give the true ranges; a second point's
+    line of sight from receiver ``k`` misses and fails."""
+    from sensorgym.envs.stereo_scanning.kernels import _pair_gates, geometry
+
+    params = ScanningParams(n_receivers=4)
+    O, R, P, b, _ = geometry(params.kernel_constants, 4)
+    points = np.array([[120.0, 80.0, 900.0], [-400.0, 150.0, 700.0]])
+    la = np.empty((4, 2, 3))
+    for r in range(4):
+        d = points - O[r]
+        la[r] = (d / np.linalg.norm(d, axis=1, keepdims=True)) @ R[r]  # world to local
+    fix_time = np.zeros((1, 4, 2))
+    sig = np.full(4, 1e-6)
+    FF = 4
+    scratch = [np.empty(shape) for shape in
+               [(FF, 3), (FF, 1, 3), (FF, 1, 3, 3), (FF, 1, 3), (FF,), (FF, 2), (FF,),
+                (FF, 2, 2), (FF,), (FF, 3)]]  # fmt: skip
+    scratch[4][:] = 1.0
+    out = np.zeros((2, 2), dtype=bool)
+    need = np.ones((2, 2), dtype=bool)
+    _pair_gates(0, np.int64(h), np.int64(k), la, fix_time, 2, 2, P, b, sig, 0.1, 3.0, 50.0,
+                *scratch, need, out)  # fmt: skip
+    assert out[0, 0] and out[1, 1] and not out[0, 1] and not out[1, 0]
+    X = scratch[5]  # ranges of the pairs in order (jh, jk) = (0, 0), (0, 1), (1, 0), (1, 1)
+    for e, j in ((0, 0), (3, 1)):
+        true = np.linalg.norm(points[j] - O[h]), np.linalg.norm(points[j] - O[k])
+        np.testing.assert_allclose(X[e], true, rtol=1e-9)
