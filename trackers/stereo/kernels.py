@@ -437,17 +437,56 @@ def set_information(u, w, ready, prior, members, count, skip, extra, info):
 
 
 @njit(**INLINE)
-def information_score(kind, info, views, prior, consts, LU, piv, inv):
-    """Score ``kind`` (LOG_DET, GAIN or REWARD, above) of one drone's information ``info``
-    from ``views`` receivers over the prior ``λ = prior``; ``consts`` holds ``no_fix``
-    (LOG_DET) or ``σ_ref, R`` (REWARD); scratch ``LU``/``inv (3, 3)``, ``piv (3,)``."""
+def symmetric_score(kind, i00, i01, i02, i11, i12, i22, views, prior, consts):
+    """Score ``kind`` (LOG_DET, GAIN or REWARD, above) of one drone's symmetric information
+    ``I = [[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]]`` from ``views`` receivers over
+    the prior ``λ = prior``; ``consts`` holds ``no_fix`` (LOG_DET) or ``σ_ref, R`` (REWARD).
+
+    ``det I`` by cofactors along the first row (:func:`det3`'s operations); the reward's
+    ``σ_pos² = tr I⁻¹ = tr adj I / det I`` from the principal 2×2 minors (no factorisation:
+    a set's value is scored for every receiver that might join it), where :func:`observable`
+    (``views ≥ 2``, ``det I > CONDITION (tr I)³``); ``σ_pos = ∞`` elsewhere (theory §4.1, §4.3)."""
+    c00 = i11 * i22 - i12 * i12
+    det = i00 * c00 - i01 * (i01 * i22 - i12 * i02) + i02 * (i01 * i12 - i11 * i02)
     if kind == LOG_DET:
-        d = det3(info)
-        return math.log(d) if views >= 2 and d > 0.0 else -consts[0]
+        return math.log(det) if views >= 2 and det > 0.0 else -consts[0]
     if kind == GAIN:
-        return math.log(det3(info)) - 3.0 * math.log(prior)
-    sigma = position_sigma(info, observable(info, views), 1.0, LU, piv, inv)
+        return math.log(det) - 3.0 * math.log(prior)
+    sigma = np.inf
+    tr = i00 + i11 + i22
+    if views >= 2 and det > CONDITION * tr**3:
+        # tr I⁻¹ = (M₀₀ + M₁₁ + M₂₂) / det I, M_cc the principal minors
+        adj = c00 + (i00 * i22 - i02 * i02) + (i00 * i11 - i01 * i01)
+        sigma = math.sqrt(max(adj / det, 0.0))
     return log_ratio_reward(sigma, consts[0], consts[1])
+
+
+@njit(**INLINE)
+def information_score(kind, info, views, prior, consts):
+    """:func:`symmetric_score` of ``info (3, 3)`` (its upper triangle)."""
+    return symmetric_score(
+        kind, info[0, 0], info[0, 1], info[0, 2], info[1, 1], info[1, 2], info[2, 2], views,
+        prior, consts,
+    )  # fmt: skip
+
+
+@njit(**INLINE)
+def joined_score(kind, info, u, w, views, prior, consts):
+    """:func:`symmetric_score` of ``info + w (I − u uᵀ)`` (:func:`add_projection`'s sum, held
+    in locals) from ``views + 1`` receivers."""
+    u0, u1, u2 = u[0], u[1], u[2]
+    return symmetric_score(
+        kind,
+        info[0, 0] + w * (1.0 - u0 * u0),
+        info[0, 1] + w * (0.0 - u0 * u1),
+        info[0, 2] + w * (0.0 - u0 * u2),
+        info[1, 1] + w * (1.0 - u1 * u1),
+        info[1, 2] + w * (0.0 - u1 * u2),
+        info[2, 2] + w * (1.0 - u2 * u2),
+        views + 1,
+        prior,
+        consts,
+    )
 
 
 @njit(**INLINE)
@@ -470,14 +509,12 @@ def orthogonality_score(u, ready, members, count, skip, extra):
 
 
 @njit(**JIT)
-def drone_marginals(
-    kind, u, w, ready, prior, weight, consts, assign, j, rows, out, members, work, piv
-):
+def drone_marginals(kind, u, w, ready, prior, weight, consts, assign, j, rows, out, members, work):
     """Marginal values on drone ``j`` of one scenario under the separable objective of
     :func:`assignment_marginals_batch`: ``out[a] = V_j(S ∪ {k}) − V_j(S ∖ {k})`` for receiver
     ``k = rows[a]``, ``S`` drone ``j``'s receivers under ``assign (n,)`` (−1: not assigned);
     returns ``V_j(S)``. ``u (S, n, m, 3)``, ``w``/``ready (S, n, m)``, ``weight (S,)``,
-    ``prior`` drone ``j``'s ``λ``; scratch ``members (n,)``, ``work (4, 3, 3)``, ``piv (3,)``.
+    ``prior`` drone ``j``'s ``λ``; scratch ``members (n,)``, ``work (2, 3, 3)``.
 
     Per step, the set's information is summed once; a receiver outside the set adds its term
     to it (the order :func:`set_information` adds them in, so the sum is the same to the
@@ -490,7 +527,7 @@ def drone_marginals(
             count += 1
     for a in range(rows.shape[0]):
         out[a] = 0.0
-    base_info, info, LU, inv = work[0], work[1], work[2], work[3]
+    base_info, info = work[0], work[1]
     value = 0.0
     for s in range(u.shape[0]):
         if weight[s] == 0.0:
@@ -501,7 +538,7 @@ def drone_marginals(
             base = orthogonality_score(us, rs, members, count, -1, -1)
         else:
             views = set_information(us, ws, rs, prior, members, count, -1, -1, base_info)
-            base = information_score(kind, base_info, views, prior, consts, LU, piv, inv)
+            base = information_score(kind, base_info, views, prior, consts)
         value += weight[s] * base
         for a in range(rows.shape[0]):
             k = rows[a]
@@ -515,11 +552,9 @@ def drone_marginals(
                 )
             elif inside:
                 v = set_information(us, ws, rs, prior, members, count, k, -1, info)
-                other = information_score(kind, info, v, prior, consts, LU, piv, inv)
+                other = information_score(kind, info, v, prior, consts)
             else:
-                copy2(base_info, info)
-                add_projection(us[k], ws[k], info)
-                other = information_score(kind, info, views + 1, prior, consts, LU, piv, inv)
+                other = joined_score(kind, base_info, us[k], ws[k], views, prior, consts)
             out[a] += weight[s] * (base - other if inside else other - base)
     return value
 
@@ -540,14 +575,14 @@ def assignment_marginals_batch(
     n = assign.shape[1]
     members = np.empty(n, np.int64)
     column = np.empty(rows.shape[0])
-    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
+    work = np.empty((2, 3, 3))
     for i in range(scenarios.shape[0]):
         b = scenarios[i]
         for c in range(cols.shape[1]):
             j = cols[i, c]
             drone_marginals(
                 kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, assign[i], j, rows,
-                column, members, work, piv,
+                column, members, work,
             )  # fmt: skip
             for a in range(rows.shape[0]):
                 out[i, a, c] = column[a]
@@ -563,7 +598,7 @@ def assignment_greedy_batch(kind, u, w, ready, prior, weight, consts, bonus, lo,
     n, m = assign.shape[1], u.shape[3]
     members = np.empty(n, np.int64)
     row, column = np.empty(1, np.int64), np.empty(1)
-    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
+    work = np.empty((2, 3, 3))
     for b in range(lo, hi):
         for k in range(n):
             if assign[b, k] >= 0:
@@ -573,7 +608,7 @@ def assignment_greedy_batch(kind, u, w, ready, prior, weight, consts, bonus, lo,
             for j in range(m):
                 drone_marginals(
                     kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts, assign[b], j,
-                    row, column, members, work, piv,
+                    row, column, members, work,
                 )  # fmt: skip
                 value = column[0] + bonus[b, k, j]
                 if j == 0 or value > best_value:
@@ -583,7 +618,7 @@ def assignment_greedy_batch(kind, u, w, ready, prior, weight, consts, bonus, lo,
 
 @njit(**JIT)
 def _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, members, work,
-                   piv, keys, columns, size):  # fmt: skip
+                   keys, columns, size):  # fmt: skip
     """Row of ``columns`` holding ``V_j(S)`` and the marginals of every receiver on drone
     ``j`` (:func:`drone_marginals`) under ``assign``, computed unless a row of the same drone
     and receiver set (``keys[:size]``: drone, bitmask; ``n ≤ 62``) holds it already; returns
@@ -601,7 +636,7 @@ def _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, me
     at = size if n <= 62 and size < scratch else scratch
     columns[at, 0] = drone_marginals(
         kind, u, w, ready, prior, weight, consts, assign, j, rows, columns[at, 1:], members,
-        work, piv,
+        work,
     )  # fmt: skip
     if at == scratch:
         return at, size
@@ -610,13 +645,13 @@ def _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, me
 
 
 @njit(**JIT)
-def _score_drone(kind, u, w, ready, prior, weight, consts, assign, j, rows, members, work, piv,
+def _score_drone(kind, u, w, ready, prior, weight, consts, assign, j, rows, members, work,
                  keys, columns, size, bonus, held, value):  # fmt: skip
     """Drone ``j``'s value ``held[j]`` and every receiver's value of joining it,
     ``value[k, j] = marginal + bonus[k, j]``, from its (cached) column under ``assign``;
     returns the cache's new size."""
     at, size = _cached_column(kind, u, w, ready, prior, weight, consts, assign, j, rows, members,
-                              work, piv, keys, columns, size)  # fmt: skip
+                              work, keys, columns, size)  # fmt: skip
     held[j] = columns[at, 0]
     for k in range(assign.shape[0]):
         value[k, j] = columns[at, 1 + k] + bonus[k, j]
@@ -641,7 +676,7 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
     T, n, m = starts.shape[0], starts.shape[2], u.shape[3]
     rows = np.arange(n)
     members = np.empty(n, np.int64)
-    work, piv = np.empty((4, 3, 3)), np.empty(3, np.int64)
+    work = np.empty((2, 3, 3))
     # every column one scenario may need: T starts × (m + two per move), plus the scratch row
     cap = T * (m + 2 * max_moves) + 1
     keys = np.empty((cap, 2), np.int64)
@@ -657,7 +692,7 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
                 a[k] = starts[t, b, k]
             for j in range(m):
                 size = _score_drone(kind, u[b], w[b], ready[b], prior[b, j], weight[b], consts,
-                                    a, j, rows, members, work, piv, keys, columns, size,
+                                    a, j, rows, members, work, keys, columns, size,
                                     bonus[b], held, value)  # fmt: skip
             for _ in range(max_moves):
                 # the move of largest rise (receiver-major, first on ties)
@@ -674,7 +709,7 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
                 a[mk] = mj
                 for j in (j0, mj):
                     size = _score_drone(kind, u[b], w[b], ready[b], prior[b, j], weight[b],
-                                        consts, a, j, rows, members, work, piv, keys, columns,
+                                        consts, a, j, rows, members, work, keys, columns,
                                         size, bonus[b], held, value)  # fmt: skip
             score = 0.0
             for j in range(m):

@@ -139,6 +139,44 @@ def test_trace_of_the_inverse_is_the_inverses_diagonal_bit_for_bit():
         assert kernels.trace_inverse3(a, LU, piv) == inv[0, 0] + inv[1, 1] + inv[2, 2]
 
 
+def test_set_scores_match_the_factorised_bound():
+    """The solvers' set score reads ``tr I⁻¹`` off the principal minors: the env's reward from
+    the LU-based ``position_sigma`` to 1e-11 at weights within 1e±3 (both err by about κ·ε
+    in ``σ²``), ``−R`` where unobservable (one view, parallel lines of sight); ``ln det`` the
+    bits of ``det3``; joining a receiver equals summing its projection."""
+    rng = np.random.default_rng(11)
+    consts_reward, consts_det = np.array([3.0, 5.0]), np.array([30.0])
+    for trial in range(600):
+        views = int(rng.integers(1, 5))
+        u = rng.normal(size=(views + 1, 3))
+        if trial % 10 == 0:  # parallel lines of sight: no fix
+            u[:] = u[0]
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        w = 10.0 ** rng.uniform(-3, 3, views + 1)
+        info = np.zeros((3, 3))
+        for k in range(views):
+            kernels.add_projection(u[k], w[k], info)
+        ok = np.empty(1, dtype=np.bool_)
+        kernels.observable_batch(info[None], np.array([views]), ok)
+        sigma = np.empty(1)
+        kernels.position_sigma_batch(info[None], ok, np.ones(1), sigma)
+        expected = np.empty(1)
+        kernels.log_ratio_reward_batch(sigma, 3.0, 5.0, expected)
+        got = kernels.information_score(kernels.REWARD, info, views, 0.0, consts_reward)
+        np.testing.assert_allclose(got, expected[0], rtol=0.0, atol=1e-11)
+        if not ok[0]:
+            assert got == -5.0
+        d = kernels.det3(info)
+        log_det = np.log(d) if views >= 2 and d > 0.0 else -30.0
+        assert kernels.information_score(kernels.LOG_DET, info, views, 0.0, consts_det) == log_det
+        joined = info.copy()
+        kernels.add_projection(u[views], w[views], joined)
+        for kind, consts in ((kernels.LOG_DET, consts_det), (kernels.REWARD, consts_reward)):
+            assert kernels.joined_score(
+                kind, info, u[views], w[views], views, 0.0, consts
+            ) == kernels.information_score(kind, joined, views + 1, 0.0, consts)
+
+
 def _states(params: PointingParams, seed: int, N: int = 48):
     """Observations (and the simulator) after a few random steps: drones partly seen."""
     venv = StereoPointingVectorEnv(num_envs=N, params=params)
