@@ -1,28 +1,31 @@
 """Scaling: one env step and one decision of every rule against the number of sensors and targets.
 
-Run: ``.venv/bin/python benchmarks/scaling.py [--batch 256] [--steps 5] [--repeat 3] [--warm N]``;
-writes
-``benchmarks/results/scaling.json`` and ``benchmarks/results/scaling.png`` (log-log).
+Run: ``.venv/bin/python benchmarks/scaling.py [--batch 256] [--steps N] [--repeat 3] [--warm N]``;
+writes ``benchmarks/results/scaling.json`` and ``benchmarks/results/scaling.png`` (log-log).
 
 For every env, sizes are set through the env's own params (what ``--param`` sets on the
-command line): receivers × drones for StereoPointing and StereoScanning (its default layout of ``n``
-receivers: evenly spread azimuths, staggered scan offsets), receiver vehicles for StereoPlacement, platforms for
-BearingsManeuver. At each size the native vector env of ``--batch`` scenarios first runs one
-episode length under a tracking rule (:data:`WARM_RULE`; ``--warm`` steps, autoresets included),
-so that the timed states hold tracks as in use (a fresh reset under random actions holds
-almost none, and StereoScanning's association and refinement then cost nothing); then
-``--steps`` steps under that rule are timed (µs per scenario-step, the rule's own time left
-out) and every registered rule decides on the observations reached (µs per
-scenario-decision; its own state chained from :data:`RULE_WARM` untimed decisions, so a
-stateful rule is timed past its first periods), best of ``--repeat``, in wall time and in this process's CPU time
+command line): receivers × drones for StereoPointing and StereoScanning (its default layout of
+``n`` receivers: evenly spread azimuths, staggered scan offsets), receiver vehicles for
+StereoPlacement, platforms for BearingsManeuver. At each size the native vector env of
+``--batch`` scenarios first runs one episode length under a tracking rule (:data:`WARM_RULE`;
+``--warm`` steps, autoresets included), so that the timed states hold tracks as in use (a
+fresh reset under random actions holds almost none). The step is then timed under that rule
+over ``--steps`` consecutive steps (default: one episode length; µs per scenario-step, the
+rule's own time left out), best of ``--repeat`` rounds. A whole episode, because the batch's
+episodes end together at the time limit and so run in step, and a step's cost depends on the
+phase: StereoScanning's periods of full sweeps, every drone in every receiver's sector, cost
+4-6x its tracking periods, and a few steps' window measures one phase only. Half an episode
+later every registered rule decides on the observations reached (µs per scenario-decision;
+its own state chained from :data:`RULE_WARM` untimed decisions, so a stateful rule is timed
+past its first periods), best of ``--repeat``. Wall time and this process's CPU time
 (``*_cpu_us``: all its threads, less sensitive to other work on the machine; each row also
-records the 1-min load average). A rule or env that refuses a size, or fails
-on it, is recorded with its error message — that is a result too. The growth exponent is the
+records the 1-min load average). A rule or env that refuses a size, or fails on it, is
+recorded with its error message — that is a result too. The growth exponent is the
 least-squares slope of log time against log(receivers × drones) (or platforms) over the sizes
 that ran, and over the three largest (``exponents_largest``). Target (issue 15): at 16
 receivers × 10 drones every decision ≤ 1 ms per scenario at 256 scenarios and the step
-≤ 50 µs per scenario. With ``--env`` the rows of the other envs
-already in ``scaling.json`` are kept.
+≤ 50 µs per scenario. With ``--env`` the rows of the other envs already in ``scaling.json``
+are kept.
 """
 
 from __future__ import annotations
@@ -81,10 +84,18 @@ def _error(exc: BaseException) -> str:
 
 
 def measure(
-    env_id: str, fields: dict[str, Any], batch: int, steps: int, repeat: int, warm: int | None
+    env_id: str,
+    fields: dict[str, Any],
+    batch: int,
+    steps: int | None,
+    repeat: int,
+    warm: int | None,
 ) -> dict:
     """µs per scenario of a step and of every rule's decision at one size, after ``warm``
-    steps (default: one episode length) under :data:`WARM_RULE`."""
+    steps (default: one episode length) under :data:`WARM_RULE`: the step's mean over
+    ``steps`` consecutive steps (default: one episode length, every phase of an episode:
+    the batch's episodes end together at the time limit, so they run in step), best of
+    ``repeat`` rounds; then half an episode more, and every rule decides there."""
     row: dict[str, Any] = {"step_us": None, "rules": {}, "load_average_1min": os.getloadavg()[0]}
     try:
         env = make_sb3_env(env_id, batch, seed=0, **fields)
@@ -92,26 +103,35 @@ def measure(
         row["error"] = _error(exc)
         return row
     obs = env.reset()
-    warm = gym.spec(env_id).max_episode_steps if warm is None else warm
-    row["warm_rule"], row["warm_steps"] = WARM_RULE[env_id], warm
+    episode = int(gym.spec(env_id).max_episode_steps)
+    warm = episode if warm is None else warm
+    steps = episode if steps is None else steps
+    row["warm_rule"], row["warm_steps"], row["timed_steps"] = WARM_RULE[env_id], warm, steps
     try:
         driver = RULES[env_id][WARM_RULE[env_id]](env_params(env), simulator_state(env))
         state, start = None, np.ones(batch, dtype=bool)
-        for _ in range(warm):
-            action, state = driver.predict(obs, state, start, deterministic=True)
-            obs, _, start, _ = env.step(action)
-        best, cpu = np.inf, np.inf
-        for _ in range(repeat + 1):  # the first round may compile
+
+        def advance(n: int) -> tuple[float, float]:
+            """``n`` steps under the warm rule; their wall and CPU seconds (the rule's left
+            out)."""
+            nonlocal obs, state, start
             wall = used = 0.0
-            for _ in range(steps):
+            for _ in range(n):
                 action, state = driver.predict(obs, state, start, deterministic=True)
                 t0, c0 = time.perf_counter(), time.process_time()
                 obs, _, start, _ = env.step(action)
                 wall += time.perf_counter() - t0
                 used += time.process_time() - c0
+            return wall, used
+
+        advance(warm)
+        best, cpu = np.inf, np.inf
+        for _ in range(repeat):
+            wall, used = advance(steps)
             best, cpu = min(best, wall), min(cpu, used)
         row["step_us"] = best / (steps * batch) * 1e6
         row["step_cpu_us"] = cpu / (steps * batch) * 1e6
+        advance(episode // 2)  # the rules decide mid-episode, where tracks are held
     except Exception as exc:
         row["error"] = _error(exc)
         return row
@@ -195,7 +215,9 @@ def plot(results: list[dict], path: Any) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--batch", type=int, default=256)
-    parser.add_argument("--steps", type=int, default=5)
+    parser.add_argument(
+        "--steps", type=int, default=None, help="timed steps per round (default: one episode)"
+    )
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument(
         "--warm", type=int, default=None, help="steps before timing (default: one episode)"
@@ -242,7 +264,7 @@ def main() -> None:
         path,
         {"rows": results, "exponents": slopes, "exponents_largest": tail},
         batch=args.batch,
-        steps=args.steps,
+        steps="one episode" if args.steps is None else args.steps,
         repeat=args.repeat,
         warm="one episode" if args.warm is None else args.warm,
     )

@@ -54,6 +54,9 @@ PROPOSED, ALTERNATIVE, ALGORITHMIC = 0, 1, 2
 #: floor of the tracker's gates, m (and m/s): noise-free fixes of an unaccelerated drone give
 #: zero gates, which rounding would fail
 GATE_FLOOR = 1e-3
+#: margin of the gates' square-root-free bounds over round-off (:func:`refine_candidate`,
+#: :func:`_step_cost`)
+GATE_SLACK = 1.000001
 
 #: layout of the per-params constants (``simulation.ScanningParams.kernel_constants``): the
 #: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, then the
@@ -328,9 +331,17 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
             if not along > 0.0:
                 continue
             miss2 = max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along, 0.0)
-            spread = np.sqrt(sp * sp + (sv * s) ** 2 + (sig[k] * along) ** 2)
-            tol = max(gate_q * spread + 0.5 * max_accel * s * s, GATE_FLOOR)
-            if miss2 <= tol * tol and miss2 < best:
+            if not miss2 < best:
+                continue
+            var = sp * sp + (sv * s) ** 2 + (sig[k] * along) ** 2
+            drift = 0.5 * max_accel * s * s
+            # (q σ + a)² ≤ 2 (q² σ² + a²): a fix missing by more (and by more than the floor)
+            # is out of the gate without the square root (most fixes are other objects')
+            if miss2 > GATE_SLACK * max(2.0 * (gate_q * gate_q * var + drift * drift),
+                                        GATE_FLOOR * GATE_FLOOR):  # fmt: skip
+                continue
+            tol = max(gate_q * np.sqrt(var) + drift, GATE_FLOOR)
+            if miss2 <= tol * tol:
                 best, bj = miss2, j
         cmem[c, k] = bj
         if bj >= 0:
@@ -712,6 +723,11 @@ def step_rows(
             if used_n == 3:
                 vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
+                # a triple whose speed exceeds the limit by more than q σ_vel is infeasible at
+                # the gate's confidence: no receiver joins it (at n = 3 the check below, on
+                # the speed alone, rejects it as well)
+                if not norm3(vw) - gate_q * sv <= max_speed:
+                    continue
                 if n > 3:
                     # receivers 4 … n join; the speed check applies to the joint solution
                     refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
@@ -739,6 +755,9 @@ def step_rows(
                 continue
             for c in range(nc):
                 if not cok[c]:
+                    continue
+                if tracker == PROPOSED and _outside_gate(q, c, i, tx, tt, tsig, cpos, ctime, csig,
+                                                         gate_q, max_accel):  # fmt: skip
                     continue
                 cost = _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig,
                                   cdt, gate_q, max_speed, max_accel)  # fmt: skip
@@ -952,6 +971,22 @@ def step_rows(
 @njit(inline="always")
 def _predicted_sigma(i, q, s, tsig):
     return np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
+
+
+@njit(inline="always")
+def _outside_gate(q, c, i, tx, tt, tsig, cpos, ctime, csig, gate_q, max_accel):
+    """Whether candidate ``c`` surely fails track ``q``'s position gate in :func:`_step_cost`
+    (proposed tracker), without a square root: ``(q s + m)² ≤ 2 (q² s² + m²)``, so a
+    candidate further than that from the prediction (and than the floor) is out. Most
+    track–candidate pairs are other objects'; the rest are scored in full."""
+    s = ctime[c] - tt[i, q]
+    e0 = cpos[c, 0] - (tx[i, q, 0] + tx[i, q, 3] * s)
+    e1 = cpos[c, 1] - (tx[i, q, 1] + tx[i, q, 4] * s)
+    e2 = cpos[c, 2] - (tx[i, q, 2] + tx[i, q, 5] * s)
+    spread2 = (csig[c, 0] ** 2 + tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2) / 3.0
+    margin = 0.5 * max_accel * s * s
+    bound = max(2.0 * (gate_q * gate_q * spread2 + margin * margin), GATE_FLOOR * GATE_FLOOR)
+    return e0 * e0 + e1 * e1 + e2 * e2 > GATE_SLACK * bound
 
 
 @njit(**_JIT)

@@ -224,3 +224,47 @@ def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
     for e, j in ((0, 0), (3, 1)):
         true = np.linalg.norm(points[j] - O[h]), np.linalg.norm(points[j] - O[k])
         np.testing.assert_allclose(X[e], true, rtol=1e-9)
+
+
+def test_gate_screen_rejects_only_pairs_the_gate_rejects():
+    """The association's square-root-free screen (``_outside_gate``) skips a track–candidate
+    pair only where the proposed tracker's gate (``_step_cost``) rejects it too, and skips
+    most far pairs (the point of it); pairs near the gate's edge are scored in full."""
+    from sensorgym.envs.stereo_scanning import kernels as K
+
+    rng = np.random.default_rng(15)
+    T, C = 40, 60
+    tx = np.concatenate([rng.normal(0, 300, (1, T, 3)), rng.normal(0, 20, (1, T, 3))], axis=2)
+    tt = rng.uniform(0.0, 1.0, (1, T))
+    tsig = 10.0 ** rng.uniform(-1, 1, (1, T, 2))
+    thits = np.full((1, T), 3, np.int64)
+    ctime = rng.uniform(1.0, 2.0, C)
+    # half the candidates near a track's prediction (at the gate's scale), half anywhere
+    near = rng.integers(0, T, C // 2)
+    s = ctime[: C // 2] - tt[0, near]
+    pred = tx[0, near, :3] + tx[0, near, 3:] * s[:, None]
+    cpos = np.concatenate([pred + rng.normal(0, 3, (C // 2, 3)), rng.normal(0, 300, (C // 2, 3))])
+    csig = 10.0 ** rng.uniform(0, 1, (C, 2))
+    # a third of the near ones just inside the position gate, δ = q s + ½ a_max Δ²
+    edge = np.arange(0, C // 2, 3)
+    spread = np.sqrt((csig[edge, 0] ** 2 + tsig[0, near[edge], 0] ** 2
+                      + (tsig[0, near[edge], 1] * s[edge]) ** 2) / 3.0)  # fmt: skip
+    radius = 0.999 * (3.0 * spread + 0.5 * 0.2 * s[edge] ** 2)
+    way = rng.normal(size=(len(edge), 3))
+    cpos[edge] = pred[edge] + radius[:, None] * way / np.linalg.norm(way, axis=1, keepdims=True)
+    cvel = np.concatenate([tx[0, near, 3:], tx[0, rng.integers(0, T, C // 2), 3:]])
+    cvel += rng.normal(0, 0.5, (C, 3))
+    cdt = rng.uniform(0.0, 0.5, C)
+    gate_q, max_speed, max_accel = 3.0, 50.0, 0.2
+    screened = rejected = 0
+    for q in range(T):
+        for c in range(C):
+            out = K._outside_gate(q, c, 0, tx, tt, tsig, cpos, ctime, csig, gate_q, max_accel)
+            cost = K._step_cost(K.PROPOSED, q, c, 0, tx, tt, tsig, thits, cpos, cvel, ctime,
+                                csig, cdt, gate_q, max_speed, max_accel)  # fmt: skip
+            rejected += cost == np.inf
+            if out:
+                assert cost == np.inf, (q, c)
+                screened += 1
+    accepted = T * C - rejected
+    assert accepted >= 10 and screened >= 0.9 * rejected  # the edge is tested; far pairs skipped
