@@ -256,7 +256,8 @@ def cold_start() -> str:
 
 def scaling() -> str:
     """At each env's largest size of ``benchmarks/scaling.py``: µs per scenario of the env step
-    and of every rule's decision (batch of 256, steady state), against the issue-15 targets,
+    (its mean over one episode) and of every rule's decision (batch of 256, states holding
+    tracks), against the issue-15 targets,
     with the growth exponent over the three largest sizes."""
     doc = json.loads((RESULTS / "scaling.json").read_text())["results"]
     rows, slopes = doc["rows"], doc["exponents_largest"]
