@@ -27,7 +27,7 @@ FloatArray = NDArray[np.float64]
 MAX_CANDIDATES = 10_000
 
 #: ``solver="auto"`` searches exhaustively up to this many joint moves, coordinate-wise beyond:
-#: the 729 of the registered 3 receivers at 8 headings (0.14–0.29 ms per scenario in
+#: the 729 of the registered 3 receivers at 8 headings (0.14–0.33 ms per scenario in
 #: ``benchmarks/results/scaling.json``); the 6561 of 4 receivers cost 1.24 ms per scenario, over
 #: the 1 ms a decision may take (coordinate-wise: 0.02–0.04 ms)
 AUTO_EXHAUSTIVE = 1_000

@@ -24,7 +24,7 @@ polynomial path at any size, ``"exhaustive"`` the full search (refused above 409
 planners (``plan-estimate``, ``plan-horizon``, ``oracle-plan``) score each assignment over the
 whole plan, about 30 µs per assignment and scenario, so their ``"auto"`` is exhaustive only up
 to :data:`PLAN_ASSIGNMENTS` (the registered 4 × 2's 16 assignments): at 4 × 4 and 6 × 3 the
-full search took 7.7 and 24 ms per scenario, the polynomial one 0.08–0.15 ms
+full search took 7.7 and 24 ms per scenario, the polynomial one 0.05–0.08 ms
 (``benchmarks/results/scaling.json``).
 """
 
