@@ -724,8 +724,8 @@ def step_rows(
                 vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
                 cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
                 # a triple whose speed exceeds the limit by more than q σ_vel is infeasible at
-                # the gate's confidence: no receiver joins it (at n = 3 the check below, on
-                # the speed alone, rejects it as well)
+                # the gate's confidence: dropped before receivers 4 … n are searched for it
+                # (at n = 3 the check below, on the speed alone, drops it as well)
                 if not norm3(vw) - gate_q * sv <= max_speed:
                     continue
                 if n > 3:
