@@ -57,6 +57,9 @@ GATE_FLOOR = 1e-3
 #: margin of the gates' square-root-free bounds over round-off (:func:`refine_candidate`,
 #: :func:`_step_cost`)
 GATE_SLACK = 1.000001
+#: a joint fit of more than three receivers is rejected beyond its χ² quantile of this normal
+#: deviate (one-sided 1e-6, :func:`refine_candidate`)
+CHI2_Z = 4.753
 
 #: layout of the per-params constants (``simulation.ScanningParams.kernel_constants``): the
 #: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, then the
@@ -308,7 +311,8 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     only) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
     (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
     positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
-    joined fixes are released. O(n F) per candidate. The system's arrays come from the step's
+    joined fixes are released. Returns False, and the candidate is dropped, where the kept
+    joint fit fails its χ² test (:data:`CHI2_Z`). O(n F) per candidate. The system's arrays come from the step's
     scratch, sized for all ``n`` receivers (``a1 (1, 3)``, ``ak``, ``bk (1, n − 1, 3)``, ``Pk
     (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``, ``J``, ``kap (1,)``, ``Q (1, n + 3,
     n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of :func:`velocity_work` ``(n − 1)``): a
@@ -347,7 +351,7 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         if bj >= 0:
             mk += 1
     if mk == 2:
-        return
+        return True
     nu = mk + 1
     sg[0] = sig[0]
     for x in range(3):
@@ -374,13 +378,26 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     if not (ok and norm3(vw) <= max_speed):
         for k in range(3, n):
             cmem[c, k] = -1
-        return
-    _, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, True)
+        return True
+    sigma_e, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, True)
+    # the joint fit's χ² = J / σ_e² on 3 (nu − 1) − (nu + 3) = 2 nu − 6 degrees of freedom
+    # (a triple's is 0): beyond its quantile at CHI2_Z (Wilson–Hilferty), plus each fix's
+    # unmodelled drift ½ a_max Δ² and the gates' floor, the fixes are not one object's — a
+    # ghost triple that gathered other objects' fixes; the candidate is dropped
+    dof = 2.0 * nu - 6.0
+    h = 2.0 / (9.0 * dof)
+    unmodelled = 0.0
+    for r in range(mk):
+        e = 0.5 * max_accel * dt[0, r] * dt[0, r] + GATE_FLOOR
+        unmodelled += e * e
+    if J[0] > sigma_e * sigma_e * dof * (1.0 - h + CHI2_Z * np.sqrt(h)) ** 3 + unmodelled:
+        return False
     mw = _world(R, 0, (M1[0, 0], M1[0, 1], M1[0, 2]))
     for x in range(3):
         cpos[c, x] = O[0, x] + mw[x]
         cvel[c, x] = vw[x]
     csig[c, 0], csig[c, 1] = sp, sv
+    return True
 
 
 @njit(**_JIT)
@@ -730,10 +747,11 @@ def step_rows(
                     continue
                 if n > 3:
                     # receivers 4 … n join; the speed check applies to the joint solution
-                    refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+                    if not refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
                                      position_sigma, gate_q, max_speed, max_accel, cond_max,
                                      cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt,
-                                     r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work)  # fmt: skip
+                                     r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+                        continue
                 speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
                 if not speed <= max_speed:
                     continue

@@ -268,3 +268,19 @@ def test_gate_screen_rejects_only_pairs_the_gate_rejects():
                 screened += 1
     accepted = T * C - rejected
     assert accepted >= 10 and screened >= 0.9 * rejected  # the edge is tested; far pairs skipped
+
+
+def test_ghost_joint_fits_are_dropped_so_most_drones_are_tracked_at_16_receivers():
+    """At 16 receivers × 10 drones a ghost triple gathers other objects' fixes from receivers
+    4 … n; its joint fit fails the χ² test and it is dropped, so it neither takes the true
+    candidates' fixes nor opens tracks. Under cue-following over one episode (32 scenarios)
+    about 90 % of the present drones are tracked (77 % without the test)."""
+    env = make_sb3_env(ENV_ID, 32, seed=5, **LARGE)
+    obs = env.reset()
+    rule = RULES[ENV_ID]["cue-following"](env_params(env), simulator_state(env))
+    state, start, tracked = None, np.ones(32, dtype=bool), []
+    for _ in range(40):
+        action, state = rule.predict(obs, state, start, deterministic=True)
+        obs, _, start, infos = env.step(action)
+        tracked += [i["drones_tracked"] / max(i["drones_present"], 1) for i in infos]
+    assert np.mean(tracked) >= 0.85
