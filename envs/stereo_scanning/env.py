@@ -171,7 +171,7 @@ class StereoScanningEnv(CoreEnv):
       8.44 → 8.93, cue-following 7.77 → 8.26, cue-no-search −16.08 → −15.12). Then the
       joint fit of more than three receivers must pass a χ² test (``J/σ_e²`` on ``2 n − 6``
       degrees of freedom, one-sided 1e-6, plus each fix's unmodelled drift ``½ a_max Δ²``): a
-      ghost triple that gathered other objects' fixes (median ``χ²/dof`` 25 against 1.0 for a
+      ghost triple that gathered other objects' fixes (median ``χ²/dof`` 36 against 1.13 for a
       true drone's fit) is dropped. At 16 × 10 the rules' returns rise sharply (seed 500, 64
       episodes: greedy-information 8.93 → 35.66, cue-following 8.26 → 34.44, cue-no-search
       −15.12 → 34.82, oracle-sectors 44.81 → 48.43): the ghosts had taken the true
