@@ -90,12 +90,21 @@ def copy2(src, dst):
 
 
 @njit(**INLINE)
-def det3(A):
-    """``det A`` of a 3×3 ``A`` by cofactors along the first row."""
+def det3_entries(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+    """``det A`` of the 3×3 ``A = [[a00, a01, a02], [a10, a11, a12], [a20, a21, a22]]`` by
+    cofactors along the first row (the one copy: :func:`det3`, :func:`symmetric_score`)."""
     return (
-        A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1])
-        - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
-        + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])
+        a00 * (a11 * a22 - a12 * a21)
+        - a01 * (a10 * a22 - a12 * a20)
+        + a02 * (a10 * a21 - a11 * a20)
+    )
+
+
+@njit(**INLINE)
+def det3(A):
+    """``det A`` of a 3×3 ``A`` by cofactors along the first row (:func:`det3_entries`)."""
+    return det3_entries(
+        A[0, 0], A[0, 1], A[0, 2], A[1, 0], A[1, 1], A[1, 2], A[2, 0], A[2, 1], A[2, 2]
     )
 
 
@@ -199,6 +208,19 @@ def trace_inverse3(A, LU, piv):
     return d0 + d1 + d2
 
 
+@njit(**INLINE)
+def trace_inverse3_adjugate(a00, a01, a02, a11, a12, a22, det):
+    """``tr A⁻¹ = tr adj A / det A`` of the symmetric 3×3 ``A = [[a00, a01, a02], [a01, a11,
+    a12], [a02, a12, a22]]`` of determinant ``det`` (:func:`det3_entries`): the sum of the
+    principal 2×2 minors over ``det``. The planners' scores use it
+    (:func:`symmetric_score`): a set's value is scored for every receiver that might join
+    it, and the determinant is there already, so no factorisation per score in the inner
+    loop of :func:`assignment_ascent_batch`. It agrees with :func:`trace_inverse3` (LU) to
+    round-off; the env's reward (:func:`position_sigma`) keeps the LU form, so its episodes
+    are unchanged."""
+    return ((a11 * a22 - a12 * a12) + (a00 * a22 - a02 * a02) + (a00 * a11 - a01 * a01)) / det
+
+
 # ---------------------------------------------------------------- lines of sight and angles
 
 
@@ -237,12 +259,18 @@ def perturb_direction(a, z, sigma, out):
 
 
 @njit(**INLINE)
+def projection_entry(u, w, i, j):
+    """Entry ``(i, j)`` of ``w Π = w (I − u uᵀ)``: ``w (δ_ij − u_i u_j)``."""
+    return w * ((1.0 if i == j else 0.0) - u[i] * u[j])
+
+
+@njit(**INLINE)
 def add_projection(u, w, out):
-    """``out += w (I − u uᵀ)``: one line of sight's term ``w Π`` of :func:`position_information`."""
+    """``out += w (I − u uᵀ)`` (:func:`projection_entry`): one line of sight's term ``w Π`` of
+    :func:`position_information`."""
     for i in range(3):
         for j in range(3):
-            # Π = I − u uᵀ
-            out[i, j] += w * ((1.0 if i == j else 0.0) - u[i] * u[j])
+            out[i, j] += projection_entry(u, w, i, j)
 
 
 @njit(**INLINE)
@@ -258,10 +286,17 @@ def position_information(u, r, sigma, mask, out):
 
 
 @njit(**INLINE)
+def well_conditioned(det, tr, views):
+    """At least two views and ``det I > CONDITION · (tr I)³`` of the information ``I`` of
+    determinant ``det`` and trace ``tr`` (theory §4.3)."""
+    return views >= 2 and det > CONDITION * tr**3
+
+
+@njit(**INLINE)
 def observable(info, views):
-    """``det I > CONDITION · (tr I)³`` and at least two views (theory §4.3)."""
+    """:func:`well_conditioned` of ``info (3, 3)``."""
     tr = info[0, 0] + info[1, 1] + info[2, 2]
-    return views >= 2 and det3(info) > CONDITION * tr**3
+    return well_conditioned(det3(info), tr, views)
 
 
 @njit(**INLINE)
@@ -442,22 +477,17 @@ def symmetric_score(kind, i00, i01, i02, i11, i12, i22, views, prior, consts):
     ``I = [[i00, i01, i02], [i01, i11, i12], [i02, i12, i22]]`` from ``views`` receivers over
     the prior ``λ = prior``; ``consts`` holds ``no_fix`` (LOG_DET) or ``σ_ref, R`` (REWARD).
 
-    ``det I`` by cofactors along the first row (:func:`det3`'s operations); the reward's
-    ``σ_pos² = tr I⁻¹ = tr adj I / det I`` from the principal 2×2 minors (no factorisation:
-    a set's value is scored for every receiver that might join it), where :func:`observable`
-    (``views ≥ 2``, ``det I > CONDITION (tr I)³``); ``σ_pos = ∞`` elsewhere (theory §4.1, §4.3)."""
-    c00 = i11 * i22 - i12 * i12
-    det = i00 * c00 - i01 * (i01 * i22 - i12 * i02) + i02 * (i01 * i12 - i11 * i02)
+    ``det I`` by :func:`det3_entries`; the reward's ``σ_pos² = tr I⁻¹`` by
+    :func:`trace_inverse3_adjugate` where :func:`well_conditioned`, ``σ_pos = ∞`` elsewhere
+    (theory §4.1, §4.3)."""
+    det = det3_entries(i00, i01, i02, i01, i11, i12, i02, i12, i22)
     if kind == LOG_DET:
         return math.log(det) if views >= 2 and det > 0.0 else -consts[0]
     if kind == GAIN:
         return math.log(det) - 3.0 * math.log(prior)
     sigma = np.inf
-    tr = i00 + i11 + i22
-    if views >= 2 and det > CONDITION * tr**3:
-        # tr I⁻¹ = (M₀₀ + M₁₁ + M₂₂) / det I, M_cc the principal minors
-        adj = c00 + (i00 * i22 - i02 * i02) + (i00 * i11 - i01 * i01)
-        sigma = math.sqrt(max(adj / det, 0.0))
+    if well_conditioned(det, i00 + i11 + i22, views):
+        sigma = math.sqrt(max(trace_inverse3_adjugate(i00, i01, i02, i11, i12, i22, det), 0.0))
     return log_ratio_reward(sigma, consts[0], consts[1])
 
 
@@ -472,17 +502,16 @@ def information_score(kind, info, views, prior, consts):
 
 @njit(**INLINE)
 def joined_score(kind, info, u, w, views, prior, consts):
-    """:func:`symmetric_score` of ``info + w (I − u uᵀ)`` (:func:`add_projection`'s sum, held
-    in locals) from ``views + 1`` receivers."""
-    u0, u1, u2 = u[0], u[1], u[2]
+    """:func:`symmetric_score` of ``info + w (I − u uᵀ)`` (:func:`add_projection`'s sum of
+    :func:`projection_entry`, held in locals) from ``views + 1`` receivers."""
     return symmetric_score(
         kind,
-        info[0, 0] + w * (1.0 - u0 * u0),
-        info[0, 1] + w * (0.0 - u0 * u1),
-        info[0, 2] + w * (0.0 - u0 * u2),
-        info[1, 1] + w * (1.0 - u1 * u1),
-        info[1, 2] + w * (0.0 - u1 * u2),
-        info[2, 2] + w * (1.0 - u2 * u2),
+        info[0, 0] + projection_entry(u, w, 0, 0),
+        info[0, 1] + projection_entry(u, w, 0, 1),
+        info[0, 2] + projection_entry(u, w, 0, 2),
+        info[1, 1] + projection_entry(u, w, 1, 1),
+        info[1, 2] + projection_entry(u, w, 1, 2),
+        info[2, 2] + projection_entry(u, w, 2, 2),
         views + 1,
         prior,
         consts,
