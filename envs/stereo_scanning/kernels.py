@@ -888,8 +888,7 @@ def step_rows(
             tc = tt[i, q] if tt[i, q] >= t0 else t_end
             s = tc - tt[i, q]
             t_cmp[q] = tc
-            for x in range(3):
-                t_end_pos[q, x] = tx[i, q, x] + tx[i, q, 3 + x] * s
+            t_end_pos[q, 0], t_end_pos[q, 1], t_end_pos[q, 2] = _predicted_position(i, q, s, tx)
             for j in range(m):
                 d_dist[q, j] = np.inf
                 if tstatus[i, q] != CONFIRMED or exited[i, j] or enter[i, j] > t0 + 1e-9:
@@ -916,7 +915,7 @@ def step_rows(
                 break
             assigned[i, bj] = bq
             s = t_cmp[bq] - tt[i, bq]
-            drone_sigma[i, bj] = np.sqrt(tsig[i, bq, 0] ** 2 + (tsig[i, bq, 1] * s) ** 2)
+            drone_sigma[i, bj] = _predicted_sigma(i, bq, s, tsig)
             for q in range(T):
                 d_dist[q, bj] = np.inf
             for j in range(m):
@@ -987,8 +986,35 @@ def step_rows(
 
 
 @njit(inline="always")
+def _predicted_position(i, q, s, tx):
+    """Track ``q``'s position predicted ``s`` after its time, ``M̂ + V̂ s`` (m): the
+    constant-velocity prediction of the gates, the costs and the observation."""
+    return (
+        tx[i, q, 0] + tx[i, q, 3] * s,
+        tx[i, q, 1] + tx[i, q, 4] * s,
+        tx[i, q, 2] + tx[i, q, 5] * s,
+    )
+
+
+@njit(inline="always")
+def _prediction_residual(i, q, s, tx, p):
+    """``p − (M̂ + V̂ s)``: point ``p (3,)``'s miss of track ``q``'s prediction
+    (:func:`_predicted_position`), m."""
+    pred = _predicted_position(i, q, s, tx)
+    return p[0] - pred[0], p[1] - pred[1], p[2] - pred[2]
+
+
+@njit(inline="always")
+def _predicted_variance(i, q, s, tsig):
+    """``σ_pos² + (σ_vel s)²``: variance of track ``q``'s position predicted ``s`` after its
+    time (``tsig[i, q]`` = ``σ_pos, σ_vel``), m²."""
+    return tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2
+
+
+@njit(inline="always")
 def _predicted_sigma(i, q, s, tsig):
-    return np.sqrt(tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2)
+    """``√`` of :func:`_predicted_variance`, m."""
+    return np.sqrt(_predicted_variance(i, q, s, tsig))
 
 
 @njit(inline="always")
@@ -998,10 +1024,8 @@ def _outside_gate(q, c, i, tx, tt, tsig, cpos, ctime, csig, gate_q, max_accel):
     candidate further than that from the prediction (and than the floor) is out. Most
     track–candidate pairs are other objects'; the rest are scored in full."""
     s = ctime[c] - tt[i, q]
-    e0 = cpos[c, 0] - (tx[i, q, 0] + tx[i, q, 3] * s)
-    e1 = cpos[c, 1] - (tx[i, q, 1] + tx[i, q, 4] * s)
-    e2 = cpos[c, 2] - (tx[i, q, 2] + tx[i, q, 5] * s)
-    spread2 = (csig[c, 0] ** 2 + tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2) / 3.0
+    e0, e1, e2 = _prediction_residual(i, q, s, tx, cpos[c])
+    spread2 = (csig[c, 0] ** 2 + _predicted_variance(i, q, s, tsig)) / 3.0
     margin = 0.5 * max_accel * s * s
     bound = max(2.0 * (gate_q * gate_q * spread2 + margin * margin), GATE_FLOOR * GATE_FLOOR)
     return e0 * e0 + e1 * e1 + e2 * e2 > GATE_SLACK * bound
@@ -1022,13 +1046,7 @@ def _step_cost(tracker, q, c, i, tx, tt, tsig, thits, cpos, cvel, ctime, csig, c
     s = ctime[c] - tt[i, q]
     if not s > 0.0:
         return np.inf
-    d = norm3(
-        (
-            cpos[c, 0] - (tx[i, q, 0] + tx[i, q, 3] * s),
-            cpos[c, 1] - (tx[i, q, 1] + tx[i, q, 4] * s),
-            cpos[c, 2] - (tx[i, q, 2] + tx[i, q, 5] * s),
-        )
-    )
+    d = norm3(_prediction_residual(i, q, s, tx, cpos[c]))
     if tracker != PROPOSED and thits[i, q] < 2:
         return 0.0 if d <= 2.0 * max_speed * s else np.inf
     if tracker == ALGORITHMIC:
@@ -1085,11 +1103,10 @@ def _algorithmic_cost(i, q, c, tx, tt, tsig, thits, cmem, la, O, R, P, b, cdt, c
     # σ_p per axis: the candidate's and the track's prediction (its velocity error over Δ)
     sp = np.sqrt((csig[c, 0] ** 2 + _predicted_sigma(i, q, s, tsig) ** 2) / 3.0)
     J1 = np.sqrt(pJ[0])
-    J2 = 0.0
+    d = _prediction_residual(i, q, s, tx, m)
+    J2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     J3 = 0.0
     for x in range(3):
-        d = m[x] - (tx[i, q, x] + tx[i, q, 3 + x] * s)
-        J2 += d * d
         v = (m[x] - tx[i, q, x]) / s
         out[row, x] = m[x]
         out[row, 3 + x] = v
@@ -1251,6 +1268,7 @@ def observe_row(i, c, t, tracks, track_int, sectors, fix_count, obs):
     length, speed, sigma_ref, period = c[C_LENGTH], c[C_SPEED], c[C_SIGMA_REF], c[C_PERIOD]
     half_regard, lo_w, hi_w, max_fix = c[C_HALF_REGARD], c[C_LO_W], c[C_HI_W], c[C_MAX_FIX]
     tiny = 1e-12
+    tsig = tracks[:, :, 7:9]
     for x in range(obs.shape[1]):
         obs[i, x] = 0.0
     r = 0
@@ -1262,11 +1280,12 @@ def observe_row(i, c, t, tracks, track_int, sectors, fix_count, obs):
         col = 11 * r
         s = t[i] - tracks[i, q, 6]
         obs[i, col] = 1.0
+        # the track table's columns 0–5 are the state (M̂, V̂), as ``tx`` of the step
+        pred = _predicted_position(i, q, s, tracks)
         for x in range(3):
-            p = tracks[i, q, x] + tracks[i, q, 3 + x] * s - c[C_CENTRE + x]
-            obs[i, col + 1 + x] = _observed(p / length)
+            obs[i, col + 1 + x] = _observed((pred[x] - c[C_CENTRE + x]) / length)
             obs[i, col + 4 + x] = _observed(tracks[i, q, 3 + x] / speed)
-        sp = np.sqrt(tracks[i, q, 7] ** 2 + (tracks[i, q, 8] * s) ** 2)
+        sp = _predicted_sigma(i, q, s, tsig)
         obs[i, col + 7] = _observed(np.log(max(sp, tiny) / sigma_ref))
         obs[i, col + 8] = _observed(np.log(max(tracks[i, q, 8] * period, tiny) / sigma_ref))
         obs[i, col + 9] = _observed(s / period)
