@@ -57,13 +57,10 @@ GATE_FLOOR = 1e-3
 #: margin of the gates' square-root-free bounds over round-off (:func:`refine_candidate`,
 #: :func:`_step_cost`)
 GATE_SLACK = 1.000001
-#: a joint fit of more than three receivers is rejected beyond its χ² quantile of this normal
-#: deviate (one-sided 1e-6, :func:`refine_candidate`)
-CHI2_Z = 4.753
 
 #: layout of the per-params constants (``simulation.ScanningParams.kernel_constants``): the
-#: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, then the
-#: receivers' geometry (:func:`geometry`)
+#: scalars, the integer settings (stored as floats), the scene centre ``(3,)``, the receivers'
+#: geometry (:func:`geometry`), then the joint fits' χ² thresholds (:func:`fit_thresholds`)
 (C_SCENE_HALF, C_FLOOR, C_HEIGHT, C_SWEEP, C_LINES, C_PERIOD, C_LO_W, C_HI_W, C_HALF_REGARD,
  C_KAPPA, C_SIGMA_MIN, C_POS_SIGMA, C_MAX_SPEED, C_MAX_ACCEL, C_GATE_Q, C_COND, C_SIGMA_REF,
  C_REWARD_CLIP, C_FALSE_PENALTY, C_TRUTH_GATE, C_LENGTH, C_SPEED, C_MAX_FIX, C_TRACKER,
@@ -73,9 +70,16 @@ CHI2_Z = 4.753
 C_GEOMETRY = C_CENTRE + 3
 
 
+@register_jitable
+def geometry_size(n: int) -> int:
+    """Length of the receivers' geometry of ``n`` receivers in the constants (:func:`geometry`)."""
+    return 3 * n + 9 * n + 9 * (n - 1) + 3 * (n - 1) + n
+
+
 def n_constants(n: int) -> int:
-    """Length of the constants array of ``n`` receivers."""
-    return C_GEOMETRY + 3 * n + 9 * n + 9 * (n - 1) + 3 * (n - 1) + n
+    """Length of the constants array of ``n`` receivers: the scalars, the geometry and ``n − 3``
+    χ² thresholds."""
+    return C_GEOMETRY + geometry_size(n) + (n - 3)
 
 
 @njit(inline="always")
@@ -91,6 +95,16 @@ def geometry(c, n):
     b = c[o : o + 3 * (n - 1)].reshape((n - 1, 3))
     o += 3 * (n - 1)
     return O, R, P, b, c[o : o + n]
+
+
+@njit(inline="always")
+def fit_thresholds(c, n):
+    """View ``(n − 3,)`` of the χ² thresholds in the constants ``c``: entry ``n' − 4`` is the
+    upper ``fit_false_alarm`` point of ``χ²`` on ``2 n' − 6`` degrees of freedom, which the
+    joint fit of ``n'`` receivers must not exceed (:func:`refine_candidate`;
+    ``simulation.ScanningParams.fit_thresholds``)."""
+    o = C_GEOMETRY + geometry_size(n)
+    return c[o : o + n - 3]
 
 
 @njit(inline="always")
@@ -296,8 +310,8 @@ def _carve4(buf, o, a, b, c, d):
 
 @njit(**_JIT)
 def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, position_sigma,
-                     gate_q, max_speed, max_accel, cond_max, cmem, cpos, cvel, ctime, csig,
-                     a1, ak, Pk, bk, dt, X, J, Q, kap, M1, sg, work):  # fmt: skip
+                     gate_q, max_speed, max_accel, cond_max, chi2_max, cmem, cpos, cvel, ctime,
+                     csig, a1, ak, Pk, bk, dt, X, J, Q, kap, M1, sg, work):  # fmt: skip
     """Receivers 4 … n join candidate ``c`` (a triple of receivers 1–3), which is then re-solved
     by least squares over all its fixes (theory §3.3, any n ≥ 3).
 
@@ -312,7 +326,8 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
     positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
     joined fixes are released. Returns False, and the candidate is dropped, where the kept
-    joint fit fails its χ² test (:data:`CHI2_Z`). O(n F) per candidate. The system's arrays come from the step's
+    joint fit of ``n'`` receivers fails its χ² test (``chi2_max[n' − 4]``, the thresholds of
+    :func:`fit_thresholds`). O(n F) per candidate. The system's arrays come from the step's
     scratch, sized for all ``n`` receivers (``a1 (1, 3)``, ``ak``, ``bk (1, n − 1, 3)``, ``Pk
     (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``, ``J``, ``kap (1,)``, ``Q (1, n + 3,
     n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of :func:`velocity_work` ``(n − 1)``): a
@@ -381,16 +396,14 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         return True
     sigma_e, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, True)
     # the joint fit's χ² = J / σ_e² on 3 (nu − 1) − (nu + 3) = 2 nu − 6 degrees of freedom
-    # (a triple's is 0): beyond its quantile at CHI2_Z (Wilson–Hilferty), plus each fix's
-    # unmodelled drift ½ a_max Δ² and the gates' floor, the fixes are not one object's — a
-    # ghost triple that gathered other objects' fixes; the candidate is dropped
-    dof = 2.0 * nu - 6.0
-    h = 2.0 / (9.0 * dof)
+    # (a triple's is 0): beyond its upper fit_false_alarm point (chi2_max[nu − 4]), plus each
+    # fix's unmodelled drift ½ a_max Δ² and the gates' floor, the fixes are not one object's —
+    # a ghost triple that gathered other objects' fixes; the candidate is dropped
     unmodelled = 0.0
     for r in range(mk):
         e = 0.5 * max_accel * dt[0, r] * dt[0, r] + GATE_FLOOR
         unmodelled += e * e
-    if J[0] > sigma_e * sigma_e * dof * (1.0 - h + CHI2_Z * np.sqrt(h)) ** 3 + unmodelled:
+    if J[0] > sigma_e * sigma_e * chi2_max[nu - 4] + unmodelled:
         return False
     mw = _world(R, 0, (M1[0, 0], M1[0, 1], M1[0, 2]))
     for x in range(3):
@@ -465,6 +478,7 @@ def step_rows(
     tracker, iters = int(cf[C_TRACKER]), int(cf[C_ITERS])
     confirm_hits, max_misses = int(cf[C_CONFIRM]), int(cf[C_MISSES])
     O, R, P, b, offsets = geometry(cf, action.shape[1])
+    chi2_max = fit_thresholds(cf, action.shape[1])
     # views of the outputs by role (the table's columns, the fixes' direction and time)
     fix_world, fix_time = fixes[:, :, :, 0:3], fixes[:, :, :, 3]
     tx, tt, tsig, tscore = tracks[:, :, 0:6], tracks[:, :, 6], tracks[:, :, 7:9], tracks[:, :, 9]
@@ -749,8 +763,9 @@ def step_rows(
                     # receivers 4 … n join; the speed check applies to the joint solution
                     if not refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
                                      position_sigma, gate_q, max_speed, max_accel, cond_max,
-                                     cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt,
-                                     r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+                                     chi2_max, cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P,
+                                     r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
+                                     r_work):  # fmt: skip
                         continue
                 speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
                 if not speed <= max_speed:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.stats import chi2
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
@@ -217,6 +218,11 @@ class ScanningParams:
     """Candidates faster than this are implausible and dropped, m/s (theory §13.13)."""
     gate_probability: float = 0.999
     """Probability that a true continuation passes the gate ``δ`` (theory §13.6)."""
+    fit_false_alarm: float = 1e-6
+    """Probability (dimensionless, in (0, 1)) that a true drone's joint fit of more than three
+    receivers fails its χ² test, ``J/σ_e²`` beyond the upper ``fit_false_alarm`` point of
+    ``χ²_{2n'−6}`` plus the unmodelled drift (theory §5.3): the candidate is then dropped as
+    a ghost. Unused with three receivers."""
     confirm_hits: int = 2
     """A tentative track is confirmed once it holds this many periods' candidates."""
     max_misses: int = 2
@@ -311,6 +317,8 @@ class ScanningParams:
             raise ValueError(f"tracker: one of {sorted(TRACKERS)}, got {self.tracker!r}")
         if not 0.0 < self.gate_probability < 1.0:
             raise ValueError(f"gate_probability: must lie in (0, 1), got {self.gate_probability}")
+        if not 0.0 < self.fit_false_alarm < 1.0:
+            raise ValueError(f"fit_false_alarm: must lie in (0, 1), got {self.fit_false_alarm}")
         if not 0.0 < self.reward_clip <= MAX_REWARD_CLIP:
             raise ValueError(
                 f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
@@ -362,9 +370,18 @@ class ScanningParams:
         return norm_quantile(1.0, self.gate_probability)
 
     @functools.cached_property
+    def fit_thresholds(self) -> FloatArray:
+        """``χ²`` thresholds ``(n − 3,)`` of the joint fits (theory §5.3): entry ``n' − 4`` is
+        the upper ``fit_false_alarm`` point of ``χ²`` on ``2 n' − 6`` degrees of freedom, for
+        a fit of ``n' = 4 … n`` receivers (``scipy.stats.chi2.isf``; 27.6 for ``n' = 4`` at
+        1e-6)."""
+        dof = 2.0 * np.arange(4, self.n_receivers + 1) - 6.0
+        return np.asarray(chi2.isf(self.fit_false_alarm, dof), dtype=np.float64)
+
+    @functools.cached_property
     def kernel_constants(self) -> FloatArray:
         """What the compiled kernels read of the params, computed once (read-only; layout
-        ``kernels.C_*``): the scalars, then the receivers' geometry."""
+        ``kernels.C_*``): the scalars, the receivers' geometry, then :attr:`fit_thresholds`."""
         c = np.empty(kernels.n_constants(self.n_receivers))
         c[kernels.C_SCENE_HALF] = self.scene_half_width
         c[kernels.C_FLOOR] = self.scene_floor
@@ -394,7 +411,7 @@ class ScanningParams:
         c[kernels.C_MISSES] = self.max_misses
         c[kernels.C_CENTRE : kernels.C_CENTRE + 3] = self.centre
         P, b = self.relative
-        parts = (self.receivers, self.rotations, P, b, self.offsets_array)
+        parts = (self.receivers, self.rotations, P, b, self.offsets_array, self.fit_thresholds)
         c[kernels.C_GEOMETRY :] = np.concatenate([np.ravel(x) for x in parts])
         c.flags.writeable = False
         return c

@@ -126,6 +126,7 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "tracker": "alternative",
         "max_speed": 30.0,
         "gate_probability": 0.99,
+        "fit_false_alarm": 1e-4,
         "confirm_hits": 3,
         "max_misses": 1,
         "track_capacity": 16,

@@ -205,6 +205,8 @@ def test_termination_once_every_drone_has_left():
         ({"noise_per_width": float("nan")}, "noise_per_width"),
         ({"close_drones": 4}, "close_drones"),
         ({"raster_lines": 0}, "raster_lines"),
+        ({"fit_false_alarm": 0.0}, "fit_false_alarm"),
+        ({"fit_false_alarm": 1.0}, "fit_false_alarm"),
     ],
 )
 def test_bad_params_name_the_field(fields, match):

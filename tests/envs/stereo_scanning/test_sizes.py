@@ -270,6 +270,42 @@ def test_gate_screen_rejects_only_pairs_the_gate_rejects():
     assert accepted >= 10 and screened >= 0.9 * rejected  # the edge is tested; far pairs skipped
 
 
+def test_joint_fit_thresholds_are_the_exact_chi2_quantiles():
+    """The joint fit of ``n'`` receivers is tested against the upper ``fit_false_alarm`` point
+    of χ² on its ``2n' − 6`` degrees of freedom (scipy's exact quantile), which the kernel
+    reads from the constants; three receivers have no joint fit and no threshold."""
+    from scipy.stats import chi2
+
+    from sensorgym.envs.stereo_scanning import kernels as K
+
+    assert ScanningParams().fit_thresholds.shape == (0,)
+    for n, p in ((4, 1e-6), (16, 1e-6), (9, 1e-3)):
+        params = ScanningParams(n_receivers=n, fit_false_alarm=p)
+        expected = [chi2.isf(p, 2 * k - 6) for k in range(4, n + 1)]
+        np.testing.assert_array_equal(params.fit_thresholds, expected)
+        c = params.kernel_constants
+        assert len(c) == K.n_constants(n)
+        np.testing.assert_array_equal(K.fit_thresholds(c, n), expected)
+        # the geometry before them is in place
+        O, R, _, _, offsets = K.geometry(c, n)
+        np.testing.assert_array_equal(O, params.receivers)
+        np.testing.assert_array_equal(R, params.rotations)
+        np.testing.assert_array_equal(offsets, params.offsets_array)
+    # the exact quantile is below Wilson–Hilferty's at few degrees of freedom (27.6 against
+    # 30.3 for four receivers at 1e-6)
+    assert ScanningParams(n_receivers=4).fit_thresholds[0] == pytest.approx(27.631, abs=1e-3)
+    # the kernel applies it: a test that rejects half of all true fits changes the tracks
+    tracks = []
+    for p in (1e-6, 0.5):
+        params = ScanningParams(n_receivers=8, n_drones=6, fit_false_alarm=p)
+        rng = np.random.default_rng(3)
+        s = sim.reset(params, rng, 4)
+        for _ in range(6):
+            s, _, _ = sim.step(params, s, _full(params, 4), rng)
+        tracks.append(s.tracks)
+    assert not np.array_equal(*tracks)
+
+
 def test_ghost_joint_fits_are_dropped_so_most_drones_are_tracked_at_16_receivers():
     """At 16 receivers × 10 drones a ghost triple gathers other objects' fixes from receivers
     4 … n; its joint fit fails the χ² test and it is dropped, so it neither takes the true
