@@ -335,7 +335,7 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
     n = la.shape[0]
     t1 = ctime[c]
     sp, sv = csig[c, 0], csig[c, 1]
-    mk = 2
+    mk = np.int64(2)
     for k in range(3, n):
         best, bj = np.inf, -1
         for j in range(fix_count[i, k]):
@@ -394,7 +394,7 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         for k in range(3, n):
             cmem[c, k] = -1
         return True
-    sigma_e, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, True)
+    sigma_e, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, np.bool_(True))
     # the joint fit's χ² = J / σ_e² on 3 (nu − 1) − (nu + 3) = 2 nu − 6 degrees of freedom
     # (a triple's is 0): beyond its upper fit_false_alarm point (chi2_max[nu − 4]), plus each
     # fix's unmodelled drift ½ a_max Δ² and the gates' floor, the fixes are not one object's —
