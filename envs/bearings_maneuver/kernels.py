@@ -232,7 +232,9 @@ def reset_kernel(
         psd_square_root(Pe, L[b])
         for k in range(1, z.shape[1]):
             bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
-            L_in[:, :] = L[b]
+            for e in range(STATE_DIM):  # element-wise: a slice copy compiles numba's
+                for f in range(STATE_DIM):  # shape-error message (seconds at cold start)
+                    L_in[e, f] = L[b, e, f]
             bound_update(
                 L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b], A_update
             )

@@ -82,7 +82,7 @@ def n_constants(n: int) -> int:
     return C_GEOMETRY + geometry_size(n) + (n - 3)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def geometry(c, n):
     """Views ``(O, R, P, b, offsets)`` of the receivers' geometry in the constants ``c``."""
     o = C_GEOMETRY
@@ -97,7 +97,7 @@ def geometry(c, n):
     return O, R, P, b, c[o : o + n]
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def fit_thresholds(c, n):
     """View ``(n − 3,)`` of the χ² thresholds in the constants ``c``: entry ``n' − 4`` is the
     upper ``fit_false_alarm`` point of ``χ²`` on ``2 n' − 6`` degrees of freedom, which the
@@ -107,7 +107,7 @@ def fit_thresholds(c, n):
     return c[o : o + n - 3]
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _local(R, k, d):
     """``R_kᵀ d`` for ``R (n, 3, 3)`` (``R[k, j, c]`` = component ``j`` of column ``c``)."""
     return (
@@ -117,7 +117,7 @@ def _local(R, k, d):
     )
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _world(R, k, v):
     """``R_k v`` (receiver ``k``'s frame → world)."""
     return (
@@ -127,7 +127,7 @@ def _world(R, k, v):
     )
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def sector_of(action, lo_w, hi_w, half_regard):
     """``(φ_c, θ_c, w)`` of a receiver's normalised action ``(3,)`` (clipped to ``[−1, 1]``):
     centre ``a · regard/2`` in azimuth and elevation about the boresight, width
@@ -138,25 +138,25 @@ def sector_of(action, lo_w, hi_w, half_regard):
     return a0 * half_regard, a1 * half_regard, lo_w + 0.5 * (a2 + 1.0) * (hi_w - lo_w)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def sector_sigma(width, kappa, sigma_min):
     """Angular noise of a fix from a sector of ``width``: ``max(κ w, σ_min)`` rad — the raster
     has a fixed pixel count, so a wider sector has coarser pixels (the sector trade-off)."""
     return max(kappa * width, sigma_min)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _angles(d):
     """Local azimuth ``atan2(x, z)`` and elevation ``atan2(y, ‖(x, z)‖)`` of ``d`` (theory §2.2)."""
     return np.arctan2(d[0], d[2]), np.arctan2(d[1], np.hypot(d[0], d[2]))
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _inside(phi, theta, d, centre_az, centre_el, width):
     return d[2] > 0.0 and in_sector(phi, theta, centre_az, centre_el, width, width)
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _at(p, v, a, s):
     """``p + v s + ½ a s²``."""
     h = 0.5 * s * s
@@ -216,7 +216,7 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma, velocity):
     return sigma_e, sp, sv
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
     """The pair gate ``J ≤ ε_J``, ``ε_J = (q √2 σ_e + v_max |Δt|)²`` (000 eq. 9, theory §13.6),
     ``σ_e² = σ_x² + ((σ_1 r̂_1)² + (σ_2 r̂_2)²)/2``: noise plus the largest miss distance the
@@ -1000,7 +1000,7 @@ def step_rows(
     return True
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _predicted_position(i, q, s, tx):
     """Track ``q``'s position predicted ``s`` after its time, ``M̂ + V̂ s`` (m): the
     constant-velocity prediction of the gates, the costs and the observation."""
@@ -1011,7 +1011,7 @@ def _predicted_position(i, q, s, tx):
     )
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _prediction_residual(i, q, s, tx, p):
     """``p − (M̂ + V̂ s)``: point ``p (3,)``'s miss of track ``q``'s prediction
     (:func:`_predicted_position`), m."""
@@ -1019,20 +1019,20 @@ def _prediction_residual(i, q, s, tx, p):
     return p[0] - pred[0], p[1] - pred[1], p[2] - pred[2]
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _predicted_variance(i, q, s, tsig):
     """``σ_pos² + (σ_vel s)²``: variance of track ``q``'s position predicted ``s`` after its
     time (``tsig[i, q]`` = ``σ_pos, σ_vel``), m²."""
     return tsig[i, q, 0] ** 2 + (tsig[i, q, 1] * s) ** 2
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _predicted_sigma(i, q, s, tsig):
     """``√`` of :func:`_predicted_variance`, m."""
     return np.sqrt(_predicted_variance(i, q, s, tsig))
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _outside_gate(q, c, i, tx, tt, tsig, cpos, ctime, csig, gate_q, max_accel):
     """Whether candidate ``c`` surely fails track ``q``'s position gate in :func:`_step_cost`
     (proposed tracker), without a square root: ``(q s + m)² ≤ 2 (q² s² + m²)``, so a
@@ -1267,7 +1267,7 @@ def _update(tracker, i, q, c, cost, mv, ctime, csig, cdt, tx, tt, tsig, tscore, 
         tsig[i, q, 0], tsig[i, q, 1] = csig[c, 0], max_speed
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def _observed(v):
     """An observation entry: clipped to ``±OBS_CLIP`` (NaN stays NaN), stored as float32."""
     return clip(v, -OBS_CLIP, OBS_CLIP)

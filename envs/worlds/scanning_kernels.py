@@ -17,7 +17,7 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": Fal
 
 # row = ⌊(θ_c + h/2 − θ) / (h/rows)⌋, col = ⌊(wrap(φ − φ_c) + w/2) / (w/cols)⌋ (clipped),
 # t = offset + (row · cols + col + ½) · sweep / (rows · cols)
-@njit(inline="always")
+@njit(**_JIT)
 def raster_time(phi, theta, centre_az, centre_el, az_width, el_width, rows, cols, offset, sweep):
     """Time after the period start at which a TV raster of ``rows × cols`` pixels over a sector
     ``az_width × el_width`` centred on ``(φ_c, θ_c)`` reaches the pixel holding the local angles
@@ -31,7 +31,7 @@ def raster_time(phi, theta, centre_az, centre_el, az_width, el_width, rows, cols
     return offset + (row * cols + col + 0.5) * (sweep / (rows * cols))
 
 
-@njit(inline="always")
+@njit(**_JIT)
 def in_sector(phi, theta, centre_az, centre_el, az_width, el_width):
     """Whether the local angles ``(φ, θ)`` lie in the sector (edges included)."""
     return abs(wrap(phi - centre_az)) <= 0.5 * az_width and abs(theta - centre_el) <= 0.5 * el_width
