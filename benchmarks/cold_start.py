@@ -7,8 +7,11 @@ every kernel compiles and is written to the cache), then again (*warm*: every ke
 the cache). Per env the seconds are those its first reset and step took (an env that shares
 kernels with one before it pays less), plus the import: wall seconds and the CPU seconds of the
 process (``time.process_time``; compilation is single-threaded, so on an idle machine the two
-agree, and on a loaded one the CPU seconds are the figure to compare). Prints a table and
-writes ``benchmarks/results/cold_start.json``.
+agree, and on a loaded one the CPU seconds are the figure to compare). Then the same for
+``sensorgym compile`` on another empty cache, and again warm: every env *and every registered
+rule* (one short episode each), one process per env package on all CPUs — what the set-up
+scripts run once after an install (CPU seconds: those of its worker processes). Prints a table
+and writes ``benchmarks/results/cold_start.json``.
 """
 
 from __future__ import annotations
@@ -16,9 +19,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from timing import RESULTS, write_results
@@ -52,6 +57,21 @@ def _run(cache: str) -> dict[str, list[float]]:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def _compile(cache: str) -> tuple[float, float]:
+    """Wall and children's CPU seconds of ``sensorgym compile`` on the numba cache ``cache``."""
+    env = {**os.environ, "NUMBA_CACHE_DIR": cache}
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    command = [sys.executable, "-m", "sensorgym.cli.main", "compile", "--quiet"]
+    out = subprocess.run(command, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return wall, cpu
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=RESULTS / "cold_start.json")
@@ -59,6 +79,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as cache:
         cold = _run(cache)
         warm = _run(cache)
+    with tempfile.TemporaryDirectory() as cache:
+        case = f"`sensorgym compile` (envs and rules, {len(os.sched_getaffinity(0))} CPUs)"
+        cold[case] = _compile(cache)
+        warm[case] = _compile(cache)
     rows = [
         {
             "case": k,

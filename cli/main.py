@@ -20,6 +20,7 @@ COMMANDS: dict[str, str] = {
     "train": "sensorgym.cli.train",
     "render": "sensorgym.cli.render",
     "sweep": "sensorgym.cli.sweep",
+    "compile": "sensorgym.cli.compile",
 }
 
 #: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments

@@ -11,3 +11,7 @@ fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
 "$VENV/bin/python" -m pip install --quiet "torch==2.13.0"
 "$VENV/bin/python" -m pip install --quiet -e "$ROOT[test]"
+# Compile every env's and rule's kernels into numba's disk cache, one process per env on all
+# CPUs (cli/compile.py): paid once, and again only when the sources have changed. A
+# failure here is left for the job itself to report.
+"$VENV/bin/sensorgym" compile --quiet --stamp "$VENV/.sensorgym-compiled" || echo "scripts/venv.sh: sensorgym compile failed" >&2

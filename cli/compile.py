@@ -1,0 +1,154 @@
+"""``sensorgym compile``: pay numba's compile time once, on every core.
+
+Every env's kernels and every registered rule's kernels are compiled on first use and written
+to numba's disk cache (``cache=True``); from then on they load in milliseconds. Compiling is
+single-threaded and takes minutes for all envs in one process (``benchmarks/cold_start.py``),
+so this command compiles them in parallel: one process per env package (variants sharing a
+package's kernels, such as ``BearingsManeuverBook-v0``, go with it), each making the Gymnasium
+env and the native vector env, stepping both, and playing one short episode of every
+registered rule, exactly as ``sensorgym benchmark`` will. With a warm cache it only loads
+(seconds: the rules' episodes are played all the same); with ``--stamp FILE`` it does nothing
+when FILE holds the digest of the current sources (:func:`source_digest`) — the set-up scripts
+run it that way after every install.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+HELP = "compile every env's and rule's kernels into numba's disk cache, one process per env"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--env",
+        action="append",
+        default=None,
+        metavar="ID",
+        help="env id (repeatable; default: every registered env)",
+    )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=None,
+        help="processes at once (default: the CPUs this process may use)",
+    )
+    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument(
+        "--stamp",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="skip if FILE holds the digest of the current sources; write it after compiling",
+    )
+
+
+#: the subpackages whose sources the compiled kernels come from
+PACKAGES = ("envs", "agents", "trackers", "train")
+
+
+def source_digest() -> str:
+    """SHA-256 of what decides whether the disk cache is current: sensorgym's and numba's
+    versions, ``NUMBA_CACHE_DIR`` and every ``.py`` file of :data:`PACKAGES` (path and bytes).
+    Found without importing them (importing ``sensorgym.envs`` alone takes seconds)."""
+    import hashlib
+    import importlib.util
+    from importlib.metadata import version
+
+    h = hashlib.sha256()
+    h.update(
+        f"{version('sensorgym')} {version('numba')} {os.environ.get('NUMBA_CACHE_DIR')}".encode()
+    )
+    for name in PACKAGES:
+        spec = importlib.util.find_spec(f"sensorgym.{name}")
+        roots = spec.submodule_search_locations if spec is not None else None
+        for root in roots or ():
+            for path in sorted(Path(root).rglob("*.py")):
+                h.update(f"{name}/{path.relative_to(root).as_posix()}".encode())
+                h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def groups(env_ids: list[str]) -> list[list[str]]:
+    """``env_ids`` grouped by the package of their entry point (ids of one package share its
+    kernels, so they compile in one process, one after the other), in registration order."""
+    import gymnasium as gym
+
+    out: dict[str, list[str]] = {}
+    for env_id in env_ids:
+        entry = gym.spec(env_id).entry_point
+        package = (entry if isinstance(entry, str) else entry.__module__).rsplit(".", 1)[0]
+        out.setdefault(package, []).append(env_id)
+    return list(out.values())
+
+
+def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
+    """Compile (or load) what ``env_ids`` use: the env single and vectorised, stepped once,
+    and one episode of each registered rule on two scenarios. Returns the ids, the seconds
+    taken and the number of rules played."""
+    import time
+
+    import gymnasium as gym
+    import numpy as np
+
+    import sensorgym.envs  # noqa: F401  (registers the ids)
+    from sensorgym.train.benchmark import NotApplicable, policies_for, score
+
+    t0 = time.perf_counter()
+    played = 0
+    for env_id in env_ids:
+        env = gym.make(env_id)
+        env.reset(seed=0)
+        env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
+        env.close()
+        for spec in policies_for(env_id, shipped=False).values():
+            try:
+                score(env_id, spec, episodes=1, n_envs=2, seed=0)
+            except NotApplicable:
+                continue
+            played += 1
+    return env_ids, time.perf_counter() - t0, played
+
+
+def run(args: argparse.Namespace) -> int:
+    import multiprocessing
+    import time
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    if args.stamp is not None:
+        digest = source_digest()
+        if args.stamp.is_file() and args.stamp.read_text().strip() == digest:
+            if not args.quiet:
+                print(f"{args.stamp}: the sources are unchanged since the last compile")
+            return 0
+    from sensorgym.train.benchmark import registered_envs
+
+    known = registered_envs()
+    env_ids = args.env or known
+    unknown = [e for e in env_ids if e not in known]
+    if unknown:
+        raise SystemExit(f"--env: unknown id(s) {unknown}; registered: {known}")
+    tasks = groups(env_ids)
+    jobs = len(os.sched_getaffinity(0)) if args.jobs is None else args.jobs
+    if jobs < 1:
+        raise SystemExit(f"--jobs: expected at least 1, got {jobs}")
+    t0 = time.perf_counter()
+    done: list[tuple[list[str], float, int]] = []
+    if jobs == 1 or len(tasks) == 1:
+        done = [warm(task) for task in tasks]
+    else:
+        # spawn: a fresh interpreter per worker (no forked numba or torch state)
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(min(jobs, len(tasks)), mp_context=context) as pool:
+            futures = [pool.submit(warm, task) for task in tasks]
+            done = [f.result() for f in as_completed(futures)]
+    wall = time.perf_counter() - t0
+    if not args.quiet:
+        for ids, seconds, played in sorted(done, key=lambda d: -d[1]):
+            print(f"{seconds:7.1f} s  {', '.join(ids)} (and {played} rules)")
+        print(f"{wall:7.1f} s  wall, {min(jobs, len(tasks))} processes")
+    if args.stamp is not None:
+        args.stamp.write_text(digest + "\n")
+    return 0

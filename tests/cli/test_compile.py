@@ -1,0 +1,76 @@
+"""``sensorgym compile``: every env's and rule's kernels into numba's disk cache."""
+
+from __future__ import annotations
+
+import pytest
+
+from sensorgym.cli.compile import groups, warm
+from sensorgym.cli.main import main
+from sensorgym.train.benchmark import registered_envs
+
+
+def test_env_ids_sharing_a_package_compile_in_one_process():
+    found = groups(registered_envs())
+    flat = [env_id for group in found for env_id in group]
+    assert flat == registered_envs()  # every id once, in registration order
+    assert ["sensorgym/BearingsManeuver-v0", "sensorgym/BearingsManeuverBook-v0"] in found
+    assert ["sensorgym/StereoScanning-v0"] in found
+
+
+def test_warm_steps_the_env_and_plays_every_registered_rule():
+    from sensorgym.agents.registry import RULES
+    from sensorgym.envs.bearings_maneuver import kernels
+
+    env_id = "sensorgym/BearingsManeuver-v0"
+    ids, seconds, played = warm([env_id])
+    assert ids == [env_id] and seconds > 0.0
+    assert played == len(RULES[env_id])
+    # the env's kernels are compiled (or loaded from the cache) in this process
+    assert kernels.step_kernel.signatures and kernels.reset_kernel.signatures
+
+
+def test_compile_command_runs_and_refuses_unknown_ids(capsys):
+    assert main(["compile", "--env", "sensorgym/StereoPlacement-v0", "--jobs", "1"]) == 0
+    printed = capsys.readouterr().out
+    assert "sensorgym/StereoPlacement-v0 (and 5 rules)" in printed and "wall" in printed
+    with pytest.raises(SystemExit, match="unknown id"):
+        main(["compile", "--env", "sensorgym/NoSuchEnv-v0"])
+    with pytest.raises(SystemExit, match="--jobs"):
+        main(["compile", "--env", "sensorgym/StereoPlacement-v0", "--jobs", "0"])
+
+
+def test_a_stamp_of_the_current_sources_skips_the_compile(tmp_path, capsys):
+    from sensorgym.cli.compile import source_digest
+
+    stamp = tmp_path / "compiled"
+    stamp.write_text(source_digest() + "\n")
+    assert main(["compile", "--stamp", str(stamp)]) == 0
+    assert "unchanged" in capsys.readouterr().out
+    # another digest (sources edited since): compiles, then records the current one
+    stamp.write_text("0" * 64 + "\n")
+    env_id = "sensorgym/StereoPlacement-v0"
+    assert main(["compile", "--env", env_id, "--jobs", "1", "--stamp", str(stamp)]) == 0
+    assert env_id in capsys.readouterr().out
+    assert stamp.read_text().strip() == source_digest()
+
+
+def test_the_digest_changes_with_any_source_file_and_only_with_sources(tmp_path, monkeypatch):
+    import importlib.util
+    from types import SimpleNamespace
+
+    from sensorgym.cli.compile import source_digest
+
+    real = source_digest()
+    assert len(real) == 64 and source_digest() == real
+    (tmp_path / "kernels.py").write_text("x = 1\n")
+    fake = SimpleNamespace(submodule_search_locations=[str(tmp_path)])
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name: fake)
+    before = source_digest()
+    assert before != real
+    (tmp_path / "notes.txt").write_text("not a source")
+    assert source_digest() == before
+    (tmp_path / "kernels.py").write_text("x = 2\n")
+    assert source_digest() != before
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    (tmp_path / "kernels.py").write_text("x = 1\n")
+    assert source_digest() != before  # another cache directory holds other kernels
