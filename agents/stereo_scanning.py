@@ -36,6 +36,7 @@ from sensorgym.envs.stereo_scanning.simulation import (
     split_observation,
 )
 from sensorgym.trackers.stereo.accuracy import range_sigma_general
+from sensorgym.trackers.stereo.kernels import copy1, copy2
 
 FloatArray = NDArray[np.float64]
 
@@ -248,7 +249,11 @@ def _greedy_cover(ang, pad, order, widths, margin, lo_w, hi_w, tol, take_first, 
                     fits = False
                     break
             if fits:
-                lo[w], hi[w], pad_max[w] = t_lo, t_hi, t_pad
+                # element-wise copies: slice assignments from arrays compile numba's
+                # shape-error message (seconds of cold start)
+                copy2(t_lo, lo[w])
+                copy2(t_hi, hi[w])
+                copy1(t_pad, pad_max[w])
                 chosen[w, q] = True
                 first = False
 

@@ -42,6 +42,10 @@ from sensorgym.trackers.bearings.kernels import (
     range_bank_prior,
 )
 
+# copies by explicit loops: a slice assignment from an array compiles numba's shape-error
+# message (string formatting, seconds at cold start)
+from sensorgym.trackers.stereo.kernels import copy1, copy2
+
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
 # indices into the packed settings ``c``
@@ -161,7 +165,7 @@ def step_kernel(
                 A_update,
             )
             if k + 1 < K:
-                L_pred[:, :] = L2[b]
+                copy2(L2[b], L_pred)
         m = accuracy(
             c[RELATIVE_RANGE] > 0.0,
             L2[b],
@@ -232,9 +236,7 @@ def reset_kernel(
         psd_square_root(Pe, L[b])
         for k in range(1, z.shape[1]):
             bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
-            for e in range(STATE_DIM):  # element-wise: a slice copy compiles numba's
-                for f in range(STATE_DIM):  # shape-error message (seconds at cold start)
-                    L_in[e, f] = L[b, e, f]
+            copy2(L[b], L_in)
             bound_update(
                 L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b], A_update
             )
@@ -342,11 +344,11 @@ def _fly_hold(c, px, py, h, v, turn, dv, out):
 # the target's mean path x' = F x (no noise draw) from x0 (4,): ``path (H, 4)``
 @njit(**_JIT)
 def _mean_path(c, x0, path, x, x_next, G):
-    x[:] = x0
+    copy1(x0, x)
     for s in range(path.shape[0]):
         propagate_target(x, x, G, c[DT], 0.0, x_next)
-        x[:] = x_next
-        path[s] = x
+        copy1(x_next, x)
+        copy1(x, path[s])
 
 
 # a bearing's position information n̂ n̂ᵀ / (r σ)² from ``track (H, 2)`` on ``path`` into
@@ -368,7 +370,7 @@ def _fuse_position_information(L_pred, i00, i01, i11, out, A):
     if i00 > 0.0:
         g = math.sqrt(i00)
         position_update(L_pred, 1.0, g, i01 / g, out, A)
-        L_pred[:, :] = out
+        copy2(out, L_pred)
         i11 = i11 - i01 * i01 / i00
     position_update(L_pred, 1.0, 0.0, math.sqrt(max(i11, 0.0)), out, A)
 
@@ -384,7 +386,7 @@ def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc
     bearing). Returns the accuracy the reward measures at the end (relative range from
     ``(ox, oy)``), or ``inf`` when the track comes within ``too_close`` of the path."""
     dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
-    Lc[:, :] = L0
+    copy2(L0, Lc)
     close = False
     for s in range(path.shape[0]):
         bound_predict(Lc, dt, q_tilde, L_pred, A_pred)
@@ -414,7 +416,7 @@ def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc
 @njit(**_JIT)
 def _others_root(c, L0, others, horizon, Lo, L_pred, A_pred, A_update):
     dt, q_tilde = c[DT], c[Q_TILDE]
-    Lo[:, :] = L0
+    copy2(L0, Lo)
     for s in range(horizon):
         bound_predict(Lo, dt, q_tilde, L_pred, A_pred)
         _fuse_position_information(L_pred, others[s, 0], others[s, 1], others[s, 2], Lo, A_update)
