@@ -85,9 +85,10 @@ def groups(env_ids: list[str]) -> list[list[str]]:
 
 
 def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
-    """Compile (or load) what ``env_ids`` use: the env single and vectorised, stepped once,
-    and one episode of each registered rule on two scenarios. Returns the ids, the seconds
-    taken and the number of rules played."""
+    """Compile (or load) what ``env_ids`` use: the Gymnasium env, stepped once, then one
+    episode of each registered rule on the native vector env of two scenarios (as
+    ``sensorgym benchmark`` scores it). Returns the ids, the seconds taken and the number of
+    rules played."""
     import time
 
     import gymnasium as gym
