@@ -50,6 +50,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "greedy-information": lambda params, _: pointing.GreedyPointing(params),
         "plan-estimate": lambda params, _: pointing.PlanEstimate(params),
         "plan-horizon": lambda params, _: pointing_horizon.PlanHorizon(params),
+        "plan-acquire": lambda params, _: pointing_horizon.PlanHorizon(params, acquisition=True),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {

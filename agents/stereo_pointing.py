@@ -487,6 +487,13 @@ def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArra
     """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` over
     ``geometry``: the env's reward of the receivers assigned to each drone, each counted from
     the step it is ready, averaged over the drones and summed with the steps' weights."""
+    reward = _drone_rewards(params, geometry).mean(axis=-1)  # (B, C, S)
+    return np.einsum("bcs,bs->bc", reward, geometry.weight)
+
+
+def _drone_rewards(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
+    """The env's per-drone reward ``(B, C, S, m)`` on each grid step of the plan of each
+    candidate of :func:`_assignments`, each receiver counted from the step it is ready."""
     p, g = params, geometry
     cand = _assignments(p)  # (C, n)
     # candidate c sends receiver k to drone c_k
@@ -497,8 +504,47 @@ def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArra
     sigma_ang = p.sigma_ang if p.sigma_ang > 0.0 else 1e-9
     info = position_information(u[:, None], r[:, None], sigma_ang, mask)
     sigma = position_sigma(info, observable(info, mask))
-    reward = log_ratio_reward(sigma, p.sigma_ref, p.reward_clip).mean(axis=-1)  # (B, C, S)
-    return np.einsum("bcs,bs->bc", reward, g.weight)
+    return log_ratio_reward(sigma, p.sigma_ref, p.reward_clip)
+
+
+def acquisition_probability(params: PointingParams, view: _View) -> FloatArray:
+    """Probability ``(N, n, m)`` that receiver ``k``, slewed onto the tracker's prediction of
+    drone ``j``, finds the drone inside its field of view: 1 where it saw the drone on the last
+    step, else ``1 − exp(−(fov r_kj)² / (2 s_j²))``, the chance that an isotropic Gaussian
+    position error of RMS ``σ̂_j`` (``s_j = σ̂_j / √3`` per axis) lies within the cone's radius
+    ``fov · r_kj`` across the line of sight (``r_kj`` the range to the prediction).
+
+    The plan of :func:`geometry_values` assumes a receiver sent to a drone sees it. That holds
+    once the drone is tracked (``σ̂`` of centimetres); on the cue (``σ̂`` ≈ 9 m) a receiver
+    50 m from a drone misses it about a third of the time, and a drone that no pair of
+    receivers sees is never fixed: its track only predicts, and its error grows."""
+    s = np.maximum(view.sigma, 1e-9)[:, None, :] / np.sqrt(3.0)  # (N, 1, m)
+    reach = params.fov * np.minimum(view.ranges, 1e12)  # (N, n, m)
+    p = -np.expm1(-0.5 * (reach / s) ** 2)
+    return np.where(view.seen > 0.0, 1.0, p)
+
+
+def acquired_values(
+    params: PointingParams, geometry: PlanGeometry, p_see: FloatArray
+) -> FloatArray:
+    """:func:`geometry_values` with acquisition: each drone's planned return counts with the
+    probability ``q_cj`` that at least two of the receivers candidate ``c`` sends to drone
+    ``j`` find it (receivers independent, each with ``p_see (B, n, m)``,
+    :func:`acquisition_probability`), and the floor ``−R`` on every planned step otherwise
+    (a drone no pair finds is never fixed)."""
+    p, g = params, geometry
+    cand = _assignments(p)  # (C, n)
+    n, m = cand.shape[1], p.n_drones
+    sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
+    planned = np.einsum("bcsj,bs->bcj", _drone_rewards(p, g), g.weight)  # (B, C, m)
+    floor = -p.reward_clip * g.weight.sum(axis=1)[:, None, None]  # (B, 1, 1)
+    # P(at least two of the sent receivers see drone j): counts 0, 1, ≥ 2 over the receivers
+    pk = p_see.transpose(0, 2, 1)[:, None] * sent[None]  # (B, C, m, n), 0 if not sent
+    none, one, two = np.ones(pk.shape[:-1]), np.zeros(pk.shape[:-1]), np.zeros(pk.shape[:-1])
+    for k in range(n):
+        q = pk[..., k]
+        none, one, two = none * (1 - q), one * (1 - q) + none * q, two + one * q
+    return ((two * planned + (1.0 - two) * floor) / m).sum(axis=-1)
 
 
 def plan_objective(params: PointingParams, geometry: PlanGeometry) -> SeparableObjective:

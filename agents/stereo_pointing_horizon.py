@@ -34,6 +34,8 @@ from sensorgym.agents.stereo_pointing import (
     _starts,
     _View,
     _view,
+    acquired_values,
+    acquisition_probability,
     geometry_values,
     plan_geometry,
     plan_objective,
@@ -63,6 +65,13 @@ class PlanHorizon:
     """How the best assignment is searched: ``"auto"``, ``"exhaustive"`` or ``"greedy"``
     (:mod:`sensorgym.agents.assignment_solver`; auto is exhaustive up to
     :data:`~sensorgym.agents.stereo_pointing.PLAN_ASSIGNMENTS` assignments)."""
+    acquisition: bool = False
+    """Weigh each drone's planned return by the chance that a pair of the receivers sent to it
+    finds it on the tracker's prediction
+    (:func:`~sensorgym.agents.stereo_pointing.acquired_values`; the ``plan-acquire`` rule).
+    Only the exhaustive search weighs it: beyond
+    :data:`~sensorgym.agents.stereo_pointing.PLAN_ASSIGNMENTS` assignments the polynomial search
+    plans as without it."""
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
@@ -100,7 +109,11 @@ class PlanHorizon:
                 plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
             )
         cand = _assignments(p)
-        values = geometry_values(p, geometry) + _keep_bonus(view, cand, self.keep_bonus)
+        if self.acquisition:
+            values = acquired_values(p, geometry, acquisition_probability(p, view))
+        else:
+            values = geometry_values(p, geometry)
+        values = values + _keep_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(values, axis=-1)]
 
     def assign(self, observation: NDArray[Any], t: NDArray[Any] | int = 0) -> NDArray[np.int64]:

@@ -1,7 +1,8 @@
 """Where the ``plan-horizon`` rule of ``sensorgym/StereoPointing-v0`` loses return (issue 13).
 
 ``python benchmarks/pointing_diagnosis.py [--seed 500] [--episodes 128]`` plays the same
-seeded scenarios with ``plan-horizon``, ``oracle-plan`` and each of the ``m^n`` constant
+seeded scenarios with ``plan-horizon``, ``plan-acquire`` (the fix this diagnosis led to),
+``oracle-plan`` and each of the ``m^n`` constant
 assignments (receiver ``k`` held on drone ``c_k`` for the whole episode, slewed onto the
 tracker's prediction by the env's slew controller), and writes
 ``benchmarks/results/pointing_diagnosis.json``:
@@ -152,6 +153,11 @@ def main() -> None:
 
     runs = {"plan-horizon": play(params, horizon_rule, args.seed, B)}
 
+    acquire = PlanHorizon(params, acquisition=True)
+    runs["plan-acquire"] = play(
+        params, lambda obs, t, state: acquire.assign(obs, np.full(obs.shape[0], t)), args.seed, B
+    )
+
     holder: dict[str, Any] = {}
 
     def oracle_rule(obs: np.ndarray, t: int, state: Any) -> np.ndarray:
@@ -234,6 +240,7 @@ def main() -> None:
         "best_constant_in_hindsight": paired(best),
         "best_constant_minus_plan_horizon": paired(diff),
         "oracle_plan_minus_plan_horizon": paired(returns["oracle-plan"] - ph),
+        "plan_acquire_minus_plan_horizon": paired(returns["plan-acquire"] - ph),
         "share_of_episodes_best_constant_above_plan_horizon": float((diff > 0).mean()),
         "best_constant_counts": {
             const_names[c]: int(k)

@@ -110,7 +110,9 @@ class StereoPointingEnv(CoreEnv):
       the same planner on the truth); the assignment rules' hysteresis counts a receiver aimed at a drone's
       prediction, not only one that saw it, and is larger (orthogonal pairs 0.3, greedy 3.0,
       were 0.05), which ends the step-0 near-tie that sent every receiver to the other drone;
-      one slew controller serves the rules and the assignment action wrapper.
+      one slew controller serves the rules and the assignment action wrapper. Later in issue
+      13 (env unchanged): the rule ``plan-acquire``, ``plan-horizon`` weighing each drone's
+      planned return by the chance that the receivers sent to it find it on the track.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}

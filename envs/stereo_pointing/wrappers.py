@@ -29,7 +29,15 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
-from sensorgym.agents.stereo_pointing import _assignments, _keep_bonus, _view, plan_values
+from sensorgym.agents.stereo_pointing import (
+    _assignments,
+    _keep_bonus,
+    _view,
+    acquired_values,
+    acquisition_probability,
+    plan_geometry,
+    plan_values,
+)
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
 from sensorgym.train.wrappers import ObservedActionWrapper, _time_limit
 
@@ -123,6 +131,13 @@ class PlanFeatures(VecEnvWrapper):
     aimed at (the hysteresis count of the assignment rules). Size
     ``obs_dim + m^n (2H + 1)``, ``H`` the number of horizons (with the time left). The base
     observation comes first (:meth:`base_observation` recovers it).
+
+    With ``acquisition`` the planned returns are those of the ``plan-acquire`` rule's model
+    (:func:`~sensorgym.agents.stereo_pointing.acquired_values`: each drone's return weighed by
+    the chance that a pair of the receivers sent to it finds it on the tracker's prediction),
+    same layout; ``plain_horizons`` then adds blocks of the plain plan (without acquisition)
+    at these horizons, after the ``horizons`` blocks and before the time left, so that a
+    policy sees where the two models disagree (``H`` counts them too).
     """
 
     def __init__(
@@ -133,6 +148,8 @@ class PlanFeatures(VecEnvWrapper):
         stride: int = 3,
         max_episode_steps: int | None = None,
         params: PointingParams | None = None,
+        acquisition: bool = False,
+        plain_horizons: tuple[int, ...] | list[int] = (),
     ):
         p = _pointing_params(venv, params)
         if venv.observation_space.shape != (p.obs_dim,):
@@ -143,6 +160,13 @@ class PlanFeatures(VecEnvWrapper):
             )
         if not all(isinstance(h, int) and h >= 1 for h in horizons) or not (horizons or time_left):
             raise ValueError(f"plan-features: horizons must be integers >= 1, got {horizons!r}")
+        if not all(isinstance(h, int) and h >= 1 for h in plain_horizons) or (
+            plain_horizons and not acquisition
+        ):
+            raise ValueError(
+                "plan-features: plain_horizons must be integers >= 1 and need acquisition, got "
+                f"{plain_horizons!r}"
+            )
         if not isinstance(stride, int) or stride < 1:
             raise ValueError(f"plan-features: stride must be an integer >= 1, got {stride!r}")
         limit = max_episode_steps or _time_limit(venv)
@@ -152,10 +176,12 @@ class PlanFeatures(VecEnvWrapper):
         self.horizons = tuple(int(h) for h in horizons)
         self.time_left = bool(time_left)
         self.stride = stride
+        self.acquisition = bool(acquisition)
+        self.plain_horizons = tuple(int(h) for h in plain_horizons)
         self.max_episode_steps = int(limit) if limit else 0
         self.candidates = _assignments(p)
         C = len(self.candidates)
-        H = len(self.horizons) + int(self.time_left)
+        H = len(self.horizons) + len(self.plain_horizons) + int(self.time_left)
         extra = C * (2 * H + 1)
         box = venv.observation_space
         low = np.concatenate([box.low, np.full(extra, -10.0, np.float32)]).astype(np.float32)
@@ -168,20 +194,20 @@ class PlanFeatures(VecEnvWrapper):
         at episode steps ``t (N,)``."""
         view = _view(self.params, np.asarray(obs, dtype=np.float64))
         N, C = len(t), len(self.candidates)
-        horizons = [np.full(N, float(h)) for h in self.horizons]
+        p_see = acquisition_probability(self.params, view) if self.acquisition else None
+        # (horizon, acquisition probabilities or None for the plain plan) per block
+        horizons = [(np.full(N, float(h)), p_see) for h in self.horizons]
+        horizons += [(np.full(N, float(h)), None) for h in self.plain_horizons]
         if self.time_left:
-            horizons.append(np.maximum(self.max_episode_steps - t, 1).astype(np.float64))
+            left = np.maximum(self.max_episode_steps - t, 1).astype(np.float64)
+            horizons.append((left, p_see))
         parts = []
-        for h in horizons:
-            v = plan_values(
-                self.params,
-                view.azimuth,
-                view.elevation,
-                view.position,
-                view.velocity,
-                h,
-                self.stride,
-            )
+        for h, p_block in horizons:
+            flight = (view.azimuth, view.elevation, view.position, view.velocity, h, self.stride)
+            if p_block is None:
+                v = plan_values(self.params, *flight)
+            else:
+                v = acquired_values(self.params, plan_geometry(self.params, *flight), p_block)
             parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
             parts.append(np.eye(C)[np.argmax(v, axis=1)])
         parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
@@ -212,9 +238,11 @@ class PlanFeatures(VecEnvWrapper):
 
 def plan_features(venv: VecEnv, **kwargs: Any) -> VecEnv:
     """Factory of the ``plan-features`` wrapper (``WRAPPERS`` registry); keywords as
-    :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``)."""
-    if "horizons" in kwargs:
-        kwargs["horizons"] = tuple(kwargs["horizons"])
+    :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``,
+    ``acquisition``, ``plain_horizons``)."""
+    for key in ("horizons", "plain_horizons"):
+        if key in kwargs:
+            kwargs[key] = tuple(kwargs[key])
     return PlanFeatures(venv, **kwargs)
 
 
