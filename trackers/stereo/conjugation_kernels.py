@@ -281,38 +281,40 @@ NORMAL_EQUATIONS_COND = 1e4
 
 
 @njit(inline="always")
-def _cholesky_inverse4(S, L, out):
-    """``out = S⁻¹`` of a symmetric ``(4, 4)`` ``S`` through its Cholesky factor ``L``; False
-    where ``S`` is not positive definite to rounding (a pivot ≤ 1e-14 of its diagonal)."""
+def _cholesky_inverse4(w, s, l, o):
+    """``S⁻¹`` of a symmetric ``(4, 4)`` ``S`` through its Cholesky factor ``L``; False where
+    ``S`` is not positive definite to rounding (a pivot ≤ 1e-14 of its diagonal). ``S``, ``L``
+    and the result are row-major blocks of the flat scratch ``w`` at offsets ``s``, ``l`` and
+    ``o`` (a reshaped view would cost a helper call and a reference count per solve)."""
     for j in range(4):
-        d = S[j, j]
+        d = w[s + 5 * j]
         for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 1e-14 * abs(S[j, j]):
+            d -= w[l + 4 * j + k] * w[l + 4 * j + k]
+        if not d > 1e-14 * abs(w[s + 5 * j]):
             return False
-        L[j, j] = np.sqrt(d)
+        w[l + 5 * j] = np.sqrt(d)
         for i in range(j + 1, 4):
-            x = S[i, j]
+            x = w[s + 4 * i + j]
             for k in range(j):
-                x -= L[i, k] * L[j, k]
-            L[i, j] = x / L[j, j]
+                x -= w[l + 4 * i + k] * w[l + 4 * j + k]
+            w[l + 4 * i + j] = x / w[l + 5 * j]
     # L⁻¹ in place of the upper triangle's mirror: W = L⁻¹ (lower), then S⁻¹ = Wᵀ W
     for j in range(4):
-        out[j, j] = 1.0 / L[j, j]
+        w[o + 5 * j] = 1.0 / w[l + 5 * j]
         for i in range(j + 1, 4):
             x = 0.0
             for k in range(j, i):
-                x -= L[i, k] * out[k, j]
-            out[i, j] = x / L[i, i]
+                x -= w[l + 4 * i + k] * w[o + 4 * k + j]
+            w[o + 4 * i + j] = x / w[l + 5 * i]
     for i in range(4):
         for j in range(i, 4):
             x = 0.0
             for k in range(j, 4):
-                x += out[k, i] * out[k, j]
-            L[i, j] = x  # (S⁻¹)_ij, i ≤ j, kept in L's upper triangle
+                x += w[o + 4 * k + i] * w[o + 4 * k + j]
+            w[l + 4 * i + j] = x  # (S⁻¹)_ij, i ≤ j, kept in L's upper triangle
     for i in range(4):
         for j in range(i, 4):
-            out[i, j] = out[j, i] = L[i, j]
+            w[o + 4 * i + j] = w[o + 4 * j + i] = w[l + 4 * i + j]
     return True
 
 
@@ -364,17 +366,12 @@ def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, d
     time allocates nothing). With ``full_q`` false only ``Q``'s block of the shared unknowns
     ``(r_1, V)`` (rows and columns ``0, n, n+1, n+2``) is written."""
     n = m + 1
-    c = work[0 : 3 * m].reshape((m, 3))
-    g = work[3 * m : 7 * m].reshape((m, 4))
-    D = work[7 * m : 8 * m]
-    hr = work[8 * m : 9 * m]
-    sg = work[9 * m : 13 * m].reshape((m, 4))
-    o = 13 * m
-    S = work[o : o + 16].reshape((4, 4))
-    L = work[o + 16 : o + 32].reshape((4, 4))
-    Si = work[o + 32 : o + 48].reshape((4, 4))
-    hy = work[o + 48 : o + 52]
-    y = work[o + 52 : o + 56]
+    # flat blocks of ``work`` (a reshaped view would cost a helper call and a reference count
+    # per solve): c_k (m, 3) from 0, g_k (m, 4) from og, D_k, h_k (m,), S⁻¹g_k (m, 4), then the
+    # (4, 4) S, its Cholesky factor L and S⁻¹, h_y (4,), y (4,)
+    og, oD, oh, osg = 3 * m, 7 * m, 8 * m, 9 * m
+    oS = 13 * m
+    oL, oSi, ohy, oy = oS + 16, oS + 32, oS + 48, oS + 52
     a = _vec(a1, i)
     if check and _not_unit(a):
         return 1
@@ -392,51 +389,55 @@ def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, d
                 return 4
             if not np.isfinite(dt[i, k]):
                 return 5
-        c[k, 0], c[k, 1], c[k, 2] = ck
+        work[3 * k], work[3 * k + 1], work[3 * k + 2] = ck
     # E, h_y and the trace of AᵀA
     for r in range(4):
-        hy[r] = 0.0
+        work[ohy + r] = 0.0
         for q in range(4):
-            S[r, q] = 0.0
+            work[oS + 4 * r + q] = 0.0
     trace = 0.0
     for k in range(m):
         d = dt[i, k]
-        ck = (c[k, 0], c[k, 1], c[k, 2])
+        ck = (work[3 * k], work[3 * k + 1], work[3 * k + 2])
         bk = (b[i, k, 0], b[i, k, 1], b[i, k, 2])
-        D[k] = _dot(ck, ck)
-        hr[k] = -_dot(ck, bk)
-        g[k, 0] = -_dot(a, ck)
-        S[0, 0] += aa
-        hy[0] += _dot(a, bk)
+        Dk = _dot(ck, ck)
+        work[oD + k] = Dk
+        work[oh + k] = -_dot(ck, bk)
+        work[og + 4 * k] = -_dot(a, ck)
+        work[oS] += aa
+        work[ohy] += _dot(a, bk)
         for j in range(3):
-            g[k, 1 + j] = -d * ck[j]
-            S[0, 1 + j] += d * a[j]
-            S[1 + j, 1 + j] += d * d
-            hy[1 + j] += d * bk[j]
-        trace += aa + D[k] + 3.0 * d * d
+            work[og + 4 * k + 1 + j] = -d * ck[j]
+            work[oS + 1 + j] += d * a[j]
+            work[oS + 5 * (1 + j)] += d * d
+            work[ohy + 1 + j] += d * bk[j]
+        trace += aa + Dk + 3.0 * d * d
     for j in range(3):
-        S[1 + j, 0] = S[0, 1 + j]
+        work[oS + 4 * (1 + j)] = work[oS + 1 + j]
     # S = E − Σ_k g_k g_kᵀ / D_k ;  h_y − Σ_k g_k h_k / D_k
     for k in range(m):
-        w = 1.0 / D[k]
+        w = 1.0 / work[oD + k]
+        gk = og + 4 * k
         for r in range(4):
-            hy[r] -= g[k, r] * hr[k] * w
+            work[ohy + r] -= work[gk + r] * work[oh + k] * w
             for q in range(4):
-                S[r, q] -= g[k, r] * g[k, q] * w
-    if not _cholesky_inverse4(S, L, Si):
+                work[oS + 4 * r + q] -= work[gk + r] * work[gk + q] * w
+    if not _cholesky_inverse4(work, oS, oL, oSi):
         kappa[i] = np.inf
         return 0
     # tr (AᵀA)⁻¹ = tr S⁻¹ + Σ_k (1/D_k + g_kᵀ S⁻¹ g_k / D_k²)
-    inv_trace = Si[0, 0] + Si[1, 1] + Si[2, 2] + Si[3, 3]
+    inv_trace = work[oSi] + work[oSi + 5] + work[oSi + 10] + work[oSi + 15]
     for k in range(m):
         quad = 0.0
+        gk = og + 4 * k
         for r in range(4):
             x = 0.0
             for q in range(4):
-                x += Si[r, q] * g[k, q]
-            sg[k, r] = x  # S⁻¹ g_k
-            quad += g[k, r] * x
-        inv_trace += 1.0 / D[k] + quad / (D[k] * D[k])
+                x += work[oSi + 4 * r + q] * work[gk + q]
+            work[osg + 4 * k + r] = x  # S⁻¹ g_k
+            quad += work[gk + r] * x
+        Dk = work[oD + k]
+        inv_trace += 1.0 / Dk + quad / (Dk * Dk)
     kap = np.sqrt(trace * inv_trace)
     if not kap <= NORMAL_EQUATIONS_COND:
         kappa[i] = np.inf
@@ -445,31 +446,37 @@ def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, d
     for r in range(4):
         x = 0.0
         for q in range(4):
-            x += Si[r, q] * hy[q]
-        y[r] = x
+            x += work[oSi + 4 * r + q] * work[ohy + q]
+        work[oy + r] = x
+    y = (work[oy], work[oy + 1], work[oy + 2], work[oy + 3])
     # X = (r_1, r_2 … r_n, V): y holds r_1 and V
     X[i, 0] = y[0]
     for j in range(3):
         X[i, n + j] = y[1 + j]
     for k in range(m):
-        X[i, 1 + k] = (hr[k] - (g[k, 0] * y[0] + g[k, 1] * y[1] + g[k, 2] * y[2]
-                                + g[k, 3] * y[3])) / D[k]  # fmt: skip
+        gk = og + 4 * k
+        X[i, 1 + k] = (work[oh + k] - (work[gk] * y[0] + work[gk + 1] * y[1]
+                                       + work[gk + 2] * y[2] + work[gk + 3] * y[3])
+                       ) / work[oD + k]  # fmt: skip
     # Q = σ_e² (AᵀA)⁻¹ in X's order (y ↦ columns 0, n, n+1, n+2)
     for r in range(4):
         ir = 0 if r == 0 else n + r - 1
         for q in range(4):
             iq = 0 if q == 0 else n + q - 1
-            Q[i, ir, iq] = sigma2 * Si[r, q]
+            Q[i, ir, iq] = sigma2 * work[oSi + 4 * r + q]
         if not full_q:
             continue
         for k in range(m):
-            Q[i, ir, 1 + k] = Q[i, 1 + k, ir] = -sigma2 * sg[k, r] / D[k]
+            Q[i, ir, 1 + k] = Q[i, 1 + k, ir] = -sigma2 * work[osg + 4 * k + r] / work[oD + k]
     for k in range(m if full_q else 0):
+        sk = osg + 4 * k
         for l in range(k, m):
-            x = g[l, 0] * sg[k, 0] + g[l, 1] * sg[k, 1] + g[l, 2] * sg[k, 2] + g[l, 3] * sg[k, 3]
-            x /= D[k] * D[l]
+            gl = og + 4 * l
+            x = (work[gl] * work[sk] + work[gl + 1] * work[sk + 1] + work[gl + 2] * work[sk + 2]
+                 + work[gl + 3] * work[sk + 3])  # fmt: skip
+            x /= work[oD + k] * work[oD + l]
             if k == l:
-                x += 1.0 / D[k]
+                x += 1.0 / work[oD + k]
             Q[i, 1 + k, 1 + l] = Q[i, 1 + l, 1 + k] = sigma2 * x
     # E_k = r_1 a_1 − r_k c_k + Δt_k V − b_k ;  J = Σ_k ‖E_k‖²
     total = 0.0
@@ -477,7 +484,7 @@ def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, d
     for k in range(m):
         rk, d = X[i, 1 + k], dt[i, k]
         for j in range(3):
-            e = r1 * a[j] - rk * c[k, j] + d * X[i, n + j] - b[i, k, j]
+            e = r1 * a[j] - rk * work[3 * k + j] + d * X[i, n + j] - b[i, k, j]
             total += e * e
     J[i] = total
     position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
