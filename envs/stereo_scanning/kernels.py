@@ -309,64 +309,26 @@ def _carve4(buf, o, a, b, c, d):
 
 
 @njit(**_JIT)
-def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, position_sigma,
-                     gate_q, max_speed, max_accel, cond_max, chi2_max, cmem, cpos, cvel, ctime,
-                     csig, a1, ak, Pk, bk, dt, X, J, Q, kap, M1, sg, work):  # fmt: skip
-    """Receivers 4 … n join candidate ``c`` (a triple of receivers 1–3), which is then re-solved
-    by least squares over all its fixes (theory §3.3, any n ≥ 3).
+def _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma, max_speed, max_accel,
+               cond_max, chi2_max, cmem, cpos, cvel, ctime, csig, a1, ak, Pk, bk, dt, X, J, Q,
+               kap, M1, sg, work):  # fmt: skip
+    """Candidate ``c`` (a triple of receivers 1–3) re-solved by least squares over all its
+    fixes, ``mk`` receivers past the first (receivers 4 … n joined in ``cmem[c]`` by
+    :func:`screen_candidates`; theory §3.3, any n ≥ 3).
 
-    Receiver ``k`` contributes the fix whose line of sight passes nearest the candidate's
-    prediction ``p = M + V (t_k − t_1)`` at that fix's time: the miss ``e = ‖d − (d·u) u‖``
-    (``d = p − O_k``, ``u`` the measured direction, in front of the receiver) within
-    ``q √(σ_pos² + (σ_vel Δ)² + (σ_k d·u)²) + ½ a_max Δ²`` (floored at
-    :data:`GATE_FLOOR`); ``cmem[c, k]`` records it (−1: none). With at least one joined,
-    the velocity-aware system of all ``n_used`` receivers (normal equations with the ranges
-    ``r_2 … r_n`` eliminated, :func:`velocity_element` on this scratch, the block of ``(r_1, V)``
-    only) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹``
-    (:func:`candidate_sigmas`), kept if it passes the triple's checks (``κ_F ≤ cond_max``,
-    positive ranges, speed ≤ ``max_speed``); otherwise the triple's solution stands and the
-    joined fixes are released. Returns False, and the candidate is dropped, where the kept
-    joint fit of ``n'`` receivers fails its χ² test (``chi2_max[n' − 4]``, the thresholds of
-    :func:`fit_thresholds`). O(n F) per candidate. The system's arrays come from the step's
-    scratch, sized for all ``n`` receivers (``a1 (1, 3)``, ``ak``, ``bk (1, n − 1, 3)``, ``Pk
-    (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``, ``J``, ``kap (1,)``, ``Q (1, n + 3,
-    n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of :func:`velocity_work` ``(n − 1)``): a
-    candidate fills their first rows."""
+    The velocity-aware system of all ``n_used = mk + 1`` receivers (normal equations with the
+    ranges ``r_2 … r_n`` eliminated, :func:`velocity_element` on this scratch, the block of
+    ``(r_1, V)`` only) gives ``(M, V)`` and ``σ_e² (AᵀA)⁻¹`` (:func:`candidate_sigmas`), kept if
+    it passes the triple's checks (``κ_F ≤ cond_max``, positive ranges, speed ≤
+    ``max_speed``); otherwise the triple's solution stands and the joined fixes are released.
+    Returns False, and the candidate is dropped, where the kept joint fit of ``n'`` receivers
+    fails its χ² test (``chi2_max[n' − 4]``, the thresholds of :func:`fit_thresholds`). The
+    system's arrays come from the step's scratch, sized for all ``n`` receivers (``a1 (1, 3)``,
+    ``ak``, ``bk (1, n − 1, 3)``, ``Pk (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``,
+    ``J``, ``kap (1,)``, ``Q (1, n + 3, n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of
+    :func:`velocity_work` ``(n − 1)``): a candidate fills their first rows."""
     n = la.shape[0]
     t1 = ctime[c]
-    sp, sv = csig[c, 0], csig[c, 1]
-    mk = np.int64(2)
-    for k in range(3, n):
-        best, bj = np.inf, -1
-        for j in range(fix_count[i, k]):
-            s = fix_time[i, k, j] - t1
-            d = (
-                cpos[c, 0] + cvel[c, 0] * s - O[k, 0],
-                cpos[c, 1] + cvel[c, 1] * s - O[k, 1],
-                cpos[c, 2] + cvel[c, 2] * s - O[k, 2],
-            )
-            u = (fix_world[i, k, j, 0], fix_world[i, k, j, 1], fix_world[i, k, j, 2])
-            along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
-            if not along > 0.0:
-                continue
-            miss2 = max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along, 0.0)
-            if not miss2 < best:
-                continue
-            var = sp * sp + (sv * s) ** 2 + (sig[k] * along) ** 2
-            drift = 0.5 * max_accel * s * s
-            # (q σ + a)² ≤ 2 (q² σ² + a²): a fix missing by more (and by more than the floor)
-            # is out of the gate without the square root (most fixes are other objects')
-            if miss2 > GATE_SLACK * max(2.0 * (gate_q * gate_q * var + drift * drift),
-                                        GATE_FLOOR * GATE_FLOOR):  # fmt: skip
-                continue
-            tol = max(gate_q * np.sqrt(var) + drift, GATE_FLOOR)
-            if miss2 <= tol * tol:
-                best, bj = miss2, j
-        cmem[c, k] = bj
-        if bj >= 0:
-            mk += 1
-    if mk == 2:
-        return True
     nu = mk + 1
     sg[0] = sig[0]
     for x in range(3):
@@ -411,6 +373,98 @@ def refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig, 
         cvel[c, x] = vw[x]
     csig[c, 0], csig[c, 1] = sp, sv
     return True
+
+
+@njit(**_JIT)
+def screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+                      position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J, Q,
+                      kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1, r_ak,
+                      r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+    """The checks of scenario ``i``'s ``nc`` solved candidates (``X``, ``J``, ``Q``, ``κ``,
+    ``M̂_1`` of :func:`~sensorgym.trackers.stereo.conjugation_kernels.triple_velocity_kernel`
+    or ``pair_kernel``): ``cok[c]`` where candidate ``c`` passes them, its world position,
+    velocity, time and ``(σ_pos, σ_vel)`` in ``cpos``, ``cvel``, ``ctime``, ``csig``; a triple
+    is refined over receivers 4 … n first (:func:`refine_candidate`, on the ``r_*`` scratch).
+    One call per scenario: a call per candidate cost some fifty reference counts of its array
+    arguments."""
+    n = la.shape[0]
+    for c in range(nc):
+        ok = kap[c] <= cond_max
+        for k in range(used_n):
+            ok = ok and X[c, k] > 0.0
+        cok[c] = False
+        ctaken[c] = False
+        if not ok:
+            continue
+        _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma, used_n == 3)
+        # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
+        mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
+        for x in range(3):
+            cpos[c, x] = O[0, x] + mw[x]
+        cdt[c] = dt[c, 0]
+        csig[c, 0], csig[c, 1] = sp, sv
+        if used_n == 3:
+            vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
+            cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
+            # a triple whose speed exceeds the limit by more than q σ_vel is infeasible at
+            # the gate's confidence: dropped before receivers 4 … n are searched for it
+            # (at n = 3 the check below, on the speed alone, drops it as well)
+            if not norm3(vw) - gate_q * sv <= max_speed:
+                continue
+            # receivers 4 … n join (theory §3.3, any n ≥ 3); the speed check applies to the
+            # joint solution. Receiver k contributes the fix whose line of sight passes nearest
+            # the prediction p = M + V (t_k − t_1) at that fix's time: the miss
+            # e = ‖d − (d·u) u‖ (d = p − O_k, u the measured direction, in front of the
+            # receiver) within q √(σ_pos² + (σ_vel Δ)² + (σ_k d·u)²) + ½ a_max Δ² (floored at
+            # GATE_FLOOR); cmem[c, k] records it (−1: none). O(n F) per candidate.
+            t1 = ctime[c]
+            mk = np.int64(2)
+            for k in range(3, n):
+                best, bj = np.inf, -1
+                ox, oy, oz = O[k, 0], O[k, 1], O[k, 2]
+                sig_k = sig[k]
+                for j in range(fix_count[i, k]):
+                    s = fix_time[i, k, j] - t1
+                    d = (
+                        cpos[c, 0] + cvel[c, 0] * s - ox,
+                        cpos[c, 1] + cvel[c, 1] * s - oy,
+                        cpos[c, 2] + cvel[c, 2] * s - oz,
+                    )
+                    u = (fix_world[i, k, j, 0], fix_world[i, k, j, 1], fix_world[i, k, j, 2])
+                    along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
+                    if not along > 0.0:
+                        continue
+                    miss2 = max(d[0] * d[0] + d[1] * d[1] + d[2] * d[2] - along * along, 0.0)
+                    if not miss2 < best:
+                        continue
+                    var = sp * sp + (sv * s) ** 2 + (sig_k * along) ** 2
+                    drift = 0.5 * max_accel * s * s
+                    # (q σ + a)² ≤ 2 (q² σ² + a²): a fix missing by more (and by more than the
+                    # floor) is out of the gate without the square root (most fixes are other
+                    # objects')
+                    if miss2 > GATE_SLACK * max(2.0 * (gate_q * gate_q * var + drift * drift),
+                                                GATE_FLOOR * GATE_FLOOR):  # fmt: skip
+                        continue
+                    tol = max(gate_q * np.sqrt(var) + drift, GATE_FLOOR)
+                    if miss2 <= tol * tol:
+                        best, bj = miss2, j
+                cmem[c, k] = bj
+                if bj >= 0:
+                    mk += 1
+            if mk > 2 and not _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma,
+                                         max_speed, max_accel, cond_max, chi2_max, cmem, cpos,
+                                         cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt, r_X,
+                                         r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+                continue
+            speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
+            if not speed <= max_speed:
+                continue
+        else:
+            if not pair_passes(J[c], X[c, 0], X[c, 1], sig[0], sig[1], position_sigma,
+                               gate_q, max_speed, dt[c, 0]):  # fmt: skip
+                continue
+            cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
+        cok[c] = True
 
 
 @njit(**_JIT)
@@ -736,46 +790,11 @@ def step_rows(
                 kap,
                 M1,
             )
-        for c in range(nc):
-            ok = kap[c] <= cond_max
-            for k in range(used_n):
-                ok = ok and X[c, k] > 0.0
-            cok[c] = False
-            ctaken[c] = False
-            if not ok:
-                continue
-            _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma, used_n == 3)
-            # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
-            mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
-            for x in range(3):
-                cpos[c, x] = O[0, x] + mw[x]
-            cdt[c] = dt[c, 0]
-            csig[c, 0], csig[c, 1] = sp, sv
-            if used_n == 3:
-                vw = _world(R, 0, (X[c, 3], X[c, 4], X[c, 5]))
-                cvel[c, 0], cvel[c, 1], cvel[c, 2] = vw
-                # a triple whose speed exceeds the limit by more than q σ_vel is infeasible at
-                # the gate's confidence: dropped before receivers 4 … n are searched for it
-                # (at n = 3 the check below, on the speed alone, drops it as well)
-                if not norm3(vw) - gate_q * sv <= max_speed:
-                    continue
-                if n > 3:
-                    # receivers 4 … n join; the speed check applies to the joint solution
-                    if not refine_candidate(i, c, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
-                                     position_sigma, gate_q, max_speed, max_accel, cond_max,
-                                     chi2_max, cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P,
-                                     r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
-                                     r_work):  # fmt: skip
-                        continue
-                speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
-                if not speed <= max_speed:
-                    continue
-            else:
-                if not pair_passes(J[c], X[c, 0], X[c, 1], sig[0], sig[1], position_sigma,
-                                   gate_q, max_speed, dt[c, 0]):  # fmt: skip
-                    continue
-                cvel[c, 0], cvel[c, 1], cvel[c, 2] = 0.0, 0.0, 0.0
-            cok[c] = True
+        screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+                          position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J,
+                          Q, kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1,
+                          r_ak, r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
+                          r_work)  # fmt: skip
         # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
         for k in range(n):
             for j in range(F):
