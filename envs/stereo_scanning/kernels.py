@@ -309,7 +309,7 @@ def _carve4(buf, o, a, b, c, d):
 
 
 @njit(**_JIT)
-def _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma, max_speed, max_accel,
+def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, position_sigma, max_speed, max_accel,
                cond_max, chi2_max, cmem, cpos, cvel, ctime, csig, a1, ak, Pk, bk, dt, X, J, Q,
                kap, M1, sg, work):  # fmt: skip
     """Candidate ``c`` (a triple of receivers 1–3) re-solved by least squares over all its
@@ -343,7 +343,7 @@ def _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma, max_spee
             bk[0, r, x] = b[k - 1, x]
             for y in range(3):
                 Pk[0, r, x, y] = P[k - 1, x, y]
-        dt[0, r] = fix_time[i, k, j] - t1
+        dt[0, r] = fixes[i, k, j, 3] - t1
         sg[r + 1] = sig[k]
         r += 1
     velocity_element(np.int64(0), mk, a1, ak, Pk, bk, dt, 1.0, np.bool_(False), X, J, Q, kap,
@@ -376,7 +376,7 @@ def _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma, max_spee
 
 
 @njit(**_JIT)
-def screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
                       position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J, Q,
                       kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1, r_ak,
                       r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
@@ -418,19 +418,18 @@ def screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P
             # receiver) within q √(σ_pos² + (σ_vel Δ)² + (σ_k d·u)²) + ½ a_max Δ² (floored at
             # GATE_FLOOR); cmem[c, k] records it (−1: none). O(n F) per candidate.
             t1 = ctime[c]
+            px, py, pz = cpos[c, 0], cpos[c, 1], cpos[c, 2]
+            vx, vy, vz = cvel[c, 0], cvel[c, 1], cvel[c, 2]
             mk = np.int64(2)
             for k in range(3, n):
                 best, bj = np.inf, -1
                 ox, oy, oz = O[k, 0], O[k, 1], O[k, 2]
                 sig_k = sig[k]
                 for j in range(fix_count[i, k]):
-                    s = fix_time[i, k, j] - t1
-                    d = (
-                        cpos[c, 0] + cvel[c, 0] * s - ox,
-                        cpos[c, 1] + cvel[c, 1] * s - oy,
-                        cpos[c, 2] + cvel[c, 2] * s - oz,
-                    )
-                    u = (fix_world[i, k, j, 0], fix_world[i, k, j, 1], fix_world[i, k, j, 2])
+                    # fixes[i, k, j] = (world direction u, time): C-contiguous rows
+                    s = fixes[i, k, j, 3] - t1
+                    d = (px + vx * s - ox, py + vy * s - oy, pz + vz * s - oz)
+                    u = (fixes[i, k, j, 0], fixes[i, k, j, 1], fixes[i, k, j, 2])
                     along = d[0] * u[0] + d[1] * u[1] + d[2] * u[2]
                     if not along > 0.0:
                         continue
@@ -451,7 +450,7 @@ def screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P
                 cmem[c, k] = bj
                 if bj >= 0:
                     mk += 1
-            if mk > 2 and not _joint_fit(i, c, mk, la, fix_time, O, R, P, b, sig, position_sigma,
+            if mk > 2 and not _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, position_sigma,
                                          max_speed, max_accel, cond_max, chi2_max, cmem, cpos,
                                          cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt, r_X,
                                          r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
@@ -790,7 +789,7 @@ def step_rows(
                 kap,
                 M1,
             )
-        screen_candidates(i, nc, used_n, la, fix_world, fix_time, fix_count, O, R, P, b, sig,
+        screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
                           position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J,
                           Q, kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1,
                           r_ak, r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
