@@ -308,10 +308,9 @@ def _carve4(buf, o, a, b, c, d):
     return buf[o : o + a * b * c * d].reshape((a, b, c, d)), o + a * b * c * d
 
 
-@njit(**_JIT)
-def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, position_sigma, max_speed, max_accel,
-               cond_max, chi2_max, cmem, cpos, cvel, ctime, csig, a1, ak, Pk, bk, dt, X, J, Q,
-               kap, M1, sg, work):  # fmt: skip
+@njit(inline="always")
+def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, limits, chi2_max, cmem, cpos, cvel, ctime,
+               csig, a1, ak, Pk, bk, dt, X, J, Q, kap, M1, sg, work):  # fmt: skip
     """Candidate ``c`` (a triple of receivers 1–3) re-solved by least squares over all its
     fixes, ``mk`` receivers past the first (receivers 4 … n joined in ``cmem[c]`` by
     :func:`screen_candidates`; theory §3.3, any n ≥ 3).
@@ -327,6 +326,9 @@ def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, position_sigma, max_speed, 
     ``ak``, ``bk (1, n − 1, 3)``, ``Pk (1, n − 1, 3, 3)``, ``dt (1, n − 1)``, ``X (1, n + 3)``,
     ``J``, ``kap (1,)``, ``Q (1, n + 3, n + 3)``, ``M1 (1, 3)``, ``sg (n,)``, ``work`` of
     :func:`velocity_work` ``(n − 1)``): a candidate fills their first rows."""
+    # numba-IR inlined into its one caller (at most 30 arguments: CPython passes more as
+    # *args, which numba does not inline): a call would reference-count its 20 arrays
+    position_sigma, max_speed, max_accel, cond_max = limits
     n = la.shape[0]
     t1 = ctime[c]
     nu = mk + 1
@@ -388,6 +390,7 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
     One call per scenario: a call per candidate cost some fifty reference counts of its array
     arguments."""
     n = la.shape[0]
+    limits = (position_sigma, max_speed, max_accel, cond_max)
     for c in range(nc):
         ok = kap[c] <= cond_max
         for k in range(used_n):
@@ -450,10 +453,10 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
                 cmem[c, k] = bj
                 if bj >= 0:
                     mk += 1
-            if mk > 2 and not _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, position_sigma,
-                                         max_speed, max_accel, cond_max, chi2_max, cmem, cpos,
-                                         cvel, ctime, csig, r_a1, r_ak, r_P, r_b, r_dt, r_X,
-                                         r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+            if mk > 2 and not _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, limits, chi2_max,
+                                         cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P, r_b,
+                                         r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
+                                         r_work):  # fmt: skip
                 continue
             speed = norm3((cvel[c, 0], cvel[c, 1], cvel[c, 2]))
             if not speed <= max_speed:
