@@ -163,7 +163,7 @@ def _at(p, v, a, s):
     return (p[0] + v[0] * s + a[0] * h, p[1] + v[1] * s + a[1] * h, p[2] + v[2] * s + a[2] * h)
 
 
-@njit(**_JIT)
+@njit(inline="always")
 def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, sweep, iters):
     """Pixel-visit rule (theory §6.3) for an object ``p + v s + ½ a s²`` (``s`` from the period
     start) seen from receiver ``k`` at ``o``: iterates ``s ← T_raster(φ(s), θ(s))`` from the
@@ -191,9 +191,11 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
     return seen, s, d
 
 
-@njit(**_JIT)
-def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma, velocity):
-    """``(σ_e, σ_pos, σ_vel)`` of a candidate from its ``Q = (AᵀA)⁻¹`` (``σ_e = 1``).
+@njit(inline="always")
+def candidate_sigmas(Q, ranges, row, sigmas, n_used, position_sigma, velocity):
+    """``(σ_e, σ_pos, σ_vel)`` of a candidate from its ``Q = (AᵀA)⁻¹`` (``σ_e = 1``): row
+    ``row`` of ``Q`` and of its solution ``ranges`` (indexed in place: a row view costs a
+    reference count; numba-IR inlined for the same reason).
 
     ``σ_e² = σ_x² + (1/n) Σ_k (σ_k r̂_k)²`` maps the direction noise to the papers' i.i.d.
     conjugation error (theory §13.4) plus the apparent-position error ``σ_x``;
@@ -204,15 +206,15 @@ def candidate_sigmas(Q, ranges, sigmas, n_used, position_sigma, velocity):
     s2 = position_sigma * position_sigma
     acc = 0.0
     for k in range(n_used):
-        x = sigmas[k] * abs(ranges[k])
+        x = sigmas[k] * abs(ranges[row, k])
         acc += x * x
     s2 += acc / n_used
     sigma_e = np.sqrt(s2)
-    sp = sigma_e * np.sqrt(max(Q[0, 0], 0.0) + 2.0)
+    sp = sigma_e * np.sqrt(max(Q[row, 0, 0], 0.0) + 2.0)
     sv = 0.0
     if velocity:
         v = n_used
-        sv = sigma_e * np.sqrt(max(Q[v, v] + Q[v + 1, v + 1] + Q[v + 2, v + 2], 0.0))
+        sv = sigma_e * np.sqrt(max(Q[row, v, v] + Q[row, v + 1, v + 1] + Q[row, v + 2, v + 2], 0.0))
     return sigma_e, sp, sv
 
 
@@ -358,7 +360,7 @@ def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, limits, chi2_max, cmem, cpo
         for k in range(3, n):
             cmem[c, k] = -1
         return True
-    sigma_e, sp, sv = candidate_sigmas(Q[0], X[0], sg, nu, position_sigma, np.bool_(True))
+    sigma_e, sp, sv = candidate_sigmas(Q, X, np.int64(0), sg, nu, position_sigma, np.bool_(True))
     # the joint fit's χ² = J / σ_e² on 3 (nu − 1) − (nu + 3) = 2 nu − 6 degrees of freedom
     # (a triple's is 0): beyond its upper fit_false_alarm point (chi2_max[nu − 4]), plus each
     # fix's unmodelled drift ½ a_max Δ² and the gates' floor, the fixes are not one object's —
@@ -399,7 +401,7 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
         ctaken[c] = False
         if not ok:
             continue
-        _, sp, sv = candidate_sigmas(Q[c], X[c], sig, used_n, position_sigma, used_n == 3)
+        _, sp, sv = candidate_sigmas(Q, X, c, sig, used_n, position_sigma, used_n == 3)
         # world position M = O_1 + R_1 r̂_1 a_1 at t_1, velocity R_1 V̂
         mw = _world(R, 0, (M1[c, 0], M1[c, 1], M1[c, 2]))
         for x in range(3):
