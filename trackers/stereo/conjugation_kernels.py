@@ -355,7 +355,7 @@ def velocity_work(m: int) -> int:
     return 13 * m + 56
 
 
-@njit(**_JIT)
+@njit(inline="always")
 def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, dt: Array,
                      sigma2: float, check: bool, X: Array, J: Array, Q: Array, kappa: Array,
                      position: Array, work: Array, full_q: bool) -> int:  # fmt: skip
