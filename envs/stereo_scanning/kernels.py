@@ -54,7 +54,7 @@ PROPOSED, ALTERNATIVE, ALGORITHMIC = 0, 1, 2
 #: floor of the tracker's gates, m (and m/s): noise-free fixes of an unaccelerated drone give
 #: zero gates, which rounding would fail
 GATE_FLOOR = 1e-3
-#: margin of the gates' square-root-free bounds over round-off (:func:`refine_candidate`,
+#: margin of the gates' square-root-free bounds over round-off (:func:`screen_candidates`,
 #: :func:`_step_cost`)
 GATE_SLACK = 1.000001
 
@@ -101,7 +101,7 @@ def geometry(c, n):
 def fit_thresholds(c, n):
     """View ``(n − 3,)`` of the χ² thresholds in the constants ``c``: entry ``n' − 4`` is the
     upper ``fit_false_alarm`` point of ``χ²`` on ``2 n' − 6`` degrees of freedom, which the
-    joint fit of ``n'`` receivers must not exceed (:func:`refine_candidate`;
+    joint fit of ``n'`` receivers must not exceed (:func:`_joint_fit`;
     ``simulation.ScanningParams.fit_thresholds``)."""
     o = C_GEOMETRY + geometry_size(n)
     return c[o : o + n - 3]
@@ -388,9 +388,9 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
     ``M̂_1`` of :func:`~sensorgym.trackers.stereo.conjugation_kernels.triple_velocity_kernel`
     or ``pair_kernel``): ``cok[c]`` where candidate ``c`` passes them, its world position,
     velocity, time and ``(σ_pos, σ_vel)`` in ``cpos``, ``cvel``, ``ctime``, ``csig``; a triple
-    is refined over receivers 4 … n first (:func:`refine_candidate`, on the ``r_*`` scratch).
-    One call per scenario: a call per candidate cost some fifty reference counts of its array
-    arguments."""
+    is refined over receivers 4 … n first (their fixes joined here, then :func:`_joint_fit` on
+    the ``r_*`` scratch). One call per scenario: a call per candidate cost some fifty reference
+    counts of its array arguments."""
     n = la.shape[0]
     limits = (position_sigma, max_speed, max_accel, cond_max)
     for c in range(nc):
@@ -563,7 +563,7 @@ def step_rows(
         + FF * 30
     )
     ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
-    # the refinement's system, sized for all n receivers (receivers 4 … n, :func:`refine_candidate`)
+    # the refinement's system, sized for all n receivers (receivers 4 … n, :func:`_joint_fit`)
     rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n + velocity_work(n - 1))
     o = 0
     r_a1, o = _carve2(rbuf, o, 1, 3)
