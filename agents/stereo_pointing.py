@@ -487,11 +487,31 @@ def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArra
     """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` over
     ``geometry``: the env's reward of the receivers assigned to each drone, each counted from
     the step it is ready, averaged over the drones and summed with the steps' weights."""
-    reward = _drone_rewards(params, geometry).mean(axis=-1)  # (B, C, S)
-    return np.einsum("bcs,bs->bc", reward, geometry.weight)
+    return rewards_values(drone_rewards(params, geometry), geometry.weight)
 
 
-def _drone_rewards(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
+def rewards_values(rewards: FloatArray, weight: FloatArray) -> FloatArray:
+    """:func:`geometry_values` of the per-drone rewards ``(B, C, S, m)`` of
+    :func:`drone_rewards` on a grid weighted by ``weight (B, S)``."""
+    return np.einsum("bcs,bs->bc", rewards.mean(axis=-1), weight)
+
+
+def grid_prefix(
+    rewards: FloatArray, left: FloatArray, stride: int
+) -> tuple[FloatArray, FloatArray]:
+    """``(rewards, weight)`` of a plan over the next ``left (B,)`` steps cut from the per-drone
+    rewards ``(B, C, S, m)`` of a plan over at least as many steps on the same ``stride``
+    grid (:func:`drone_rewards`): its first grid steps and their weights, exactly the arrays
+    :func:`plan_geometry` at ``left`` would score, so that one geometry serves several
+    horizons."""
+    s = np.arange(1, max(int(np.max(left)), 1) + 1, stride, dtype=np.float64)
+    if len(s) > rewards.shape[2]:
+        raise ValueError(f"left: {np.max(left)} steps lie beyond the {rewards.shape[2]}-step grid")
+    weight = np.where(s[None, :] <= left[:, None], float(stride), 0.0)
+    return np.ascontiguousarray(rewards[:, :, : len(s)]), weight
+
+
+def drone_rewards(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
     """The env's per-drone reward ``(B, C, S, m)`` on each grid step of the plan of each
     candidate of :func:`_assignments`, each receiver counted from the step it is ready."""
     p, g = params, geometry
@@ -532,12 +552,20 @@ def acquired_values(
     ``j`` find it (receivers independent, each with ``p_see (B, n, m)``,
     :func:`acquisition_probability`), and the floor ``−R`` on every planned step otherwise
     (a drone no pair finds is never fixed)."""
-    p, g = params, geometry
+    return rewards_acquired(params, drone_rewards(params, geometry), geometry.weight, p_see)
+
+
+def rewards_acquired(
+    params: PointingParams, rewards: FloatArray, weight: FloatArray, p_see: FloatArray
+) -> FloatArray:
+    """:func:`acquired_values` of the per-drone rewards ``(B, C, S, m)`` of
+    :func:`drone_rewards` on a grid weighted by ``weight (B, S)``."""
+    p = params
     cand = _assignments(p)  # (C, n)
     n, m = cand.shape[1], p.n_drones
     sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
-    planned = np.einsum("bcsj,bs->bcj", _drone_rewards(p, g), g.weight)  # (B, C, m)
-    floor = -p.reward_clip * g.weight.sum(axis=1)[:, None, None]  # (B, 1, 1)
+    planned = np.einsum("bcsj,bs->bcj", rewards, weight)  # (B, C, m)
+    floor = -p.reward_clip * weight.sum(axis=1)[:, None, None]  # (B, 1, 1)
     # P(at least two of the sent receivers see drone j): counts 0, 1, ≥ 2 over the receivers
     pk = p_see.transpose(0, 2, 1)[:, None] * sent[None]  # (B, C, m, n), 0 if not sent
     none, one, two = np.ones(pk.shape[:-1]), np.zeros(pk.shape[:-1]), np.zeros(pk.shape[:-1])

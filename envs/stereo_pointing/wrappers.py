@@ -33,10 +33,12 @@ from sensorgym.agents.stereo_pointing import (
     _assignments,
     _keep_bonus,
     _view,
-    acquired_values,
     acquisition_probability,
+    drone_rewards,
+    grid_prefix,
     plan_geometry,
-    plan_values,
+    rewards_acquired,
+    rewards_values,
 )
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
 from sensorgym.train.wrappers import ObservedActionWrapper, _time_limit
@@ -201,13 +203,18 @@ class PlanFeatures(VecEnvWrapper):
         if self.time_left:
             left = np.maximum(self.max_episode_steps - t, 1).astype(np.float64)
             horizons.append((left, p_see))
+        # one geometry over the longest horizon; every block scores a prefix of its grid
+        longest = np.max([h for h, _ in horizons], axis=0)
+        flight = (view.azimuth, view.elevation, view.position, view.velocity)
+        geometry = plan_geometry(self.params, *flight, longest, self.stride)
+        rewards = drone_rewards(self.params, geometry)
         parts = []
         for h, p_block in horizons:
-            flight = (view.azimuth, view.elevation, view.position, view.velocity, h, self.stride)
+            r, weight = grid_prefix(rewards, h, self.stride)
             if p_block is None:
-                v = plan_values(self.params, *flight)
+                v = rewards_values(r, weight)
             else:
-                v = acquired_values(self.params, plan_geometry(self.params, *flight), p_block)
+                v = rewards_acquired(self.params, r, weight, p_block)
             parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
             parts.append(np.eye(C)[np.argmax(v, axis=1)])
         parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
