@@ -23,7 +23,7 @@ DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
-    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
+    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac", "ars"])
     parser.add_argument("--timesteps", type=int, default=None, help="override the YAML's")
     parser.add_argument("--n-envs", type=int, default=None, help="override the YAML's")
     parser.add_argument(

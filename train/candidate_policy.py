@@ -12,6 +12,12 @@ to the best candidate), ``alpha`` learned. The MLP's output layer starts at zero
 untrained policy's most likely action *is* the rule's choice (up to the features' float32
 rounding): imitation and RL start from it and only have to learn where to deviate.
 
+With ``residual="linear"`` the learned score is instead linear in a few named per-candidate
+features (:meth:`CandidateNetworks.linear_features`: the planned-return gap to the best
+candidate at every block, the best-plan flags, the receivers kept), its weights starting at
+zero: a small parameter vector whose zero point is the rule, what the ``ars`` trainer
+(:mod:`sensorgym.train.ars`) searches.
+
 The critic pools per-candidate embeddings (mean and max) and reads them with the env's own
 observation and the time left.
 
@@ -31,6 +37,11 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
+
+#: the learned score's forms: an MLP over the candidate's inputs, or linear in named features
+RESIDUALS = ("mlp", "linear")
+#: the linear residual's value of a best-plan flag (return units per unit weight)
+LINEAR_FLAG_SCALE = 10.0
 
 
 @dataclass(frozen=True)
@@ -88,8 +99,12 @@ class CandidateNetworks(nn.Module):
         prior_keep: float,
         hidden: int,
         alpha_init: float,
+        residual: str = "mlp",
     ):
         super().__init__()
+        if residual not in RESIDUALS:
+            raise ValueError(f"residual: must be one of {RESIDUALS}, got {residual!r}")
+        self.residual = residual
         if prior_horizon not in layout.horizons:
             raise ValueError(
                 f"prior_horizon: {prior_horizon} must be one of the plan features' horizons "
@@ -105,6 +120,9 @@ class CandidateNetworks(nn.Module):
             nn.Linear(n_in, hidden), nn.Tanh(), nn.Linear(hidden, hidden), nn.Tanh()
         )
         self.score_out = nn.Linear(hidden, 1)
+        self.linear = (
+            nn.Linear(2 * layout.blocks + 1, 1, bias=False) if residual == "linear" else None
+        )
         self.log_alpha = nn.Parameter(th.tensor(float(np.log(alpha_init))))
         self.embed = nn.Sequential(nn.Linear(n_in, hidden), nn.Tanh())
         self.critic = nn.Sequential(
@@ -120,12 +138,14 @@ class CandidateNetworks(nn.Module):
         """Start the learned score at zero: the actor's mode is the prior's argmax."""
         nn.init.zeros_(self.score_out.weight)
         nn.init.zeros_(self.score_out.bias)
+        if self.linear is not None:
+            nn.init.zeros_(self.linear.weight)
 
     def prior(self, loss: th.Tensor, kept: th.Tensor, remaining: th.Tensor) -> th.Tensor:
         """The ``plan-horizon`` objective ``(B, C)``, relative to the best candidate: planned
         return over ``h = min(prior_horizon, steps left)`` (the per-step loss times ``h``)
         plus ``prior_keep`` per receiver kept."""
-        left = th.clamp(th.round(remaining * self.layout.episode_steps), min=1.0)  # (B, 1)
+        left = self.steps_left(remaining)  # (B, 1)
         far = left >= self.prior_horizon
         h = th.where(far, th.full_like(left, float(self.prior_horizon)), left)
         per_step = th.where(far, loss[..., self.prior_block], loss[..., -1])
@@ -150,9 +170,29 @@ class CandidateNetworks(nn.Module):
         )
         return x, prior, base, remaining
 
+    def steps_left(self, remaining: th.Tensor) -> th.Tensor:
+        """Steps left ``(B, 1)`` (at least 1) of the time feature ``1 − t/T``."""
+        return th.clamp(th.round(remaining * self.layout.episode_steps), min=1.0)
+
+    def linear_features(self, obs: th.Tensor) -> th.Tensor:
+        """The linear residual's per-candidate features ``(B, C, 2 H + 1)``, each on a scale
+        where a weight of 1 matters: per block (the fixed horizons, then the time left), the
+        planned-return gap to the best candidate (the per-step loss times the block's
+        horizon, return units); per block, ``LINEAR_FLAG_SCALE`` for the best candidate; the
+        number of receivers the candidate keeps on their drone."""
+        _, loss, best, kept, remaining = self.layout.split(obs)
+        h = th.tensor([float(x) for x in self.layout.horizons], dtype=loss.dtype)
+        h = th.cat([h.expand(loss.shape[0], -1), self.steps_left(remaining)], dim=1)  # (B, H)
+        gap = loss * h[:, None, :]
+        return th.cat([gap, LINEAR_FLAG_SCALE * best, self.n_receivers * kept[..., None]], dim=-1)
+
     def forward_actor(self, obs: th.Tensor) -> th.Tensor:
         x, prior, _, _ = self.inputs(obs)
-        return th.exp(self.log_alpha) * prior + self.score_out(self.scorer(x)).squeeze(-1)
+        if self.linear is not None:
+            residual = self.linear(self.linear_features(obs)).squeeze(-1)
+        else:
+            residual = self.score_out(self.scorer(x)).squeeze(-1)
+        return th.exp(self.log_alpha) * prior + residual
 
     def forward_critic(self, obs: th.Tensor) -> th.Tensor:
         x, _, base, remaining = self.inputs(obs)
@@ -171,7 +211,8 @@ class CandidatePolicy(ActorCriticPolicy):
     ``policy_kwargs``: ``horizons`` (the plan features' fixed horizons), ``episode_steps``
     (the time feature's ``T``), ``n_receivers`` (the kept fraction's denominator),
     ``prior_horizon`` and ``prior_keep`` (the prior rule's settings), ``hidden`` (width of the
-    shared MLPs) and ``alpha_init`` (initial weight of the prior, per unit of return)."""
+    shared MLPs), ``alpha_init`` (initial weight of the prior, per unit of return) and
+    ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form)."""
 
     def __init__(
         self,
@@ -185,6 +226,7 @@ class CandidatePolicy(ActorCriticPolicy):
         prior_keep: float = 0.3,
         hidden: int = 64,
         alpha_init: float = 3.0,
+        residual: str = "mlp",
         **kwargs: Any,
     ):
         if not isinstance(action_space, spaces.Discrete):
@@ -211,6 +253,7 @@ class CandidatePolicy(ActorCriticPolicy):
             prior_keep=float(prior_keep),
             hidden=int(hidden),
             alpha_init=float(alpha_init),
+            residual=str(residual),
         )
         super().__init__(observation_space, action_space, lr_schedule, **kwargs)
 
@@ -226,3 +269,11 @@ class CandidatePolicy(ActorCriticPolicy):
         self.optimizer = self.optimizer_class(
             self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs
         )
+
+    def search_parameter(self) -> nn.Parameter:
+        """The linear residual's weights ``(1, 2 H + 1)`` (``residual="linear"``): the vector a
+        direct policy search perturbs; zero is the prior rule."""
+        linear = self.mlp_extractor.linear
+        if linear is None:
+            raise ValueError("search_parameter: the policy's residual is not linear")
+        return linear.weight

@@ -17,6 +17,7 @@ from stable_baselines3 import PPO, SAC
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import BasePolicy
 
+from sensorgym.train.ars import ARS
 from sensorgym.train.candidate_policy import CandidatePolicy
 
 #: sensorgym's own policy classes, by the name a hyperparameter set's ``policy`` gives
@@ -30,8 +31,9 @@ class SensorgymPPO(PPO):
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {**PPO.policy_aliases, **POLICIES}
 
 
-#: algorithm name -> SB3 class (both handle the continuous Box actions of our envs)
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": SensorgymPPO, "sac": SAC}
+#: algorithm name -> SB3 class (PPO and SAC handle the continuous Box actions of our envs;
+#: ARS, a direct policy search, the candidate policies' discrete choice)
+ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": SensorgymPPO, "sac": SAC, "ars": ARS}
 
 #: keys every hyperparameter set has that configure the run, not the algorithm
 RUN_KEYS = ("n_envs", "n_timesteps", "policy")

@@ -32,6 +32,8 @@ from sensorgym.train.models import save_run
 
 #: evaluation scenarios come from this offset of the training seed
 EVAL_SEED_OFFSET = 10_000
+#: the run folder's record of a direct policy search's iterations (``model.history``)
+SEARCH_FILE = "search.json"
 
 
 class EpisodeInfoLogger(BaseCallback):
@@ -250,6 +252,9 @@ def _train(
     eval_env.close()
     doc = {"episodes": eval_episodes, "seed": eval_seed, "results": evaluation}
     (run_dir / "evaluation.json").write_text(json.dumps(doc, indent=2) + "\n")
+    history = getattr(model, "history", None)
+    if history:  # a direct policy search's iterations (ARS: seeds, returns, the vector)
+        (run_dir / SEARCH_FILE).write_text(json.dumps(history, indent=1) + "\n")
     if curve is not None:
         lines = {k: r["mean"] for k, r in rule_scores.items()}
         write_curve(run_dir, f"{algo} on {env_id}, seed {seed}", curve.points, lines, pretrain_loss)
