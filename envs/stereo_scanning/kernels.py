@@ -64,7 +64,7 @@ GATE_SLACK = 1.000001
 (C_SCENE_HALF, C_FLOOR, C_HEIGHT, C_SWEEP, C_LINES, C_PERIOD, C_LO_W, C_HI_W, C_HALF_REGARD,
  C_KAPPA, C_SIGMA_MIN, C_POS_SIGMA, C_MAX_SPEED, C_MAX_ACCEL, C_GATE_Q, C_COND, C_SIGMA_REF,
  C_REWARD_CLIP, C_FALSE_PENALTY, C_TRUTH_GATE, C_LENGTH, C_SPEED, C_MAX_FIX, C_TRACKER,
- C_ITERS, C_CONFIRM, C_MISSES, C_CENTRE) = range(28)  # fmt: skip
+ C_ITERS, C_CONFIRM, C_MISSES, C_GHOST, C_CENTRE) = range(29)  # fmt: skip
 #: the geometry of ``n`` receivers starts here: places ``O (n, 3)``, rotations ``R (n, 3, 3)``,
 #: relative poses ``P (n − 1, 3, 3)`` and ``b (n − 1, 3)``, sweep offsets ``(n,)``
 C_GEOMETRY = C_CENTRE + 3
@@ -380,17 +380,57 @@ def _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, limits, chi2_max, cmem, cpo
 
 
 @njit(**_JIT)
+def sector_cone(R, k, centre_az, centre_el, width, offset, sweep, t0, cones):
+    """``cones[k] (7,)``: receiver ``k``'s sector as a cone inside it — world axis ``ĉ`` (3), ``cos ρ``,
+    ``sin ρ`` of its half-angle ``ρ = min(w/2, asin(cos θ_c sin(w/2)))`` (the angle from the
+    centre to the nearer elevation edge, a small circle, and to the great circles through the
+    azimuth edges), the time the sweep is half done and its half-length, s."""
+    cw = _world(R, k, unit_from_angles3(centre_az, centre_el))
+    rho = min(0.5 * width, np.arcsin(np.cos(centre_el) * np.sin(0.5 * width)))
+    cones[k, 0], cones[k, 1], cones[k, 2] = cw
+    cones[k, 3], cones[k, 4] = np.cos(rho), np.sin(rho)
+    cones[k, 5] = t0 + offset + 0.5 * sweep
+    cones[k, 6] = 0.5 * sweep
+
+
+@njit(inline="always")
+def _surely_seen(k, cones, O, t1, px, py, pz, vx, vy, vz, speed, sp, sv, gate_q, max_accel):
+    """Whether an object at the candidate's prediction ``M + V s`` (``s`` from ``t_1`` to the
+    middle of receiver ``k``'s sweep) lies inside ``k``'s sector cone (:func:`sector_cone`)
+    by more than the margin ``μ = q √(σ_pos² + (σ_vel s)²) + |V| T_sweep/2 + ½ a_max s² + δ_0``
+    (its uncertainty, its motion during the sweep, the unmodelled drift): then the raster
+    must have fixed it. The angle test ``∠(d, ĉ) ≤ ρ − asin(μ/‖d‖)`` runs on cosines."""
+    s = cones[k, 5] - t1
+    ox, oy, oz = O[k, 0], O[k, 1], O[k, 2]
+    d = (px + vx * s - ox, py + vy * s - oy, pz + vz * s - oz)
+    nd = np.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+    mu = (gate_q * np.sqrt(sp * sp + (sv * s) ** 2) + speed * cones[k, 6]
+          + 0.5 * max_accel * s * s + GATE_FLOOR)  # fmt: skip
+    sin_m = mu / nd  # nd = 0: inf, not seen
+    if not sin_m < cones[k, 4]:
+        return False
+    cos_m = np.sqrt(1.0 - sin_m * sin_m)
+    along = d[0] * cones[k, 0] + d[1] * cones[k, 1] + d[2] * cones[k, 2]
+    # cos ∠(d, ĉ) ≥ cos(ρ − m) = cos ρ cos m + sin ρ sin m
+    return along >= nd * (cones[k, 3] * cos_m + cones[k, 4] * sin_m)
+
+
+@njit(**_JIT)
 def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
                       position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J, Q,
                       kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1, r_ak,
-                      r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work):  # fmt: skip
+                      r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg, r_work, cones,
+                      ghost_misses):  # fmt: skip
     """The checks of scenario ``i``'s ``nc`` solved candidates (``X``, ``J``, ``Q``, ``κ``,
     ``M̂_1`` of :func:`~sensorgym.trackers.stereo.conjugation_kernels.triple_velocity_kernel`
     or ``pair_kernel``): ``cok[c]`` where candidate ``c`` passes them, its world position,
     velocity, time and ``(σ_pos, σ_vel)`` in ``cpos``, ``cvel``, ``ctime``, ``csig``; a triple
     is refined over receivers 4 … n first (their fixes joined here, then :func:`_joint_fit` on
-    the ``r_*`` scratch). One call per scenario: a call per candidate cost some fifty reference
-    counts of its array arguments."""
+    the ``r_*`` scratch). A triple whose prediction lies inside the sectors of
+    ``ghost_misses`` of receivers 4 … n (``cones``, :func:`sector_cone`) with no fix in its
+    gate there is a ghost and dropped at once (negative information; ``0``: off). One call per
+    scenario: a call per candidate cost some fifty reference counts of its array
+    arguments."""
     n = la.shape[0]
     limits = (position_sigma, max_speed, max_accel, cond_max)
     for c in range(nc):
@@ -425,7 +465,9 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
             t1 = ctime[c]
             px, py, pz = cpos[c, 0], cpos[c, 1], cpos[c, 2]
             vx, vy, vz = cvel[c, 0], cvel[c, 1], cvel[c, 2]
+            vn = np.sqrt(vx * vx + vy * vy + vz * vz)
             mk = np.int64(2)
+            misses = 0
             for k in range(3, n):
                 best, bj = np.inf, -1
                 ox, oy, oz = O[k, 0], O[k, 1], O[k, 2]
@@ -455,6 +497,18 @@ def screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
                 cmem[c, k] = bj
                 if bj >= 0:
                     mk += 1
+                elif ghost_misses > 0 and _surely_seen(k, cones, O, t1, px, py, pz, vx, vy,
+                                                       vz, vn, sp, sv, gate_q, max_accel):  # fmt: skip
+                    # negative information: detection is certain inside a sector (the raster
+                    # visits every pixel), so a real object there has a fix, which misses its
+                    # gate with probability 1 − gate_probability
+                    misses += 1
+                    if misses >= ghost_misses:
+                        break
+            if ghost_misses > 0 and misses >= ghost_misses:
+                for k in range(3, n):
+                    cmem[c, k] = -1
+                continue
             if mk > 2 and not _joint_fit(i, c, mk, la, fixes, O, R, P, b, sig, limits, chi2_max,
                                          cmem, cpos, cvel, ctime, csig, r_a1, r_ak, r_P, r_b,
                                          r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
@@ -535,6 +589,7 @@ def step_rows(
     false_penalty, truth_gate = cf[C_FALSE_PENALTY], cf[C_TRUTH_GATE]
     tracker, iters = int(cf[C_TRACKER]), int(cf[C_ITERS])
     confirm_hits, max_misses = int(cf[C_CONFIRM]), int(cf[C_MISSES])
+    ghost_misses = int(cf[C_GHOST])
     O, R, P, b, offsets = geometry(cf, action.shape[1])
     chi2_max = fit_thresholds(cf, action.shape[1])
     # views of the outputs by role (the table's columns, the fixes' direction and time)
@@ -561,6 +616,7 @@ def step_rows(
         + TC * 14
         + T * (20 + m + 3 + 1)
         + FF * 30
+        + n * 7
     )
     ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
     # the refinement's system, sized for all n receivers (receivers 4 … n, :func:`_joint_fit`)
@@ -619,6 +675,7 @@ def step_rows(
     pQ, o = _carve3(fbuf, o, FF, 2, 2)
     pk, o = _carve1(fbuf, o, FF)
     pM, o = _carve2(fbuf, o, FF, 3)
+    cones, o = _carve2(fbuf, o, n, 7)
     o = 0
     cmem, o = _carve2(ibuf, o, C, n)
     rng_idx, o = _carve1(ibuf, o, C)
@@ -666,6 +723,8 @@ def step_rows(
             az, el, w = sector_of(action[i, k], lo_w, hi_w, half_regard)
             sectors[i, k, 0], sectors[i, k, 1], sectors[i, k, 2] = az, el, w
             sig[k] = sector_sigma(w, kappa, sigma_min)
+            if k >= 3 and ghost_misses > 0:
+                sector_cone(R, k, az, el, w, offsets[k], sweep, t0, cones)
             o = (O[k, 0], O[k, 1], O[k, 2])
             c = 0
             for j in range(m):
@@ -798,7 +857,7 @@ def step_rows(
                           position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J,
                           Q, kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1,
                           r_ak, r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,
-                          r_work)  # fmt: skip
+                          r_work, cones, ghost_misses)  # fmt: skip
         # ---- 3. association: confirmed tracks first, one-to-one, no shared vectors --------
         for k in range(n):
             for j in range(F):

@@ -227,6 +227,13 @@ class ScanningParams:
     """A tentative track is confirmed once it holds this many periods' candidates."""
     max_misses: int = 2
     """A confirmed track is dropped after more than this many periods without a candidate."""
+    ghost_misses: int = 2
+    """Negative information (n ≥ 4): a triple of receivers 1–3 whose prediction lies inside
+    the sectors of this many receivers 4 … n, by more than its uncertainty and its motion
+    during their sweeps, with no fix in its gate there, is a ghost and dropped before its
+    joint fit (detection is certain inside a sector, so a real drone misses one receiver's
+    gate with probability ``1 − gate_probability``, two of them with about its square per pair
+    of receivers). ``0``: off."""
     track_capacity: int = 32
     """Rows of the tracker's table (tentative and confirmed tracks)."""
     track_slots: int = 8
@@ -305,7 +312,7 @@ class ScanningParams:
             value = getattr(self, name)
             if not (isinstance(value, int | np.integer) and value >= low):
                 raise ValueError(f"{name}: must be an integer >= {low}, got {value!r}")
-        for name in ("close_drones", "late_drones", "max_clutter", "max_misses"):
+        for name in ("close_drones", "late_drones", "max_clutter", "max_misses", "ghost_misses"):
             value = getattr(self, name)
             if not (isinstance(value, int | np.integer) and value >= 0):
                 raise ValueError(f"{name}: must be an integer >= 0, got {value!r}")
@@ -409,6 +416,7 @@ class ScanningParams:
         c[kernels.C_ITERS] = self.pixel_iterations
         c[kernels.C_CONFIRM] = self.confirm_hits
         c[kernels.C_MISSES] = self.max_misses
+        c[kernels.C_GHOST] = self.ghost_misses
         c[kernels.C_CENTRE : kernels.C_CENTRE + 3] = self.centre
         P, b = self.relative
         parts = (self.receivers, self.rotations, P, b, self.offsets_array, self.fit_thresholds)

@@ -14,6 +14,7 @@ from pettingzoo.test import parallel_api_test
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.registry import RULES
 from sensorgym.envs import stereo_scanning
+from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.envs.stereo_scanning import simulation as sim
 from sensorgym.envs.stereo_scanning.simulation import (
     PAPER_AZIMUTHS,
@@ -21,6 +22,7 @@ from sensorgym.envs.stereo_scanning.simulation import (
     default_azimuths,
     default_offsets,
 )
+from sensorgym.trackers.geometry_kernels import unit_from_angles3
 from sensorgym.trackers.stereo.conjugation import solve_conjugation
 from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
 
@@ -320,3 +322,54 @@ def test_ghost_joint_fits_are_dropped_so_most_drones_are_tracked_at_16_receivers
         obs, _, start, infos = env.step(action)
         tracked += [i["drones_tracked"] / max(i["drones_present"], 1) for i in infos]
     assert np.mean(tracked) >= 0.85
+
+
+def _rotate_towards(c: np.ndarray, angle: float, rng: np.random.Generator) -> np.ndarray:
+    """A unit vector at ``angle`` from the unit vector ``c``, in a random direction about it."""
+    e = rng.standard_normal(3)
+    e -= (e @ c) * c
+    e /= np.linalg.norm(e)
+    return np.cos(angle) * c + np.sin(angle) * e
+
+
+def test_sector_cone_lies_inside_its_sector():
+    """Negative information rests on it: every direction within the cone's half-angle of its
+    axis is inside the sector by the angles the raster uses (also at the cone's edge), for
+    sectors across the field of regard, and the cone is not needlessly narrow."""
+    rng = np.random.default_rng(11)
+    R = np.eye(3)[None]  # the receiver's frame is the world's
+    cones = np.empty((1, 7))
+    for _ in range(400):
+        az, el = rng.uniform(-np.pi / 4, np.pi / 4, 2)
+        w = rng.uniform(0.02, 1.5)
+        kernels.sector_cone(R, 0, az, el, w, 0.1, 0.5, 3.0, cones)
+        c, cos_r, sin_r = cones[0, :3], cones[0, 3], cones[0, 4]
+        np.testing.assert_allclose(c, unit_from_angles3(az, el), atol=1e-15)
+        assert cones[0, 5] == pytest.approx(3.0 + 0.1 + 0.25) and cones[0, 6] == 0.25
+        rho = np.arctan2(sin_r, cos_r)
+        assert 0.45 * w * np.cos(el) <= rho <= 0.5 * w + 1e-15
+        for f in (1.0 - 1e-9, 1.0 - 1e-9, 0.99, 0.5, 0.0):
+            d = _rotate_towards(c, f * rho, rng)
+            phi, theta = kernels._angles((d[0], d[1], d[2]))
+            assert kernels._inside(phi, theta, (d[0], d[1], d[2]), az, el, w)
+
+
+def test_negative_information_never_drops_a_real_drone():
+    """A drone inside a sector has a fix there, so its triple never counts a miss: noiseless,
+    every receiver sweeping its whole field of regard, dropping a triple at its first receiver
+    without a fix in the gate (``ghost_misses=1``, the strictest) tracks every drone the
+    tracker without the test tracks (more: a ghost dropped early takes no real drone's fixes),
+    with no more false tracks."""
+    B, found, false = 16, {}, {}
+    for g in (0, 1):
+        params = _noiseless(6, n_drones=6, ghost_misses=g)
+        s = sim.reset(params, np.random.default_rng(8), B)
+        found[g], false[g] = [], []
+        for _ in range(5):
+            s, _, _ = sim.step(params, s, _full(params, B), np.random.default_rng(0))
+            found[g].append(s.assigned >= 0)
+            false[g].append(s.parts[:, 2].sum())
+    lost = np.array(found[0]) & ~np.array(found[1])
+    assert not lost.any(), f"{lost.sum()} drone-periods tracked only without the test"
+    assert np.sum(found[1]) >= 5 * B  # many drone-periods are tracked
+    assert np.sum(false[1]) <= np.sum(false[0])
