@@ -618,7 +618,7 @@ def step_rows(
         + FF * 30
         + n * 7
     )
-    ibuf = np.empty(C * (n + 1) + TC * 4 + T, np.int64)
+    ibuf = np.empty(C * (n + 2) + TC * 4 + 2 * T, np.int64)
     # the refinement's system, sized for all n receivers (receivers 4 … n, :func:`_joint_fit`)
     rbuf = np.empty(3 + 16 * (n - 1) + (n + 3) * (n + 4) + 5 + n + velocity_work(n - 1))
     o = 0
@@ -679,11 +679,13 @@ def step_rows(
     o = 0
     cmem, o = _carve2(ibuf, o, C, n)
     rng_idx, o = _carve1(ibuf, o, C)
+    ok_c, o = _carve1(ibuf, o, C)
     pairs_t, o = _carve1(ibuf, o, TC)
     pairs_c, o = _carve1(ibuf, o, TC)
     child_t, o = _carve1(ibuf, o, TC)
     child_c, o = _carve1(ibuf, o, TC)
     old_slot, o = _carve1(ibuf, o, T)
+    g_rows, o = _carve1(ibuf, o, T)
     o = 0
     cok, o = _carve1(bbuf, o, C)
     ctaken, o = _carve1(bbuf, o, C)
@@ -864,13 +866,17 @@ def step_rows(
                 fused[k, j] = False
         for q in range(T):
             t_took[q] = False
+        n_ok = 0  # the candidates that passed, in ascending order
+        for c in range(nc):
+            if cok[c]:
+                ok_c[n_ok] = c
+                n_ok += 1
         npair = 0
         for q in range(T):
             if tstatus[i, q] == EMPTY:
                 continue
-            for c in range(nc):
-                if not cok[c]:
-                    continue
+            for e in range(n_ok):
+                c = ok_c[e]
                 if tracker == PROPOSED and _outside_gate(q, c, i, tx, tt, tsig, cpos, ctime, csig,
                                                          gate_q, max_accel):  # fmt: skip
                     continue
@@ -980,15 +986,19 @@ def step_rows(
         for j in range(m):
             assigned[i, j] = -1
             drone_sigma[i, j] = np.inf
+        ng = 0  # the confirmed tracks within the gate of some drone, in ascending order
         for q in range(T):
+            if tstatus[i, q] != CONFIRMED:
+                continue
             # compared at the track's own time if it was updated this period, else at the end
             tc = tt[i, q] if tt[i, q] >= t0 else t_end
             s = tc - tt[i, q]
             t_cmp[q] = tc
             t_end_pos[q, 0], t_end_pos[q, 1], t_end_pos[q, 2] = _predicted_position(i, q, s, tx)
+            near = False
             for j in range(m):
                 d_dist[q, j] = np.inf
-                if tstatus[i, q] != CONFIRMED or exited[i, j] or enter[i, j] > t0 + 1e-9:
+                if exited[i, j] or enter[i, j] > t0 + 1e-9:
                     continue
                 pe = _at(
                     (drone_p[i, j, 0], drone_p[i, j, 1], drone_p[i, j, 2]),
@@ -1000,11 +1010,16 @@ def step_rows(
                             t_end_pos[q, 2] - pe[2]))  # fmt: skip
                 if dd <= truth_gate:
                     d_dist[q, j] = dd
+                    near = True
+            if near:
+                g_rows[ng] = q
+                ng += 1
         # greedy nearest (track, drone) pairs within the gate, one-to-one
         while True:
             best = np.inf
             bq, bj = -1, -1
-            for q in range(T):
+            for e in range(ng):
+                q = g_rows[e]
                 for j in range(m):
                     if d_dist[q, j] < best:
                         best, bq, bj = d_dist[q, j], q, j
@@ -1013,8 +1028,8 @@ def step_rows(
             assigned[i, bj] = bq
             s = t_cmp[bq] - tt[i, bq]
             drone_sigma[i, bj] = _predicted_sigma(i, bq, s, tsig)
-            for q in range(T):
-                d_dist[q, bj] = np.inf
+            for e in range(ng):
+                d_dist[g_rows[e], bj] = np.inf
             for j in range(m):
                 d_dist[bq, j] = np.inf
         total = 0.0
