@@ -129,6 +129,7 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "fit_false_alarm": 1e-4,
         "confirm_hits": 3,
         "max_misses": 1,
+        "ghost_misses": 1,
         "track_capacity": 16,
         "track_slots": 5,
         "cond_max": 1e6,
