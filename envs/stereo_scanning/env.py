@@ -189,10 +189,10 @@ class StereoScanningEnv(CoreEnv):
       sectors of two of receivers 4 … n, by more than its uncertainty and its motion during
       their sweeps, with no fix in its gate there, is dropped at once — detection is certain
       inside a sector, so a real drone has a fix there. The registered default (three
-      receivers) is unchanged. At 16 × 10 about 50 of the 58 triples per period that reach
-      receivers 4 … n are ghosts; 45 of them are now dropped after about three receivers
-      instead of a search of all thirteen and a joint fit, and no true triple was (the
-      step's work falls by about a quarter). Same command, ``negative_information.json``:
+      receivers) is unchanged. At 16 × 10 most triples that reach receivers 4 … n are
+      ghosts, and most of those are now dropped after a few receivers instead of a search of
+      all thirteen and a joint fit (the step's time: ``benchmarks/results/scaling.json``).
+      Same command, ``negative_information.json``:
       every rule's mean return is unchanged or higher (oracle-sectors 48.47 → 50.53, paired
       +2.06 ± 0.37; cue-entry-search 33.90 → 36.82, +2.92 ± 2.19; greedy-information,
       cue-following and cue-no-search +0.003; full-sweep and orthogonal-sectors identical).
