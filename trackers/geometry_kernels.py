@@ -45,6 +45,41 @@ def unit_from_angles3(azimuth, elevation):
     return (ct * np.sin(azimuth), np.sin(elevation), ct * np.cos(azimuth))
 
 
+#: ``|atan2_near(y, x) − atan2(y, x)|`` stays below this, rad (the polynomial's error is
+#: 2.8e-10; ``tests/trackers/test_geometry.py`` checks the bound on a dense sample)
+ATAN2_NEAR_ERROR = 1e-8
+
+# atan(a)/a ≈ Σ c_k u^k, u = a², a ∈ [0, 1]: a degree-10 Chebyshev fit in u, as monomials
+_ATAN_C = (
+    0.9999999996155006, -0.3333332367226497, 0.19999595986486163, -0.14279049617739104,
+    0.11053790693864282, -0.08796135044569692, 0.06710145849908022, -0.04427402900529784,
+    0.022203700135139476, -0.007166255552429937, 0.0010845065272410376,
+)  # fmt: skip
+
+
+@njit(inline="always")
+def atan2_near(y, x):
+    """``atan2(y, x)`` for ``x > 0`` within :data:`ATAN2_NEAR_ERROR` — a polynomial, a fraction of
+    libm's cost, for tests that only need the angle to lie on the right side of a boundary
+    (the caller decides exactly when it lies within the error of one). ``a = min/max`` of
+    ``|y|, x`` in ``[0, 1]``, ``atan a`` by the polynomial (Estrin's scheme), ``π/2 − atan a``
+    when ``|y| > x``, the sign of ``y``."""
+    c = _ATAN_C
+    ay = abs(y)
+    big = ay > x
+    a = x / ay if big else ay / x
+    u = a * a
+    u2 = u * u
+    u4 = u2 * u2
+    low = (c[0] + c[1] * u) + u2 * (c[2] + c[3] * u)
+    mid = (c[4] + c[5] * u) + u2 * (c[6] + c[7] * u)
+    high = (c[8] + c[9] * u) + u2 * c[10]
+    r = a * (low + u4 * (mid + u4 * high))
+    if big:
+        r = 0.5 * np.pi - r
+    return -r if y < 0.0 else r
+
+
 @njit(**_JIT)
 def angles_from_unit3(u):
     """``(φ, θ, has)``: azimuth ``φ = atan2(u_x, u_z)`` and elevation ``θ = arcsin u_y``

@@ -196,6 +196,9 @@ class StereoScanningEnv(CoreEnv):
       every rule's mean return is unchanged or higher (oracle-sectors 48.47 → 50.53, paired
       +2.06 ± 0.37; cue-entry-search 33.90 → 36.82, +2.92 ± 2.19; greedy-information,
       cue-following and cue-no-search +0.003; full-sweep and orthogonal-sectors identical).
+      Later in issue 15 (episodes bit-identical): the raster's pixel-visit iteration takes its
+      angles from a polynomial arctangent and falls back to libm's only within the
+      polynomial's error (10⁻⁸ rad) of a pixel or sector edge, where the two could disagree.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

@@ -8,7 +8,8 @@ relative poses, angular noise), :mod:`sensorgym.trackers.stereo.conjugation_kern
 chain them per scenario:
 
 * :func:`raster_fix` — the pixel-visit rule of one object in one receiver's sector raster
-  (theory §6.3): the fix time ``t = T_raster(φ(t), θ(t))`` by fixed-point iteration;
+  (theory §6.3): the fix time ``t = T_raster(φ(t), θ(t))`` by fixed-point iteration, on
+  angles good to the pixel (:func:`_pixel_angles`: a polynomial arctangent, libm's near an edge);
 * :func:`step_rows` — one scan period of scenarios ``lo..hi``, out of place (the state before
   the period is read, the new one written to fresh arrays): sectors from the action, fixes
   (drones and false detections), the candidates of the selected algorithm, association over
@@ -32,8 +33,14 @@ from numba import njit
 from numba.extending import register_jitable
 
 from sensorgym.envs.shells.contract import OBS_CLIP
-from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_time
-from sensorgym.trackers.geometry_kernels import norm3, perturbed_direction3, unit_from_angles3
+from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_cell, raster_time
+from sensorgym.trackers.geometry_kernels import (
+    ATAN2_NEAR_ERROR,
+    atan2_near,
+    norm3,
+    perturbed_direction3,
+    unit_from_angles3,
+)
 from sensorgym.trackers.stereo.conjugation_kernels import (
     pair_kernel,
     triple_velocity_kernel,
@@ -151,6 +158,28 @@ def _angles(d):
     return np.arctan2(d[0], d[2]), np.arctan2(d[1], np.hypot(d[0], d[2]))
 
 
+@njit(inline="always")
+def _pixel_angles(d, centre_az, centre_el, width, lines):
+    """:func:`_angles` as far as the sector and pixel tests can tell: fast angles
+    (:func:`atan2_near`, ``hypot`` as a square root) when they lie in a pixel (or outside the
+    sector) by more than their error ``ε`` (:data:`ATAN2_NEAR_ERROR`) and rounding, else
+    libm's. The exact angles then lie in the same pixel, or outside too: :func:`in_sector` and
+    :func:`raster_time` answer alike, and the fix, its time and the episode are bit for bit
+    those of :func:`_angles`."""
+    if d[2] > 0.0:
+        phi = atan2_near(d[0], d[2])
+        theta = atan2_near(d[1], np.sqrt(d[0] * d[0] + d[2] * d[2]))
+        row, col = raster_cell(phi, theta, centre_az, centre_el, width, width, lines, lines)
+        # ε in pixels, and 1e-9 pixel for the rounding of a few operations on numbers ≤ lines
+        m = ATAN2_NEAR_ERROR * lines / width + 1e-9
+        if row < -m or row > lines + m or col < -m or col > lines + m:
+            return phi, theta  # outside the sector by more than the error
+        fr, fc = row - np.floor(row), col - np.floor(col)
+        if m < fr < 1.0 - m and m < fc < 1.0 - m and m < row < lines - m and m < col < lines - m:
+            return phi, theta  # inside a pixel by more than the error
+    return _angles(d)
+
+
 @njit(**_JIT)
 def _inside(phi, theta, d, centre_az, centre_el, width):
     return d[2] > 0.0 and in_sector(phi, theta, centre_az, centre_el, width, width)
@@ -174,7 +203,7 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
     for _ in range(iters):
         q = _at(p, v, a, s)
         d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
-        phi, theta = _angles(d)
+        phi, theta = _pixel_angles(d, centre_az, centre_el, width, lines)
         if not _inside(phi, theta, d, centre_az, centre_el, width):
             return False, s, d
         s_new = raster_time(
@@ -186,7 +215,7 @@ def raster_fix(R, k, o, p, v, a, centre_az, centre_el, width, lines, offset, swe
         s = s_new
     q = _at(p, v, a, s)
     d = _local(R, k, (q[0] - o[0], q[1] - o[1], q[2] - o[2]))
-    phi, theta = _angles(d)
+    phi, theta = _pixel_angles(d, centre_az, centre_el, width, lines)
     seen = _inside(phi, theta, d, centre_az, centre_el, width) and norm3(d) > 0.0
     return seen, s, d
 

@@ -15,6 +15,16 @@ from sensorgym.trackers.geometry import wrap_angle_scalar as wrap
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
 
+@njit(inline="always")
+def raster_cell(phi, theta, centre_az, centre_el, az_width, el_width, rows, cols):
+    """Where the local angles ``(φ, θ)`` fall on the raster, in pixels and unrounded:
+    ``((θ_c + h/2 − θ) / (h/rows), (wrap(φ − φ_c) + w/2) / (w/cols))`` (the sector spans
+    ``[0, rows] × [0, cols]``; the pixel is the floor)."""
+    row = (centre_el + 0.5 * el_width - theta) / (el_width / rows)
+    col = (wrap(phi - centre_az) + 0.5 * az_width) / (az_width / cols)
+    return row, col
+
+
 # row = ⌊(θ_c + h/2 − θ) / (h/rows)⌋, col = ⌊(wrap(φ − φ_c) + w/2) / (w/cols)⌋ (clipped),
 # t = offset + (row · cols + col + ½) · sweep / (rows · cols)
 @njit(**_JIT)
@@ -24,8 +34,9 @@ def raster_time(phi, theta, centre_az, centre_el, az_width, el_width, rows, cols
     ``(φ, θ)`` (rad): rows from the top elevation down, columns by increasing azimuth, one sweep
     of ``sweep`` seconds starting ``offset`` after the period start. Angles outside the sector
     take the nearest edge pixel's time (a finite fallback; :func:`in_sector` tells)."""
-    row = np.floor((centre_el + 0.5 * el_width - theta) / (el_width / rows))
-    col = np.floor((wrap(phi - centre_az) + 0.5 * az_width) / (az_width / cols))
+    row, col = raster_cell(phi, theta, centre_az, centre_el, az_width, el_width, rows, cols)
+    row = np.floor(row)
+    col = np.floor(col)
     row = min(max(row, 0.0), rows - 1.0)
     col = min(max(col, 0.0), cols - 1.0)
     return offset + (row * cols + col + 0.5) * (sweep / (rows * cols))

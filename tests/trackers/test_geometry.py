@@ -126,3 +126,23 @@ def test_bad_inputs_raise_clear_errors():
         relative_pose(np.eye(2), [0, 0, 0], np.eye(3), [1, 0, 0])
     with pytest.raises(ValueError, match="not in front of the camera"):
         pixel_from_unit([0.0, 0.0, -1.0], 100.0)
+
+
+def test_atan2_near_stays_within_its_bound():
+    from sensorgym.trackers.geometry_kernels import ATAN2_NEAR_ERROR, atan2_near
+
+    rng = np.random.default_rng(7)
+    x = np.exp(rng.uniform(-25, 25, 200_000))
+    ratio = np.concatenate([
+        np.exp(rng.uniform(-30, 30, 100_000)),  # every scale of |y|/x
+        rng.uniform(0.0, 2.0, 100_000),  # dense where the reduction switches at 1
+    ])  # fmt: skip
+    y = ratio * x * rng.choice([-1.0, 1.0], x.size)
+    edges = np.array([0.0, -0.0, 1.0, -1.0, 1e-300, 1e300])  # y/x exactly 0, ±1, extremes
+    x = np.concatenate([x, np.ones(edges.size)])
+    y = np.concatenate([y, edges])
+    near = np.array([atan2_near(a, b) for a, b in zip(y, x, strict=True)])
+    err = np.abs(near - np.arctan2(y, x))
+    # a tenth of the bound the scanning kernel's pixel test relies on
+    assert err.max() < ATAN2_NEAR_ERROR / 10
+    assert err.max() > 0.0  # an approximation, not libm

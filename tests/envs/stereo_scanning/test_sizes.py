@@ -373,3 +373,40 @@ def test_negative_information_never_drops_a_real_drone():
     assert not lost.any(), f"{lost.sum()} drone-periods tracked only without the test"
     assert np.sum(found[1]) >= 5 * B  # many drone-periods are tracked
     assert np.sum(false[1]) <= np.sum(false[0])
+
+
+def test_pixel_angles_decide_sector_and_pixel_as_the_exact_angles_do():
+    """The raster's fast angles (theory §6.3) give every direction the sector verdict and pixel
+    time libm's angles give, also for directions within 1e-12 rad of a pixel or sector edge,
+    where they must fall back to libm."""
+    from sensorgym.envs.stereo_scanning.kernels import _angles, _pixel_angles
+    from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_time
+    from sensorgym.trackers.geometry import unit_from_angles
+
+    rng = np.random.default_rng(11)
+    lines, fast, edge_fallbacks, edges = 100, 0, 0, 0
+    for trial in range(6000):
+        w = rng.uniform(np.deg2rad(5.0), np.deg2rad(90.0))
+        c_az, c_el = rng.uniform(-0.8, 0.8, 2)
+        if trial % 2:  # on a pixel or sector edge, to within 1e-12 rad
+            col, row = rng.integers(0, lines + 1, 2)
+            phi = c_az - 0.5 * w + col * w / lines + rng.uniform(-1e-12, 1e-12)
+            theta = c_el + 0.5 * w - row * w / lines + rng.uniform(-1e-12, 1e-12)
+        else:
+            phi = c_az + rng.uniform(-0.7, 0.7) * w
+            theta = c_el + rng.uniform(-0.7, 0.7) * w
+        d = tuple(unit_from_angles(phi, theta) * rng.uniform(1.0, 3000.0))
+        exact = _angles(d)
+        got = _pixel_angles(d, c_az, c_el, w, lines)
+        for a in (exact, got):
+            assert np.isfinite(a).all()
+        verdicts = [in_sector(*a, c_az, c_el, w, w) for a in (exact, got)]
+        times = [raster_time(*a, c_az, c_el, w, w, lines, lines, 0.1, 0.5) for a in (exact, got)]
+        assert verdicts[0] == verdicts[1] and times[0] == times[1], (trial, exact, got)
+        if trial % 2:
+            edges += 1
+            edge_fallbacks += got == exact
+        else:
+            fast += got != exact
+    assert fast > 2900  # generic directions take the fast angles
+    assert edge_fallbacks > 0.9 * edges  # edge directions fall back to libm's
