@@ -17,6 +17,7 @@ from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents import stereo_pointing_horizon as pointing_horizon
+from sensorgym.agents import stereo_pointing_sharing as pointing_sharing
 from sensorgym.agents import stereo_scanning as scanning
 from sensorgym.agents.protocol import PolicyPredictor
 
@@ -51,6 +52,9 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "plan-estimate": lambda params, _: pointing.PlanEstimate(params),
         "plan-horizon": lambda params, _: pointing_horizon.PlanHorizon(params),
         "plan-acquire": lambda params, _: pointing_horizon.PlanHorizon(params, acquisition=True),
+        "plan-acquire-share": lambda params, _: pointing_horizon.PlanHorizon(
+            params, acquisition=True, sharing=pointing_sharing.Sharing()
+        ),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {

@@ -40,6 +40,7 @@ from sensorgym.agents.stereo_pointing import (
     plan_geometry,
     plan_objective,
 )
+from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 
 
@@ -72,6 +73,10 @@ class PlanHorizon:
     Only the exhaustive search weighs it: beyond
     :data:`~sensorgym.agents.stereo_pointing.PLAN_ASSIGNMENTS` assignments the polynomial search
     plans as without it."""
+    sharing: Sharing | None = None
+    """Aim a receiver between its drone and another one that fits in its field of view
+    (:mod:`sensorgym.agents.stereo_pointing_sharing`; the ``plan-acquire-share`` rule);
+    ``None``: straight at its drone's prediction."""
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
@@ -147,6 +152,9 @@ class PlanHorizon:
         t = self.steps(obs.shape[0], state, episode_start)
         view = _view(self.params, obs)
         target = self.choose(view, t)
-        action = slew_actions(self.params, view.azimuth, view.elevation, view.position, target)
+        points = view.position
+        if self.sharing is not None:
+            points, target = shared_aims(self.params, view, target, self.sharing)
+        action = slew_actions(self.params, view.azimuth, view.elevation, points, target)
         action = np.asarray(action, dtype=np.float32)
         return (action[0] if single else action), t + 1

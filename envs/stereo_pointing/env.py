@@ -112,7 +112,9 @@ class StereoPointingEnv(CoreEnv):
       were 0.05), which ends the step-0 near-tie that sent every receiver to the other drone;
       one slew controller serves the rules and the assignment action wrapper. Later in issue
       13 (env unchanged): the rule ``plan-acquire``, ``plan-horizon`` weighing each drone's
-      planned return by the chance that the receivers sent to it find it on the track.
+      planned return by the chance that the receivers sent to it find it on the track; then
+      ``plan-acquire-share``, whose receivers aim between their drone and another one when
+      both fit in the field of view (one receiver fixes two drones).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
