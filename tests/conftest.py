@@ -37,3 +37,17 @@ def random_moving_scene(
     u /= np.linalg.norm(u, axis=-1, keepdims=True)
     a = np.einsum("bkji,bkj->bki", R, u)
     return StereoScene(ReceiverLayout(R, o), T), a, t[:, 1:], V, Vd
+
+
+def assert_same_tree(x, y) -> None:
+    """``x`` and ``y`` equal bit for bit (values and dtypes), through tuples, lists and dicts."""
+    if isinstance(x, dict):
+        assert x.keys() == y.keys()
+        for key in x:
+            assert_same_tree(x[key], y[key])
+    elif isinstance(x, tuple | list):
+        assert len(x) == len(y)
+        for a, b in zip(x, y, strict=True):
+            assert_same_tree(a, b)
+    else:
+        np.testing.assert_array_equal(x, y, strict=True)

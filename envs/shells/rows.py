@@ -18,12 +18,17 @@ from __future__ import annotations
 
 import functools
 import os
+import time
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 #: fewest scenarios per thread for a split to pay (a step costs about 1 µs per scenario and
 #: the hand-off to a pool thread about 20 µs)
 MIN_ROWS_PER_THREAD = 128
+
+#: per key of :func:`run_drawn_rows`: the last call's seconds per row of the draws and of the
+#: kernel (what the next split is sized by)
+_costs: dict[str, tuple[float, float]] = {}
 
 _pool: ThreadPoolExecutor | None = None
 _pool_pid: int | None = None
@@ -80,3 +85,48 @@ def run_rows(batch: int, kernel_on: Callable[[int, int], object]) -> None:
     kernel_on(edges[0], edges[1])
     for f in futures:
         f.result()
+
+
+def run_drawn_rows(
+    batch: int,
+    draw: Callable[[int, int], object],
+    kernel_on: Callable[[int, int], object],
+    key: str,
+) -> None:
+    """:func:`run_rows` for a kernel whose rows need random draws made first, pipelined.
+
+    ``draw(lo, hi)`` makes rows ``lo..hi``'s draws; it is called on consecutive ranges that
+    cover ``[0, batch)`` in order (so a Generator's stream is consumed as by one call over all
+    rows), each before ``kernel_on`` runs those rows. With threads, the pool's chunks are the
+    first rows: each starts as soon as its rows are drawn, while the calling thread draws the
+    rest, then runs the last chunk. The calling thread's chunk ``y`` is sized so that all
+    finish together, ``y = B k / ((T − 1)(d + k) + k)`` for ``T`` threads, draw and kernel
+    costs ``d`` and ``k`` per row as measured on the last call with the same ``key`` (equal
+    chunks the first time). Any split gives the same rows, so the sizing only moves time.
+    """
+    n = min(threads(), batch // MIN_ROWS_PER_THREAD)
+    if n <= 1:
+        draw(0, batch)
+        kernel_on(0, batch)
+        return
+    d, k = _costs.get(key, (0.0, 1.0))
+    y = round(batch * k / ((n - 1) * (d + k) + k))
+    y = min(max(y, batch // (4 * n)), batch - (n - 1))
+    first = batch - y
+    edges = [first * i // (n - 1) for i in range(n)] + [batch]
+    pool = _executor(n - 1)
+    futures = []
+    try:
+        t0 = time.perf_counter()
+        for i in range(n - 1):
+            draw(edges[i], edges[i + 1])
+            futures.append(pool.submit(kernel_on, edges[i], edges[i + 1]))
+        draw(edges[-2], batch)
+        t1 = time.perf_counter()
+        kernel_on(edges[-2], batch)
+        t2 = time.perf_counter()
+    finally:  # no chunk may still write when this returns or raises
+        wait(futures)
+    for f in futures:
+        f.result()
+    _costs[key] = ((t1 - t0) / batch, (t2 - t1) / max(y, 1))

@@ -40,7 +40,8 @@ from numpy.typing import NDArray
 from scipy.stats import chi2
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
-from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
+from sensorgym.envs.shells.normals import standard_normal_rows
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_drawn_rows, run_rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
 from sensorgym.trackers.stereo.association import norm_quantile
@@ -717,8 +718,14 @@ def step(
         a = a.reshape(B, n, 3)
     if not a.flags.c_contiguous:
         a = np.ascontiguousarray(a)
-    # noise draws, in a fixed order: directions, apparent positions, false detections
-    normals = rng.standard_normal((B, n, m, 3))
+    # noise draws, in a fixed order: directions, apparent positions, false detections. With
+    # the directions only (the default), a threaded step draws them row range by row range as
+    # its chunks start (run_drawn_rows: the same stream)
+    normals = np.empty((B, n, m, 3))
+    pipelined = not (params.position_sigma > 0.0 or params.clutter_rate > 0.0)
+    pipelined = pipelined and B >= 2 * MIN_ROWS_PER_THREAD
+    if not pipelined:
+        standard_normal_rows(rng, normals, 0, B)
     if params.position_sigma > 0.0:
         pos_noise = params.position_sigma * rng.standard_normal((B, m, 3))
     else:
@@ -741,7 +748,12 @@ def step(
         finite = kernels.step_rows(0, B, *args)
     else:
         chunks: list[bool] = []
-        run_rows(B, lambda lo, hi: chunks.append(kernels.step_rows(lo, hi, *args)))
+        kernel_on = lambda lo, hi: chunks.append(kernels.step_rows(lo, hi, *args))  # noqa: E731
+        if pipelined:
+            draw = lambda lo, hi: standard_normal_rows(rng, normals, lo, hi)  # noqa: E731
+            run_drawn_rows(B, draw, kernel_on, key=__name__)
+        else:
+            run_rows(B, kernel_on)
         finite = all(chunks)
     if not finite:
         raise ValueError("action: contains NaN or infinite values")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing as mp
+import time
 
 import numpy as np
 import pytest
@@ -75,3 +76,48 @@ def test_a_forked_child_builds_its_own_pool(monkeypatch):
     p.join(timeout=60)
     assert p.exitcode == 0
     assert queue.get(timeout=5) == float((np.arange(1024.0) ** 2).sum())
+
+
+@pytest.mark.parametrize("threads", ["1", "2", "3"])
+@pytest.mark.parametrize("batch", [5, 256, 1000])
+def test_drawn_rows_are_drawn_in_order_before_their_kernel(threads, batch, monkeypatch):
+    """``run_drawn_rows`` draws consecutive ranges covering the batch in order, and a chunk's
+    kernel starts only once its rows are drawn."""
+    monkeypatch.setenv("SENSORGYM_THREADS", threads)
+    drawn = np.zeros(batch, dtype=bool)
+    draws: list = []
+    ran: list = []
+
+    def draw(lo: int, hi: int) -> None:
+        draws.append((lo, hi))
+        drawn[lo:hi] = True
+
+    def kernel_on(lo: int, hi: int) -> None:
+        assert drawn[lo:hi].all()
+        ran.append((lo, hi))
+
+    for _ in range(3):  # the later calls are sized by the measured costs
+        draws.clear(), ran.clear()
+        drawn[:] = False
+        rows.run_drawn_rows(batch, draw, kernel_on, key=f"test-{threads}-{batch}")
+        assert draws[0][0] == 0 and draws[-1][1] == batch
+        assert all(a[1] == b[0] for a, b in itertools.pairwise(draws))
+        assert sorted(ran) == draws
+        assert len(ran) == max(1, min(int(threads), batch // rows.MIN_ROWS_PER_THREAD))
+
+
+def test_a_failed_draw_waits_for_the_started_chunks(monkeypatch):
+    monkeypatch.setenv("SENSORGYM_THREADS", "2")
+    finished: list = []
+
+    def draw(lo: int, hi: int) -> None:
+        if lo > 0:
+            raise RuntimeError("draw failed")
+
+    def kernel_on(lo: int, hi: int) -> None:
+        time.sleep(0.05)
+        finished.append((lo, hi))
+
+    with pytest.raises(RuntimeError, match="draw failed"):
+        rows.run_drawn_rows(1024, draw, kernel_on, key="test-failed-draw")
+    assert len(finished) == 1  # the pool's chunk had ended before the error was raised

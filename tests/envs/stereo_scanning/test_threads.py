@@ -1,0 +1,67 @@
+"""The StereoScanning step split over threads gives the single thread's episodes bit for bit,
+also where the direction noise is drawn row range by row range while the first chunk already
+runs (``run_drawn_rows``), and leaves the Generator where one thread leaves it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorgym.envs.shells import rows
+from sensorgym.envs.stereo_scanning import kernels
+from sensorgym.envs.stereo_scanning.env import StereoScanningVectorEnv
+from sensorgym.envs.stereo_scanning.simulation import ScanningParams
+from tests.conftest import assert_same_tree
+
+# 300 scenarios: split over two threads (at least MIN_ROWS_PER_THREAD rows each)
+BATCH = 300
+STEP_ROWS = kernels.step_rows
+
+
+def _episodes(monkeypatch, threads: str, params: ScanningParams, mode: str):
+    """Every output of 12 steps (episodes of 5: autoresets on the way), the row ranges of the
+    step kernel, and the env Generator's next draw."""
+    chunks: list = []
+
+    def spy(lo, hi, *args):
+        chunks.append((lo, hi))
+        return STEP_ROWS(lo, hi, *args)
+
+    monkeypatch.setenv("SENSORGYM_THREADS", threads)
+    monkeypatch.setattr(kernels, "step_rows", spy)
+    env = StereoScanningVectorEnv(
+        num_envs=BATCH, params=params, max_episode_steps=5, autoreset_mode=mode
+    )
+    out = list(env.reset(seed=3))
+    actions = np.random.default_rng(4).uniform(-1.2, 1.2, (12, *env.action_space.shape))
+    for a in actions:
+        out.extend(env.step(a))
+    return out, chunks, env.np_random.random()
+
+
+@pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
+@pytest.mark.parametrize(
+    "params",
+    [
+        ScanningParams(),  # direction noise only: drawn per chunk, pipelined
+        ScanningParams(position_sigma=0.5, clutter_rate=1.0),  # every draw before the split
+    ],
+)
+def test_two_threads_equal_one_bit_for_bit(monkeypatch, params, mode):
+    assert BATCH >= 2 * rows.MIN_ROWS_PER_THREAD
+    one, chunks_one, next_one = _episodes(monkeypatch, "1", params, mode)
+    two, chunks_two, next_two = _episodes(monkeypatch, "2", params, mode)
+    assert set(chunks_one) == {(0, BATCH)}
+    assert len(chunks_two) == 2 * len(chunks_one) and all(hi > lo for lo, hi in chunks_two)
+    assert_same_tree(one, two)
+    assert next_one == next_two  # the same draws were taken from the stream
+
+
+def test_the_pipelined_split_gives_the_calling_thread_the_last_rows(monkeypatch):
+    """The pool thread runs the first rows as soon as they are drawn; after the first step the
+    split follows the measured costs (any split: the same results, tested above)."""
+    _, chunks, _ = _episodes(monkeypatch, "2", ScanningParams(), "SameStep")
+    firsts = [c for c in chunks if c[0] == 0]
+    lasts = [c for c in chunks if c[1] == BATCH]
+    assert len(firsts) == len(lasts) == 12
+    assert all(first[1] == last[0] for first, last in zip(firsts, lasts, strict=True))
