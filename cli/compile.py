@@ -85,8 +85,8 @@ def groups(env_ids: list[str]) -> list[list[str]]:
 
 
 def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
-    """Compile (or load) what ``env_ids`` use: the Gymnasium env, stepped once, then one
-    episode of each registered rule on the native vector env of two scenarios (as
+    """Compile (or load) what ``env_ids`` use: the compiled normal draws of large batches
+    (:mod:`sensorgym.envs.shells.normals`), the Gymnasium env, stepped once, then one episode of each registered rule on the native vector env of two scenarios (as
     ``sensorgym benchmark`` scores it). Returns the ids, the seconds taken and the number of
     rules played."""
     import time
@@ -95,10 +95,13 @@ def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
     import numpy as np
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
+    from sensorgym.envs.shells.normals import COMPILED_MIN_DRAWS, standard_normal_rows
     from sensorgym.train.benchmark import NotApplicable, policies_for, score
 
     t0 = time.perf_counter()
     played = 0
+    # the compiled normal draws, which only batches of many draws take
+    standard_normal_rows(np.random.default_rng(0), np.empty((1, COMPILED_MIN_DRAWS)), 0, 1)
     for env_id in env_ids:
         env = gym.make(env_id)
         env.reset(seed=0)
