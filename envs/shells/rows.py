@@ -17,18 +17,21 @@ and kernels compiled with ``nogil=True`` need nothing else.
 from __future__ import annotations
 
 import functools
+import itertools
 import os
 import time
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
+from dataclasses import dataclass
+
+import numpy as np
 
 #: fewest scenarios per thread for a split to pay (a step costs about 1 µs per scenario and
 #: the hand-off to a pool thread about 20 µs)
 MIN_ROWS_PER_THREAD = 128
 
-#: per key of :func:`run_drawn_rows`: the last call's seconds per row of the draws and of the
-#: kernel (what the next split is sized by)
-_costs: dict[str, tuple[float, float]] = {}
+#: per key of :func:`run_drawn_rows`: the last call's costs (what the next split is sized by)
+_costs: dict[str, _Costs] = {}
 
 _pool: ThreadPoolExecutor | None = None
 _pool_pid: int | None = None
@@ -99,34 +102,88 @@ def run_drawn_rows(
     cover ``[0, batch)`` in order (so a Generator's stream is consumed as by one call over all
     rows), each before ``kernel_on`` runs those rows. With threads, the pool's chunks are the
     first rows: each starts as soon as its rows are drawn, while the calling thread draws the
-    rest, then runs the last chunk. The calling thread's chunk ``y`` is sized so that all
-    finish together, ``y = B k / ((T − 1)(d + k) + k)`` for ``T`` threads, draw and kernel
-    costs ``d`` and ``k`` per row as measured on the last call with the same ``key`` (equal
-    chunks the first time). Any split gives the same rows, so the sizing only moves time.
+    rest, then runs the last chunk. The chunks are sized so that all end together on the costs
+    measured on the last call with the same ``key`` (:func:`_calling_rows`; equal chunks the
+    first time). Any split gives the same rows, so the sizing only moves time.
     """
     n = min(threads(), batch // MIN_ROWS_PER_THREAD)
     if n <= 1:
         draw(0, batch)
         kernel_on(0, batch)
         return
-    d, k = _costs.get(key, (0.0, 1.0))
-    y = round(batch * k / ((n - 1) * (d + k) + k))
-    y = min(max(y, batch // (4 * n)), batch - (n - 1))
+    last = _costs.get(key)
+    y = _calling_rows(batch, n, last) if last is not None else batch // n
     first = batch - y
     edges = [first * i // (n - 1) for i in range(n)] + [batch]
+
+    def timed(lo: int, hi: int) -> float:
+        kernel_on(lo, hi)
+        return time.perf_counter()
+
     pool = _executor(n - 1)
-    futures = []
+    futures, submitted = [], []
     try:
         t0 = time.perf_counter()
         for i in range(n - 1):
             draw(edges[i], edges[i + 1])
-            futures.append(pool.submit(kernel_on, edges[i], edges[i + 1]))
+            submitted.append(time.perf_counter())
+            futures.append(pool.submit(timed, edges[i], edges[i + 1]))
         draw(edges[-2], batch)
         t1 = time.perf_counter()
         kernel_on(edges[-2], batch)
         t2 = time.perf_counter()
     finally:  # no chunk may still write when this returns or raises
         wait(futures)
-    for f in futures:
-        f.result()
-    _costs[key] = ((t1 - t0) / batch, (t2 - t1) / max(y, 1))
+    ends = [f.result() for f in futures]
+    rows = [max(hi - lo, 1) for lo, hi in itertools.pairwise(edges)]
+    # kernel seconds per row of each chunk; a pool chunk's includes its hand-off
+    density = [(e - s) / r for e, s, r in zip(ends, submitted, rows[:-1], strict=True)]
+    density.append((t2 - t1) / rows[-1])
+    _costs[key] = _Costs(batch, (t1 - t0) / batch, tuple(edges), tuple(density))
+
+
+@dataclass(frozen=True)
+class _Costs:
+    """What one call of :func:`run_drawn_rows` measured."""
+
+    batch: int
+    """Rows of the call."""
+    draw: float
+    """Seconds per row of the draws."""
+    edges: tuple[int, ...]
+    """The chunks' row edges."""
+    density: tuple[float, ...]
+    """Kernel seconds per row of each chunk (a pool chunk's with its hand-off)."""
+
+
+def _calling_rows(batch: int, n: int, last: _Costs) -> int:
+    """Rows of the calling thread's chunk (the last) that make the ``n`` chunks end together
+    on ``last``'s costs: the kernel cost of rows ``0..r`` is piecewise linear between the
+    measured chunks' edges; pool chunk ``j``, the ``(n − 1)``-th part of the rows before the
+    calling thread's, starts once its rows are drawn and ends at ``d·hi_j + K(lo_j, hi_j)``;
+    the calling thread ends at ``d·B + K(B − y, B)``."""
+    if last.batch != batch:
+        return batch // n
+    knots = np.asarray(last.edges, dtype=np.float64)
+    cum = np.concatenate([[0.0], np.cumsum(np.diff(knots) * np.asarray(last.density))])
+
+    def K(r: int) -> float:
+        return float(np.interp(r, knots, cum))
+
+    def late(y: int) -> tuple[float, float]:
+        first = batch - y
+        e = [first * i // (n - 1) for i in range(n)]
+        pool = max(last.draw * hi + K(hi) - K(lo) for lo, hi in itertools.pairwise(e))
+        return pool, last.draw * batch + K(batch) - K(first)
+
+    lo, hi = max(batch // (4 * n), 1), batch - (n - 1)
+    while lo < hi:  # the smallest y at which the calling thread ends last
+        mid = (lo + hi) // 2
+        pool, calling = late(mid)
+        if calling >= pool:
+            hi = mid
+        else:
+            lo = mid + 1
+    if lo > max(batch // (4 * n), 1) and max(late(lo - 1)) < max(late(lo)):
+        return lo - 1
+    return lo
