@@ -9,7 +9,7 @@ that ``observe`` and ``info`` only read them. The random draws stay with numpy's
 caller draws them (same order and shapes as the numpy form had) and passes them in.
 
 Rows are independent, so the caller splits a large batch over threads
-(:func:`sensorgym.envs.shells.rows.run_rows`; the kernels release the GIL) with bit-identical
+(:func:`sensorgym.envs.shells.rows.run_drawn_rows`; the kernels release the GIL) with bit-identical
 results; ``prange`` is not used (seconds of cold compile, and numba's OpenMP layer kills any
 ``fork()`` child, the way subprocess vector envs start their workers).
 """

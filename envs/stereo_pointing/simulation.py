@@ -55,7 +55,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
-from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
+from sensorgym.envs.shells.normals import standard_normal_rows
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_drawn_rows
 from sensorgym.envs.stereo_pointing import kernels
 from sensorgym.envs.stereo_pointing.kernels import lines_of_sight_batch, pointing_offsets_batch
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles
@@ -420,8 +421,15 @@ def step(
         if a.size != B * n * 2:
             raise ValueError(f"action: expected {B * n * 2} values (B, n, 2), got shape {a.shape}")
         a = a.reshape(B, n, 2)
-    # measure every pair (a fixed number of draws, perturb_directions' draws), use what is seen
-    noise = rng.standard_normal((B, n, m, 3)) if params.sigma_ang > 0.0 else np.empty((B, n, m, 3))
+    # measure every pair (a fixed number of draws, perturb_directions' draws), use what is seen;
+    # a threaded step draws them row range by row range as its chunks start (run_drawn_rows:
+    # the same stream)
+    noise = np.empty((B, n, m, 3))
+
+    def draw(lo: int, hi: int) -> None:
+        if params.sigma_ang > 0.0:
+            standard_normal_rows(rng, noise, lo, hi)
+
     track = state.track
     # the state's arrays go in as they are: step, start and the shells make them float64 and
     # C-contiguous (the compiled kernel would take any other layout too, compiled anew)
@@ -444,11 +452,13 @@ def step(
     bound, reward = np.empty((B, m)), np.empty(B)
     obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
     outputs = (t, az, el, p, x, P, seen, fixed, bound, reward, obs, diag)
-    if B < 2 * MIN_ROWS_PER_THREAD:  # what run_rows does for a batch this small, sooner
+    if B < 2 * MIN_ROWS_PER_THREAD:  # what run_drawn_rows does for a batch this small, sooner
+        draw(0, B)
         finite = kernels.step_kernel(0, B, *args, *outputs)
     else:
         chunks: list[bool] = []
-        run_rows(B, lambda lo, hi: chunks.append(kernels.step_kernel(lo, hi, *args, *outputs)))
+        kernel_on = lambda lo, hi: chunks.append(kernels.step_kernel(lo, hi, *args, *outputs))  # noqa: E731
+        run_drawn_rows(B, draw, kernel_on, key=__name__)
         finite = all(chunks)
     if not finite:
         raise ValueError("action: contains NaN or infinite values")
