@@ -10,6 +10,7 @@ from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD
 from sensorgym.envs.worlds.platform import PlatformWorldParams
+from tests.conftest import assert_same_tree
 
 # 300 scenarios: split over two threads (at least MIN_ROWS_PER_THREAD rows each)
 BATCH = 300
@@ -27,16 +28,6 @@ def _episodes(monkeypatch, threads: str, params: ManeuverParams, mode: str) -> l
     return out
 
 
-def _assert_same(a, b) -> None:
-    assert len(a) == len(b)
-    for x, y in zip(a, b, strict=True):
-        if isinstance(x, dict):
-            assert x.keys() == y.keys()
-            _assert_same(list(x.values()), list(y.values()))
-        else:
-            np.testing.assert_array_equal(x, y)
-
-
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
 @pytest.mark.parametrize(
     "params",
@@ -50,6 +41,6 @@ def test_two_threads_equal_one_bit_for_bit(monkeypatch, params, mode):
     assert BATCH >= 2 * MIN_ROWS_PER_THREAD
     one = _episodes(monkeypatch, "1", params, mode)
     two = _episodes(monkeypatch, "2", params, mode)
-    _assert_same(one, two)
+    assert_same_tree(one, two)
     terminated = np.concatenate([one[3 + 5 * k + 2] for k in range(20)])
     assert terminated.any()  # autoresets happened within the run

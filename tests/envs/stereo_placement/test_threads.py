@@ -9,6 +9,7 @@ from gymnasium.vector import AutoresetMode
 
 from sensorgym.envs.shells import rows
 from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
+from tests.conftest import assert_same_tree
 
 B = 320  # two chunks of at least rows.MIN_ROWS_PER_THREAD
 
@@ -23,19 +24,6 @@ def _episodes(autoreset_mode: AutoresetMode) -> list:
     return out
 
 
-def _assert_identical(a, b) -> None:
-    if isinstance(a, dict):
-        assert a.keys() == b.keys()
-        for k in a:
-            _assert_identical(a[k], b[k])
-    elif isinstance(a, tuple | list):
-        assert len(a) == len(b)
-        for x, y in zip(a, b, strict=True):
-            _assert_identical(x, y)
-    else:
-        np.testing.assert_array_equal(a, b)
-
-
 @pytest.mark.parametrize("autoreset_mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
 def test_two_threads_equal_one_bit_for_bit(monkeypatch, autoreset_mode):
     assert B >= 2 * rows.MIN_ROWS_PER_THREAD
@@ -44,7 +32,7 @@ def test_two_threads_equal_one_bit_for_bit(monkeypatch, autoreset_mode):
     monkeypatch.setenv("SENSORGYM_THREADS", "2")
     assert min(rows.threads(), B // rows.MIN_ROWS_PER_THREAD) == 2  # really split
     two = _episodes(autoreset_mode)
-    _assert_identical(one, two)
+    assert_same_tree(one, two)
     # every scenario was truncated after 4 steps and restarted (twice in 11 steps)
     truncated = np.array([step[3] for step in two[2:]])
     ends = [3, 8] if autoreset_mode is AutoresetMode.NEXT_STEP else [3, 7]

@@ -27,6 +27,7 @@ from sensorgym.trackers.geometry import angles_from_unit
 from sensorgym.trackers.stereo.accuracy import position_crlb, triangulate_ml
 from sensorgym.trackers.stereo.information import weighted_fix
 from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict, cv_prior, cv_update
+from tests.conftest import assert_same_tree
 
 ENV_ID = "sensorgym/StereoPointing-v0"
 
@@ -480,21 +481,7 @@ def test_two_threads_give_the_one_thread_results_bit_for_bit(autoreset):
     steps = [sorted(chunks_two[i : i + 2]) for i in range(0, len(chunks_two), 2)]
     assert all(a[0] == 0 and 0 < a[1] == b[0] < 300 and b[1] == 300 for a, b in steps)
     assert "views" in one[-1][-1]
-    _assert_same(one, two)
-
-
-def _assert_same(x, y) -> None:
-    """``x`` and ``y`` equal bit for bit, through tuples, lists and dicts."""
-    if isinstance(x, dict):
-        assert x.keys() == y.keys()
-        for key in x:
-            _assert_same(x[key], y[key])
-    elif isinstance(x, (tuple, list)):
-        assert len(x) == len(y)
-        for a, b in zip(x, y, strict=True):
-            _assert_same(a, b)
-    else:
-        np.testing.assert_array_equal(x, y, strict=True)
+    assert_same_tree(one, two)
 
 
 def test_a_bad_action_in_a_later_chunk_raises(monkeypatch):
