@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+import torch as th
 from gymnasium.vector import AutoresetMode
 
 from sensorgym.agents.bearings_maneuver import StraightCourse
@@ -156,6 +157,33 @@ def test_ppo_trains_one_shared_policy_on_every_receiver():
     model.learn(96)
     action, _ = model.predict(venv.reset(), deterministic=True)
     assert action.shape == (3, 2)
+
+
+@pytest.mark.parametrize(
+    ("env_id", "size", "agents"),
+    [
+        ("sensorgym/StereoPointing-v0", {"n_receivers": 16, "n_drones": 10}, 16),
+        ("sensorgym/StereoScanning-v0", {"n_receivers": 16, "n_drones": 10}, 16),
+        ("sensorgym/StereoPlacement-v0", {"n_receivers": 6}, 6),
+        ("sensorgym/BearingsManeuver-v0", {"platforms": 16}, 16),
+    ],
+)
+def test_parameter_sharing_trains_at_the_scale_sizes(env_id, size, agents):
+    """One policy shared by every agent of a scenario at the sizes of the scale issue (16
+    receivers × 10 drones, 6 receiver vehicles, 16 platforms): PPO updates it, and it acts for
+    every agent."""
+    from stable_baselines3 import PPO
+
+    venv = make_sb3_env(env_id, 1, 0, agents=True, **size)
+    assert venv.num_envs == agents
+    model = PPO("MlpPolicy", venv, n_steps=4, batch_size=agents * 4, n_epochs=1, seed=0,
+                device="cpu")  # fmt: skip
+    before = [p.detach().clone() for p in model.policy.parameters()]
+    model.learn(4 * agents)
+    assert any(not th.equal(a, b) for a, b in zip(before, model.policy.parameters(), strict=True))
+    action, _ = model.predict(venv.reset(), deterministic=True)
+    assert action.shape == (agents, *venv.action_space.shape)
+    assert np.all(np.isfinite(action))
 
 
 def test_train_command_with_parameter_sharing_then_benchmark_the_saved_run(tmp_path):
