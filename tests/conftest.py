@@ -51,3 +51,15 @@ def assert_same_tree(x, y) -> None:
             assert_same_tree(a, b)
     else:
         np.testing.assert_array_equal(x, y, strict=True)
+
+
+def random_play(env, steps: int, reset_seed: int = 3, action_seed: int = 4) -> list:
+    """Every output of a vector env's ``reset(seed=reset_seed)`` and of ``steps`` steps under
+    seeded uniform actions in ``[−1.2, 1.2]`` (out-of-range ones included), flattened."""
+    out = list(env.reset(seed=reset_seed))
+    actions = np.random.default_rng(action_seed).uniform(
+        -1.2, 1.2, (steps, *env.action_space.shape)
+    )
+    for a in actions:
+        out.extend(env.step(a))
+    return out

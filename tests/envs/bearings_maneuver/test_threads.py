@@ -10,7 +10,7 @@ from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD
 from sensorgym.envs.worlds.platform import PlatformWorldParams
-from tests.conftest import assert_same_tree
+from tests.conftest import assert_same_tree, random_play
 
 # 300 scenarios: split over two threads (at least MIN_ROWS_PER_THREAD rows each)
 BATCH = 300
@@ -21,11 +21,7 @@ def _episodes(monkeypatch, threads: str, params: ManeuverParams, mode: str) -> l
     env = BearingsManeuverVectorEnv(
         num_envs=BATCH, params=params, max_episode_steps=7, autoreset_mode=mode
     )
-    out = list(env.reset(seed=3))
-    actions = np.random.default_rng(4).uniform(-1.2, 1.2, (20, *env.action_space.shape))
-    for a in actions:
-        out.extend(env.step(a))
-    return out
+    return random_play(env, 20)
 
 
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])

@@ -4,14 +4,13 @@ runs (``run_drawn_rows``), and leaves the Generator where one thread leaves it."
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 
 from sensorgym.envs.shells import rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.envs.stereo_scanning.env import StereoScanningVectorEnv
 from sensorgym.envs.stereo_scanning.simulation import ScanningParams
-from tests.conftest import assert_same_tree
+from tests.conftest import assert_same_tree, random_play
 
 # 300 scenarios: split over two threads (at least MIN_ROWS_PER_THREAD rows each)
 BATCH = 300
@@ -32,11 +31,7 @@ def _episodes(monkeypatch, threads: str, params: ScanningParams, mode: str):
     env = StereoScanningVectorEnv(
         num_envs=BATCH, params=params, max_episode_steps=5, autoreset_mode=mode
     )
-    out = list(env.reset(seed=3))
-    actions = np.random.default_rng(4).uniform(-1.2, 1.2, (12, *env.action_space.shape))
-    for a in actions:
-        out.extend(env.step(a))
-    return out, chunks, env.np_random.random()
+    return random_play(env, 12), chunks, env.np_random.random()
 
 
 @pytest.mark.parametrize("mode", ["NextStep", "SameStep"])
