@@ -14,6 +14,7 @@ both drones inside the field of view despite the tracks' error. Measured on the 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -48,6 +49,77 @@ class Sharing:
             raise ValueError(f"fraction: at most 1 (the whole field of view), got {self.fraction}")
 
 
+def share_logits(
+    params: PointingParams, view: _View, target: NDArray[np.int64], sharing: Sharing
+) -> NDArray[np.float64]:
+    """How well each drone fits beside each receiver's own one, ``(N, n, m)``: positive exactly
+    when the rule of :func:`shared_aims` may share receiver ``k``'s drone ``target[:, k]`` with
+    drone ``j``. The smallest of three slacks, each zero at its threshold: the fit margin
+    ``(2 f fov − ∠ − 2 q max(σ̂_j/r_kj, σ̂_t/r_kt)) / (2 fov)`` and, per track, ``(max_rms −
+    σ̂) / max_rms``; ``−inf`` for the own drone and a drone on the receiver or with the own drone
+    on it (no line of sight). The one formula of the rule's test; a learned policy adds its
+    term to it (:func:`share_features`)."""
+    rows = np.arange(target.shape[0])[:, None]
+    _, separation = _separation(view, target)
+    angular_rms = view.sigma[:, None, :] / view.ranges  # (N, n, m); 0 for no line of sight
+    own_rms = np.take_along_axis(angular_rms, target[..., None], axis=2)
+    width = 2.0 * params.fov
+    fit = (
+        width * sharing.fraction
+        - separation
+        - 2.0 * sharing.margin * np.maximum(angular_rms, own_rms)
+    ) / width
+    scale = sharing.max_rms if sharing.max_rms > 0.0 else 1.0
+    partner_track = (sharing.max_rms - view.sigma[:, None, :]) / scale  # (N, 1, m)
+    own_track = (sharing.max_rms - view.sigma[rows, target]) / scale  # (N, n)
+    logits = np.minimum(np.minimum(fit, partner_track), own_track[..., None])
+    return np.where(_shareable(view, target), logits, -np.inf)
+
+
+def _separation(
+    view: _View, target: NDArray[np.int64]
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Each receiver's line of sight to its own drone ``(N, n, 3)`` and its angle to the line
+    of sight to every drone ``(N, n, m)``, rad."""
+    rows, receivers = np.arange(target.shape[0])[:, None], np.arange(target.shape[1])[None]
+    own = view.los[rows, receivers, target]
+    return own, np.arccos(np.clip(np.einsum("nkc,nkjc->nkj", own, view.los), -1.0, 1.0))
+
+
+def _shareable(view: _View, target: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """``(N, n, m)``: drone ``j`` is another drone than receiver ``k``'s own, and the receiver
+    has a line of sight to both (neither predicted on it)."""
+    m = view.ranges.shape[2]
+    other = np.arange(m)[None, None] != target[..., None]
+    return (
+        other
+        & np.isfinite(view.ranges)
+        & np.isfinite(np.take_along_axis(view.ranges, target[..., None], 2))
+    )
+
+
+def aims_between(
+    params: PointingParams, view: _View, target: NDArray[np.int64], logits: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Aim points ``(N, m + n, 3)`` and each receiver's point index ``(N, n)`` for
+    :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`: the drones' predictions,
+    then per receiver the bisector of the lines of sight to its drone ``target[:, k]`` and to
+    the nearest (smallest angle) other drone ``j`` with ``logits[:, k, j] > 0``; a receiver
+    with none keeps its drone's prediction. Drones :func:`_shareable` excludes never count."""
+    N, n, m = target.shape[0], params.n_receivers, params.n_drones
+    if logits.shape != (N, n, m):
+        raise ValueError(f"logits: expected shape {(N, n, m)}, got {logits.shape}")
+    rows, receivers = np.arange(N)[:, None], np.arange(n)[None]
+    own, separation = _separation(view, target)
+    fits = (logits > 0.0) & _shareable(view, target)
+    other = np.where(fits, separation, np.inf).argmin(axis=2)  # (N, n)
+    bisector = own + view.los[rows, receivers, other]
+    bisector /= np.maximum(np.linalg.norm(bisector, axis=-1, keepdims=True), 1e-12)
+    aims = params._receivers[None] + AIM_RANGE * bisector
+    index = np.where(fits.any(axis=2), m + np.arange(n)[None], target)
+    return np.concatenate([view.position, aims], axis=1), index
+
+
 def shared_aims(
     params: PointingParams, view: _View, target: NDArray[np.int64], sharing: Sharing
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
@@ -55,28 +127,67 @@ def shared_aims(
     :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`: the drones' predictions,
     then per receiver a point on the bisector of the lines of sight to its drone ``target[:, k]``
     and to the nearest other drone for which ``∠ + 2 q max(σ̂_j/r_kj, σ̂_t/r_kt) < 2 f fov``
-    with both tracks' RMS below ``max_rms``; a receiver with no such drone keeps its own
-    drone's prediction. A drone on the receiver (no line of sight) is never shared."""
+    with both tracks' RMS below ``max_rms`` (:func:`share_logits` positive); a receiver with no
+    such drone keeps its own drone's prediction. A drone on the receiver (no line of sight) is
+    never shared."""
+    return aims_between(params, view, target, share_logits(params, view, target, sharing))
+
+
+#: names of :func:`share_features`' last axis, in order
+SHARE_FEATURES = (
+    "bias",
+    "partner_receivers",
+    "own_receivers",
+    "partner_rms",
+    "own_rms",
+    "slack",
+    "angular_rms",
+    "sees_own",
+    "sees_partner",
+    "time_left",
+)
+#: track RMS (m) at which the RMS features saturate at 1
+RMS_SCALE = 10.0
+
+
+def share_features(
+    params: PointingParams, view: _View, target: NDArray[np.int64], time_left: NDArray[Any]
+) -> NDArray[np.float64]:
+    """What a policy may weigh, beside :func:`share_logits`, to decide whether receiver ``k``
+    shares its drone ``t = target[:, k]`` with drone ``j``: ``(N, n, m, F)``, the names in
+    :data:`SHARE_FEATURES`, each of order 1. 1; how many *other* receivers are sent to ``j``,
+    and to ``t``; ``min(σ̂, RMS_SCALE) / RMS_SCALE`` of ``j``'s and of ``t``'s track; the
+    geometric slack ``(2 fov − ∠) / (2 fov)`` (no margin); the larger angular RMS of the two
+    tracks from ``k`` over ``2 fov`` (capped at 10), the unit of the rule's margin; whether
+    ``k`` saw ``t``, and ``j``, on the last step; the fraction ``time_left (N,)`` of the episode
+    left. Read off the observation and the step count only."""
     N, n, m = target.shape[0], params.n_receivers, params.n_drones
+    left = np.asarray(time_left, dtype=np.float64)
+    if left.shape != (N,):
+        raise ValueError(f"time_left: expected shape ({N},), got {left.shape}")
     rows, receivers = np.arange(N)[:, None], np.arange(n)[None]
-    own = view.los[rows, receivers, target]  # (N, n, 3)
-    separation = np.arccos(np.clip(np.einsum("nkc,nkjc->nkj", own, view.los), -1.0, 1.0))
-    angular_rms = view.sigma[:, None, :] / view.ranges  # (N, n, m); 0 for no line of sight
-    own_rms = np.take_along_axis(angular_rms, target[..., None], axis=2)
-    fits = (
-        separation + 2.0 * sharing.margin * np.maximum(angular_rms, own_rms)
-        < 2.0 * params.fov * sharing.fraction
+    sent = (target[..., None] == np.arange(m)[None, None]).astype(np.float64)  # (N, n, m)
+    partner = sent.sum(axis=1, keepdims=True) - sent  # other receivers sent to j
+    own = np.take_along_axis(partner, target[..., None], axis=2)  # other receivers sent to t
+    rms = np.minimum(view.sigma, RMS_SCALE) / RMS_SCALE  # (N, m)
+    _, separation = _separation(view, target)
+    width = 2.0 * params.fov
+    angular = view.sigma[:, None, :] / view.ranges
+    angular = np.maximum(angular, np.take_along_axis(angular, target[..., None], axis=2))
+    sees_own = view.seen[rows, receivers, target]
+    shape = (N, n, m)
+    return np.stack(
+        [
+            np.ones(shape),
+            partner,
+            np.broadcast_to(own, shape),
+            np.broadcast_to(rms[:, None, :], shape),
+            np.broadcast_to(rms[rows, target][..., None], shape),
+            (width - separation) / width,
+            np.minimum(angular / width, 10.0),
+            np.broadcast_to(sees_own[..., None], shape),
+            view.seen,
+            np.broadcast_to(left[:, None, None], shape),
+        ],
+        axis=-1,
     )
-    fits &= (view.sigma[:, None, :] < sharing.max_rms) & (
-        view.sigma[rows, target] < sharing.max_rms
-    )[..., None]
-    fits &= np.arange(m)[None, None] != target[..., None]
-    fits &= np.isfinite(view.ranges) & np.isfinite(
-        np.take_along_axis(view.ranges, target[..., None], 2)
-    )
-    other = np.where(fits, separation, np.inf).argmin(axis=2)  # (N, n)
-    bisector = own + view.los[rows, receivers, other]
-    bisector /= np.maximum(np.linalg.norm(bisector, axis=-1, keepdims=True), 1e-12)
-    aims = params._receivers[None] + AIM_RANGE * bisector
-    index = np.where(fits.any(axis=2), m + np.arange(n)[None], target)
-    return np.concatenate([view.position, aims], axis=1), index

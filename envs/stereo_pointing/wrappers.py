@@ -40,7 +40,12 @@ from sensorgym.agents.stereo_pointing import (
     rewards_acquired,
     rewards_values,
 )
-from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
+from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
+from sensorgym.envs.stereo_pointing.simulation import (
+    PointingParams,
+    assignment_actions,
+    slew_actions,
+)
 from sensorgym.train.wrappers import ObservedActionWrapper, _time_limit
 
 
@@ -84,10 +89,19 @@ class PlanAction(ObservedActionWrapper):
     """``Discrete(m^n)`` actions over an SB3 vector env of StereoPointing: action ``c`` is the
     ``c``-th candidate assignment of the assignment rules (:attr:`candidates`, every map of
     receivers to drones in lexicographic order), slewed onto as by :class:`AssignmentAction`.
-    Observations, rewards and episodes are the base env's."""
+    With ``sharing`` a receiver aims instead between its drone and another one that fits in its
+    field of view (:func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`, the
+    ``plan-acquire-share`` rule's aiming). Observations, rewards and episodes are the base
+    env's."""
 
-    def __init__(self, venv: VecEnv, params: PointingParams | None = None):
+    def __init__(
+        self, venv: VecEnv, params: PointingParams | None = None, sharing: Sharing | None = None
+    ):
         p = _pointing_params(venv, params)
+        if sharing is not None and not isinstance(sharing, Sharing):
+            raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
+        self.sharing = sharing
+        """When a receiver aims between two drones; ``None``: always at its own drone."""
         if venv.observation_space.shape != (p.obs_dim,):
             raise ValueError(
                 f"venv: expected the joint observation ({p.obs_dim},), got "
@@ -107,12 +121,34 @@ class PlanAction(ObservedActionWrapper):
         choice = np.asarray(actions, dtype=np.int64).reshape(self.num_envs)
         if np.any((choice < 0) | (choice >= len(self.candidates))):
             raise ValueError(f"actions: candidate indices must lie in [0, {len(self.candidates)})")
-        return assignment_actions(self.params, obs, self.candidates[choice])
+        target = self.candidates[choice]
+        if self.sharing is None:
+            return assignment_actions(self.params, obs, target)
+        view = _view(self.params, np.asarray(obs, dtype=np.float64))
+        points, index = shared_aims(self.params, view, target, self.sharing)
+        return slew_actions(self.params, view.azimuth, view.elevation, points, index)
 
 
-def plan_wrapper(venv: VecEnv) -> VecEnv:
-    """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry)."""
-    return PlanAction(venv)
+def plan_wrapper(venv: VecEnv, sharing: bool | dict[str, float] | None = None) -> VecEnv:
+    """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry). ``sharing``: ``true``
+    for the registered :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` (the
+    ``plan-acquire-share`` rule's), a mapping of its fields (``margin``, ``fraction``,
+    ``max_rms``), or absent/``false``/``null`` for none."""
+    return PlanAction(venv, sharing=_sharing(sharing))
+
+
+def _sharing(value: bool | dict[str, float] | None) -> Sharing | None:
+    """The :class:`Sharing` a wrapper's ``sharing`` keyword names; ``ValueError`` otherwise."""
+    if value is None or value is False:
+        return None
+    if value is True:
+        return Sharing()
+    if isinstance(value, dict):
+        unknown = set(value) - {"margin", "fraction", "max_rms"}
+        if unknown:
+            raise ValueError(f"sharing: unknown fields {sorted(unknown)}")
+        return Sharing(**{k: float(v) for k, v in value.items()})
+    raise ValueError(f"sharing: expected true, false, null or a mapping, got {value!r}")
 
 
 class PlanFeatures(VecEnvWrapper):

@@ -11,7 +11,9 @@ import pytest
 import torch as th
 
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.envs.stereo_pointing.wrappers import PlanAction, _find
 from sensorgym.train.ars import ARS, SCENARIO_SEEDS
 from sensorgym.train.candidate_policy import CandidatePolicy
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
@@ -113,3 +115,42 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
     th.testing.assert_close(x[..., 3], 150.0 * loss[..., 3])  # the time left at step 0
     assert th.equal(x[..., 4:8].amax(dim=1), th.full((4, 4), 10.0))
     th.testing.assert_close(x[..., 8], 4.0 * kept)
+
+
+def _share_wrappers(sharing) -> list:
+    wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
+    assert wrappers[0]["name"] == "pointing-plan"
+    return [{"name": "pointing-plan", "sharing": sharing}, *wrappers[1:]]
+
+
+def test_with_sharing_the_untrained_policy_acts_as_plan_acquire_share():
+    """With ``pointing-plan``'s ``sharing`` the zero residual's env actions are the
+    plan-acquire-share rule's on every step of two episodes of four seeded scenarios; the
+    registered setting shares some receiver-steps, and without it the actions differ."""
+    model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True))
+    plain = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(None))
+    plan = _find(model.env, PlanAction, "pointing-plan")
+    straight = _find(plain.env, PlanAction, "pointing-plan")
+    assert plan.sharing == Sharing() and straight.sharing is None
+    rule = PlanHorizon(PointingParams(), acquisition=True, sharing=Sharing())
+    model.env.seed(21)
+    obs = model.env.reset()
+    state, start = None, np.ones(4, dtype=bool)
+    differs = 0
+    for _ in range(2 * 150):
+        action, _ = model.predict(obs, deterministic=True)
+        ours = plan.env_action(action, plan.last_obs).astype(np.float32)
+        theirs, state = rule.predict(plan.last_obs, state, start)
+        np.testing.assert_array_equal(ours, theirs)
+        differs += int(np.any(ours != straight.env_action(action, plan.last_obs)))
+        obs, _, start, _ = model.env.step(action)
+    assert differs > 0
+
+
+def test_bad_sharing_settings_are_refused():
+    with pytest.raises(ValueError, match="unknown fields"):
+        _model(wrappers=_share_wrappers({"margin": 0.5, "width": 1.0}))
+    with pytest.raises(ValueError, match="fraction"):
+        _model(wrappers=_share_wrappers({"fraction": 1.5}))
+    with pytest.raises(ValueError, match="mapping"):
+        _model(wrappers=_share_wrappers("yes"))

@@ -1,0 +1,172 @@
+"""Does a *state-dependent* sharing decision beat the best static one? (issue 13, StereoPointing)
+
+``python benchmarks/pointing_sharing_state.py [--seeds 500] [--episodes 256]`` plays the same
+seeded scenarios with ``plan-acquire`` (the assignment) whose receivers share as the best
+static setting of :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` measured on the
+tuning seeds (margin 0.5, fraction 1.0, tracks below 3 m; ``benchmarks/pointing_sharing.py``)
+and with hand-made state-dependent variants of it: the static test gated, or widened, by what
+the observation says (:func:`~sensorgym.agents.stereo_pointing_sharing.share_features`: how
+many other receivers the partner drone and the own drone have, whether the receiver sees both,
+the time left). Every variant is a logit rule fed to
+:func:`~sensorgym.agents.stereo_pointing_sharing.aims_between`, the one aiming of the rule.
+Writes ``benchmarks/results/pointing_sharing_state.json``: per variant the paired difference
+to the static setting (per episode, the same scenarios and noise) with its 95 % interval.
+
+A learned sharing policy (the share bits of ``pointing-plan`` with ``share``) only pays if some
+state-dependent decision beats the static frontier by an interval above zero; this probe is
+that check. Tuning seeds only (never 10000 or 31337).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from sensorgym.agents.stereo_pointing import _view
+from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.agents.stereo_pointing_sharing import (
+    SHARE_FEATURES,
+    Sharing,
+    aims_between,
+    share_features,
+    share_logits,
+)
+from sensorgym.envs.stereo_pointing import simulation
+from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
+
+RESULTS = Path(__file__).resolve().parent / "results" / "pointing_sharing_state.json"
+EPISODE_STEPS = 150
+#: the best static setting on tuning seeds 500 and 600 (q, f, max_rms)
+STATIC = Sharing(0.5, 1.0, 3.0)
+#: a wide test: no margin, the whole field of view, any track below 1 km
+WIDE = Sharing(0.0, 1.0, 1000.0)
+#: between the two: a quarter margin, tracks below 6 m
+MID = Sharing(0.25, 1.0, 6.0)
+F = {name: i for i, name in enumerate(SHARE_FEATURES)}
+
+
+def _gate(base: Sharing, cond: Callable) -> Callable:
+    """The static test of ``base``, only where ``cond(features)``."""
+
+    def rule(params, view, target, feats):
+        return np.where(cond(feats), share_logits(params, view, target, base), -1.0)
+
+    return rule
+
+
+def _widen(wide: Sharing, cond: Callable) -> Callable:
+    """The static test of :data:`STATIC`, or that of ``wide`` where ``cond(features)``."""
+
+    def rule(params, view, target, feats):
+        logits = share_logits(params, view, target, STATIC)
+        extra = np.where(cond(feats), share_logits(params, view, target, wide), -1.0)
+        return np.maximum(logits, extra)
+
+    return rule
+
+
+def _f(name: str) -> Callable:
+    return lambda x: x[..., F[name]]
+
+
+#: name → logit rule ``(params, view, target, features) → (N, n, m)``
+VARIANTS: dict[str, Callable] = {
+    "static (0.5, 1.0, 3)": _gate(STATIC, lambda x: np.ones(x.shape[:-1], bool)),
+    "static, partner has <= 1 other receiver": _gate(STATIC, lambda x: _f("partner_receivers")(x) <= 1),
+    "static, partner has >= 2 other receivers": _gate(STATIC, lambda x: _f("partner_receivers")(x) >= 2),
+    "static, own drone has >= 2 other receivers": _gate(STATIC, lambda x: _f("own_receivers")(x) >= 2),
+    "static, not (own has 1 other and partner >= 2)": _gate(
+        STATIC, lambda x: ~((_f("own_receivers")(x) == 1) & (_f("partner_receivers")(x) >= 2))
+    ),
+    "static, receiver sees its own drone": _gate(STATIC, lambda x: _f("sees_own")(x) > 0),
+    "static or wide where partner has <= 1 other": _widen(WIDE, lambda x: _f("partner_receivers")(x) <= 1),
+    "static or mid where partner has <= 1 other": _widen(MID, lambda x: _f("partner_receivers")(x) <= 1),
+    "static or wide where partner <= 1 and own >= 2 others": _widen(
+        WIDE, lambda x: (_f("partner_receivers")(x) <= 1) & (_f("own_receivers")(x) >= 2)
+    ),
+    "static or wide where the receiver sees both": _widen(
+        WIDE, lambda x: (_f("sees_own")(x) > 0) & (_f("sees_partner")(x) > 0)
+    ),
+    "static or mid in the last 20 % of the episode": _widen(MID, lambda x: _f("time_left")(x) < 0.2),
+    "static or wide in the last 10 % of the episode": _widen(WIDE, lambda x: _f("time_left")(x) < 0.1),
+}  # fmt: skip
+
+
+def play(params: PointingParams, seed: int, batch: int, rule: Callable | None) -> tuple:
+    """Returns ``(returns (B,), share of receiver-steps aimed between two drones)``."""
+    planner = PlanHorizon(params, acquisition=True)
+    rng = np.random.default_rng(seed)
+    state = simulation.reset(params, rng, batch)
+    obs = simulation.observe(params, state)
+    total, shared = np.zeros(batch), 0
+    for t in range(EPISODE_STEPS):
+        view = _view(params, obs.astype(np.float64))
+        target = planner.choose(view, np.full(batch, t))
+        points = view.position
+        if rule is not None:
+            left = np.full(batch, (EPISODE_STEPS - t) / EPISODE_STEPS)
+            feats = share_features(params, view, target, left)
+            points, target = aims_between(params, view, target, rule(params, view, target, feats))
+            shared += int((target >= params.n_drones).sum())
+        action = slew_actions(params, view.azimuth, view.elevation, points, target)
+        state, reward, _ = simulation.step(params, state, action, rng)
+        obs = simulation.observe(params, state)
+        total += reward
+    return total, shared / (batch * EPISODE_STEPS * params.n_receivers)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[500])
+    ap.add_argument("--episodes", type=int, default=256)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    args = ap.parse_args()
+    if any(s >= 10_000 for s in args.seeds):
+        raise SystemExit("seeds: tuning seeds only (< 10000); 10000 and up are held out")
+    params = PointingParams()
+    start = time.perf_counter()
+    rows = []
+    for seed in args.seeds:
+        plain, _ = play(params, seed, args.episodes, None)
+        base, _ = play(params, seed, args.episodes, VARIANTS["static (0.5, 1.0, 3)"])
+        for name, rule in VARIANTS.items():
+            returns, share = play(params, seed, args.episodes, rule)
+            d = returns - base
+            rows.append({
+                "seed": seed,
+                "variant": name,
+                "plan_acquire": float(plain.mean()),
+                "static": float(base.mean()),
+                "variant_return": float(returns.mean()),
+                "paired_minus_static": float(d.mean()),
+                "paired_ci95": float(1.96 * d.std(ddof=1) / np.sqrt(d.size)),
+                "episodes_above": float((d > 1e-9).mean()),
+                "episodes_below": float((d < -1e-9).mean()),
+                "receiver_steps_shared": share,
+            })  # fmt: skip
+            r = rows[-1]
+            print(f"seed {seed} {name}: {r['variant_return']:.3f} vs static {r['static']:.3f}, "
+                  f"paired {r['paired_minus_static']:+.3f} ± {r['paired_ci95']:.3f}, "
+                  f"shared {share:.3%}", flush=True)  # fmt: skip
+    out = {
+        "settings": {
+            "env": "sensorgym/StereoPointing-v0",
+            "assignment": "plan-acquire",
+            "static": [STATIC.margin, STATIC.fraction, STATIC.max_rms],
+            "wide": [WIDE.margin, WIDE.fraction, WIDE.max_rms],
+            "mid": [MID.margin, MID.fraction, MID.max_rms],
+            "episodes": args.episodes,
+            "seconds": round(time.perf_counter() - start, 1),
+        },
+        "rows": rows,
+    }
+    args.out.write_text(json.dumps(out, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
