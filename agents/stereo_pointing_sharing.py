@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 
 from sensorgym.agents.stereo_pointing import _View
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.trackers.stereo.information import observable, position_information, position_sigma
 
 #: distance along the bisector of the aim point from the receiver, m (any positive value: the
 #: slew controller turns the receiver towards the point's direction)
@@ -145,7 +146,10 @@ SHARE_FEATURES = (
     "sees_own",
     "sees_partner",
     "time_left",
+    "partner_gain",
 )
+#: cap of the ``partner_gain`` feature (a drone that no receiver fixes without ``k``)
+GAIN_CAP = 5.0
 #: track RMS (m) at which the RMS features saturate at 1
 RMS_SCALE = 10.0
 
@@ -160,7 +164,11 @@ def share_features(
     geometric slack ``(2 fov − ∠) / (2 fov)`` (no margin); the larger angular RMS of the two
     tracks from ``k`` over ``2 fov`` (capped at 10), the unit of the rule's margin; whether
     ``k`` saw ``t``, and ``j``, on the last step; the fraction ``time_left (N,)`` of the episode
-    left. Read off the observation and the step count only."""
+    left; ``partner_gain``, ``ln(σ_without / σ_with)`` of drone ``j``'s position bound from the
+    other receivers sent to it without and with ``k``'s line of sight (theory §4.4, at the
+    predicted positions; in ``[0, GAIN_CAP]``, the cap where they alone do not fix it): the
+    reward ``k`` adds to ``j`` while it sees both. Read off the observation and the step count
+    only."""
     N, n, m = target.shape[0], params.n_receivers, params.n_drones
     left = np.asarray(time_left, dtype=np.float64)
     if left.shape != (N,):
@@ -188,6 +196,32 @@ def share_features(
             np.broadcast_to(sees_own[..., None], shape),
             view.seen,
             np.broadcast_to(left[:, None, None], shape),
+            _partner_gain(view, target),
         ],
         axis=-1,
     )
+
+
+def _partner_gain(view: _View, target: NDArray[np.int64]) -> NDArray[np.float64]:
+    """``(N, n, m)``: ``ln(σ_without / σ_with)`` of drone ``j``'s position bound (theory §4.4)
+    from the receivers other than ``k`` sent to it, without and with ``k``'s line of sight,
+    in ``[0, GAIN_CAP]``; 0 for ``k``'s own drone."""
+    N, n, m = view.ranges.shape
+    sent = target[..., None] == np.arange(m)[None, None]  # (N, n', m)
+    others = sent.transpose(0, 2, 1)[:, None] & ~np.eye(n, dtype=bool)[None, :, None]
+    receiver = np.broadcast_to(np.eye(n, dtype=bool)[None, :, None], (N, n, m, n))
+    los = view.los.transpose(0, 2, 1, 3)[:, None]  # (N, 1, m, n', 3)
+    ranges = np.where(np.isfinite(view.ranges), view.ranges, 1.0).transpose(0, 2, 1)[:, None]
+    visible = np.isfinite(view.ranges).transpose(0, 2, 1)[:, None]
+
+    def bound(mask: NDArray[np.bool_]) -> NDArray[np.float64]:
+        mask = mask & visible
+        info = position_information(los, ranges, 1.0, mask)
+        return position_sigma(info, observable(info, mask))
+
+    without, with_k = bound(others), bound(others | receiver)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gain = np.log(without / with_k)
+    gain = np.where(np.isfinite(with_k), np.nan_to_num(gain, nan=0.0, posinf=GAIN_CAP), 0.0)
+    gain = np.clip(gain, 0.0, GAIN_CAP)
+    return np.where(sent, 0.0, gain)

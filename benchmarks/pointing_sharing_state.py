@@ -94,6 +94,12 @@ VARIANTS: dict[str, Callable] = {
     ),
     "static or mid in the last 20 % of the episode": _widen(MID, lambda x: _f("time_left")(x) < 0.2),
     "static or wide in the last 10 % of the episode": _widen(WIDE, lambda x: _f("time_left")(x) < 0.1),
+    "static, partner gain > 0.05": _gate(STATIC, lambda x: _f("partner_gain")(x) > 0.05),
+    "static, partner gain > 0.1": _gate(STATIC, lambda x: _f("partner_gain")(x) > 0.1),
+    "static, partner gain > 0.2": _gate(STATIC, lambda x: _f("partner_gain")(x) > 0.2),
+    "static or mid where partner gain > 0.2": _widen(MID, lambda x: _f("partner_gain")(x) > 0.2),
+    "static or mid where partner gain > 0.4": _widen(MID, lambda x: _f("partner_gain")(x) > 0.4),
+    "static or wide where partner gain > 0.4": _widen(WIDE, lambda x: _f("partner_gain")(x) > 0.4),
 }  # fmt: skip
 
 

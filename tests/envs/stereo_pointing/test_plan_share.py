@@ -10,7 +10,14 @@ import pytest
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_pointing import _view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
-from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
+from sensorgym.agents.stereo_pointing_sharing import (
+    GAIN_CAP,
+    SHARE_FEATURES,
+    Sharing,
+    share_features,
+    share_logits,
+    shared_aims,
+)
 from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 from sensorgym.trackers.geometry import unit_from_angles
@@ -90,3 +97,95 @@ def test_the_rule_is_plan_acquire_where_no_pair_fits_and_differs_where_some_do()
         steps = next_steps
         state, _, _ = simulation.step(params, state, b, rng)
     assert differ > 0
+
+
+def _scenario_views(params: PointingParams, seed: int, batch: int, steps: int):
+    """Views and plan-acquire assignments of ``steps`` steps of seeded scenarios played by the
+    plan-acquire-share rule."""
+    rule = PlanHorizon(params, acquisition=True, sharing=Sharing())
+    rng = np.random.default_rng(seed)
+    state = simulation.reset(params, rng, batch)
+    out, t = [], None
+    for k in range(steps):
+        obs = simulation.observe(params, state)
+        view = _view(params, obs.astype(np.float64))
+        out.append((view, rule.choose(view, np.full(batch, k)), k))
+        action, t = rule.predict(obs, t, np.full(batch, k == 0))
+        state, _, _ = simulation.step(params, state, action, rng)
+    return out
+
+
+def test_the_share_logits_are_positive_exactly_where_the_stated_test_holds():
+    """On 40 steps of 16 seeded scenarios and three settings, ``share_logits > 0`` is the
+    docstring's test ``∠ + 2 q max(σ̂_j/r_kj, σ̂_t/r_kt) < 2 f fov`` with both tracks' RMS
+    below ``max_rms``, for another drone in sight; some pairs pass and some fail."""
+    params = PointingParams()
+    passed = failed = 0
+    for view, target, _ in _scenario_views(params, 7, 16, 40):
+        for sharing in (Sharing(), Sharing(0.0, 1.0, 6.0), Sharing(1.0, 0.5, 1.0)):
+            logits = share_logits(params, view, target, sharing)
+            for k in range(params.n_receivers):
+                rows = np.arange(16)
+                u = view.los[rows, k, target[:, k]]
+                for j in range(params.n_drones):
+                    angle = np.arccos(np.clip(np.sum(u * view.los[:, k, j], axis=1), -1, 1))
+                    rms = np.maximum(
+                        view.sigma[:, j] / view.ranges[:, k, j],
+                        view.sigma[rows, target[:, k]] / view.ranges[rows, k, target[:, k]],
+                    )
+                    expect = (
+                        (angle + 2 * sharing.margin * rms < 2 * params.fov * sharing.fraction)
+                        & (view.sigma[:, j] < sharing.max_rms)
+                        & (view.sigma[rows, target[:, k]] < sharing.max_rms)
+                        & (target[:, k] != j)
+                    )
+                    np.testing.assert_array_equal(logits[:, k, j] > 0, expect)
+                    passed, failed = passed + expect.sum(), failed + (~expect).sum()
+    assert passed > 0 and failed > 0
+
+
+def _bound(view, b: int, j: int, receivers: list[int]) -> float:
+    """``√tr G⁻¹`` of drone ``j`` seen by ``receivers`` (inf for fewer than two)."""
+    if len(receivers) < 2:
+        return np.inf
+    u, r = view.los[b, receivers, j], view.ranges[b, receivers, j]
+    info = sum((np.eye(3) - np.outer(a, a)) / d**2 for a, d in zip(u, r, strict=True))
+    return float(np.sqrt(np.trace(np.linalg.inv(info))))
+
+
+def test_the_share_features_count_receivers_and_the_partner_gain():
+    """Per receiver and drone: the other receivers sent to the drone and to the own one, and
+    the partner gain ``ln(σ_without/σ_with)`` of the position bound, recomputed here from the
+    receivers' lines of sight; zero for the own drone."""
+    params = PointingParams()
+    names = {name: i for i, name in enumerate(SHARE_FEATURES)}
+    finite = 0
+    for view, target, t in _scenario_views(params, 11, 4, 30)[::10]:
+        x = share_features(params, view, target, np.full(4, 1.0 - t / 150))
+        assert x.shape == (4, params.n_receivers, params.n_drones, len(SHARE_FEATURES))
+        for b in range(4):
+            for k in range(params.n_receivers):
+                for j in range(params.n_drones):
+                    others = [i for i in range(params.n_receivers) if i != k and target[b, i] == j]
+                    mine = [
+                        i
+                        for i in range(params.n_receivers)
+                        if i != k and target[b, i] == target[b, k]
+                    ]
+                    assert x[b, k, j, names["partner_receivers"]] == len(others)
+                    assert x[b, k, j, names["own_receivers"]] == len(mine)
+                    assert x[b, k, j, names["time_left"]] == pytest.approx(1.0 - t / 150)
+                    gain = x[b, k, j, names["partner_gain"]]
+                    if j == target[b, k]:
+                        assert gain == 0.0
+                        continue
+
+                    without, with_k = _bound(view, b, j, others), _bound(view, b, j, [*others, k])
+                    if np.isinf(with_k):
+                        assert gain == 0.0
+                    elif np.isinf(without):
+                        assert gain == GAIN_CAP
+                    else:
+                        assert gain == pytest.approx(np.log(without / with_k), rel=1e-6)
+                        finite += 1
+    assert finite > 0
