@@ -225,3 +225,65 @@ def _partner_gain(view: _View, target: NDArray[np.int64]) -> NDArray[np.float64]
     gain = np.where(np.isfinite(with_k), np.nan_to_num(gain, nan=0.0, posinf=GAIN_CAP), 0.0)
     gain = np.clip(gain, 0.0, GAIN_CAP)
     return np.where(sent, 0.0, gain)
+
+
+def share_partner(
+    view: _View, target: NDArray[np.int64], logits: NDArray[np.float64]
+) -> NDArray[np.int64]:
+    """The drone ``(N, n)`` receiver ``k`` would share its own with: the one
+    :func:`aims_between` picks for ``logits`` (the nearest with a positive logit) or, when none
+    is positive, the nearest other drone in sight; ``-1`` when no other drone is in sight."""
+    _, separation = _separation(view, target)
+    shareable = _shareable(view, target)
+    fits = shareable & (logits > 0.0)
+    near_fit = np.where(fits, separation, np.inf).argmin(axis=2)
+    near = np.where(shareable, separation, np.inf).argmin(axis=2)
+    partner = np.where(fits.any(axis=2), near_fit, near)
+    return np.where(shareable.any(axis=2), partner, -1)
+
+
+#: per receiver, the inputs of a learned share decision: the rule's logit, then the features
+SHARE_INPUTS = ("rule_logit", *SHARE_FEATURES)
+#: the rule's logit as an input is clipped to ``[LOGIT_FLOOR, 1]`` (its sign kept)
+LOGIT_FLOOR = -10.0
+
+
+def share_inputs(
+    params: PointingParams,
+    view: _View,
+    target: NDArray[np.int64],
+    sharing: Sharing,
+    time_left: NDArray[Any],
+) -> NDArray[np.float64]:
+    """``(N, n, len(SHARE_INPUTS))``: per receiver, the rule's :func:`share_logits` (clipped to
+    ``[LOGIT_FLOOR, 1]``) and :func:`share_features` with its :func:`share_partner`; the floor
+    and zero features where no other drone is in sight. A learned decision shares exactly when
+    the logit plus its term is positive (zero term: the rule of :func:`shared_aims`)."""
+    logits = share_logits(params, view, target, sharing)
+    partner = share_partner(view, target, logits)
+    at = np.maximum(partner, 0)[..., None]
+    rule = np.take_along_axis(logits, at, axis=2)[..., 0]
+    feats = np.take_along_axis(share_features(params, view, target, time_left), at[..., None], 2)
+    none = partner < 0
+    rule = np.where(none, LOGIT_FLOOR, np.clip(rule, LOGIT_FLOOR, 1.0))
+    feats = np.where(none[..., None], 0.0, feats[:, :, 0])
+    return np.concatenate([rule[..., None], feats], axis=-1)
+
+
+def decided_aims(
+    params: PointingParams,
+    view: _View,
+    target: NDArray[np.int64],
+    sharing: Sharing,
+    share: NDArray[Any],
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """:func:`aims_between` where receiver ``k`` shares with its :func:`share_partner` exactly
+    when ``share[:, k]`` (``(N, n)``, 0/1): with ``share`` the rule's own decisions (its
+    logit at the partner positive) the aims are :func:`shared_aims`'."""
+    share = np.asarray(share)
+    if share.shape != target.shape:
+        raise ValueError(f"share: expected shape {target.shape}, got {share.shape}")
+    partner = share_partner(view, target, share_logits(params, view, target, sharing))
+    m = params.n_drones
+    chosen = (np.arange(m)[None, None] == partner[..., None]) & (share[..., None] > 0)
+    return aims_between(params, view, target, np.where(chosen, 1.0, -1.0))

@@ -79,7 +79,7 @@ class ARS(BaseAlgorithm):
             device=device,
             support_multi_env=True,
             seed=seed,
-            supported_action_spaces=(spaces.Discrete,),
+            supported_action_spaces=(spaces.Discrete, spaces.MultiDiscrete),
         )
         if not (isinstance(n_directions, int) and n_directions >= 1):
             raise ValueError(f"n_directions: must be an integer >= 1, got {n_directions!r}")

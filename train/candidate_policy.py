@@ -38,6 +38,8 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
+from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS
+
 #: the learned score's forms: an MLP over the candidate's inputs, or linear in named features
 RESIDUALS = ("mlp", "linear")
 #: the linear residual's value of a best-plan flag (return units per unit weight)
@@ -58,6 +60,11 @@ class CandidateLayout:
     """Size of the env's own observation (first in the vector)."""
     episode_steps: int
     """Episode length ``T`` (steps): the time feature ``1 − t/T`` gives ``T − t`` steps left."""
+    n_receivers: int = 0
+    """Receivers per candidate in the share block (0: no share block)."""
+    share_inputs: int = 0
+    """Inputs per candidate and receiver in the share block of ``plan-features`` with
+    ``sharing`` (:data:`~sensorgym.agents.stereo_pointing_sharing.SHARE_INPUTS`; 0: none)."""
 
     @property
     def blocks(self) -> int:
@@ -65,9 +72,20 @@ class CandidateLayout:
         return len(self.horizons) + 1
 
     @property
+    def share_size(self) -> int:
+        """Size of the share block."""
+        return self.n_candidates * self.n_receivers * self.share_inputs
+
+    @property
     def obs_dim(self) -> int:
         """Size of the observation this layout reads."""
-        return self.base_dim + self.n_candidates * (2 * self.blocks + 1) + 1
+        return self.base_dim + self.n_candidates * (2 * self.blocks + 1) + self.share_size + 1
+
+    def share_block(self, obs: th.Tensor) -> th.Tensor:
+        """The share block ``(B, C, n, share_inputs)`` of observations ``(B, obs_dim)``."""
+        start = self.base_dim + self.n_candidates * (2 * self.blocks + 1)
+        block = obs[:, start : start + self.share_size]
+        return block.reshape(obs.shape[0], self.n_candidates, self.n_receivers, -1)
 
     def split(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
         """``(base (B, base_dim), loss (B, C, H + 1), best (B, C, H + 1), kept (B, C),
@@ -75,7 +93,7 @@ class CandidateLayout:
         C, H = self.n_candidates, self.blocks
         b = obs.shape[0]
         plan = obs[:, self.base_dim : self.base_dim + 2 * H * C].reshape(b, H, 2, C)
-        kept = obs[:, self.base_dim + 2 * H * C : -1]
+        kept = obs[:, self.base_dim + 2 * H * C : self.base_dim + (2 * H + 1) * C]
         return (
             obs[:, : self.base_dim],
             plan[:, :, 0].transpose(1, 2),
@@ -102,6 +120,11 @@ class CandidateNetworks(nn.Module):
         residual: str = "mlp",
     ):
         super().__init__()
+        #: with a share block: the learned share term's weights, one per share feature (the
+        #: rule's logit, the block's first input, enters with weight 1)
+        self.share_weights = (
+            nn.Parameter(th.zeros(layout.share_inputs - 1)) if layout.share_inputs else None
+        )
         if residual not in RESIDUALS:
             raise ValueError(f"residual: must be one of {RESIDUALS}, got {residual!r}")
         self.residual = residual
@@ -131,7 +154,9 @@ class CandidateNetworks(nn.Module):
             nn.Linear(hidden, hidden),
             nn.Tanh(),
         )
-        self.latent_dim_pi = layout.n_candidates
+        self.latent_dim_pi = layout.n_candidates + 2 * layout.n_receivers * bool(
+            layout.share_inputs
+        )
         self.latent_dim_vf = hidden
 
     def zero_residual(self) -> None:
@@ -140,6 +165,8 @@ class CandidateNetworks(nn.Module):
         nn.init.zeros_(self.score_out.bias)
         if self.linear is not None:
             nn.init.zeros_(self.linear.weight)
+        if self.share_weights is not None:
+            nn.init.zeros_(self.share_weights)
 
     def prior(self, loss: th.Tensor, kept: th.Tensor, remaining: th.Tensor) -> th.Tensor:
         """The ``plan-horizon`` objective ``(B, C)``, relative to the best candidate: planned
@@ -192,7 +219,19 @@ class CandidateNetworks(nn.Module):
             residual = self.linear(self.linear_features(obs)).squeeze(-1)
         else:
             residual = self.score_out(self.scorer(x)).squeeze(-1)
-        return th.exp(self.log_alpha) * prior + residual
+        scores = th.exp(self.log_alpha) * prior + residual
+        if self.share_weights is None:
+            return scores
+        return th.cat([scores, self.share_logits(obs, scores.argmax(dim=1))], dim=1)
+
+    def share_logits(self, obs: th.Tensor, choice: th.Tensor) -> th.Tensor:
+        """The share bits' logits ``(B, 2 n)`` (per receiver: 0 for keeping, ``s`` for
+        sharing) under the candidates ``choice (B,)``: ``s`` is the rule's logit plus the
+        share weights times the features of the share block, so that zero weights share
+        exactly as the rule (``s > 0``)."""
+        block = self.layout.share_block(obs)[th.arange(obs.shape[0]), choice]  # (B, n, S)
+        s = block[..., 0] + block[..., 1:] @ self.share_weights
+        return th.stack([th.zeros_like(s), s], dim=-1).reshape(obs.shape[0], -1)
 
     def forward_critic(self, obs: th.Tensor) -> th.Tensor:
         x, _, base, remaining = self.inputs(obs)
@@ -212,7 +251,10 @@ class CandidatePolicy(ActorCriticPolicy):
     (the time feature's ``T``), ``n_receivers`` (the kept fraction's denominator),
     ``prior_horizon`` and ``prior_keep`` (the prior rule's settings), ``hidden`` (width of the
     shared MLPs), ``alpha_init`` (initial weight of the prior, per unit of return) and
-    ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form)."""
+    ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form) and ``share`` (the
+    action also holds a share bit per receiver, ``pointing-plan`` with ``share_bits``, whose
+    logits are the rule's plus a learned linear term of the ``plan-features`` share block:
+    :meth:`CandidateNetworks.share_logits`)."""
 
     def __init__(
         self,
@@ -227,18 +269,34 @@ class CandidatePolicy(ActorCriticPolicy):
         hidden: int = 64,
         alpha_init: float = 3.0,
         residual: str = "mlp",
+        share: bool = False,
         **kwargs: Any,
     ):
-        if not isinstance(action_space, spaces.Discrete):
+        if share:
+            bits = [2] * int(n_receivers)
+            if not (
+                isinstance(action_space, spaces.MultiDiscrete)
+                and action_space.nvec.ndim == 1
+                and list(action_space.nvec[1:]) == bits
+            ):
+                raise ValueError(
+                    "CandidatePolicy: share needs a MultiDiscrete([C] + [2] * n_receivers) action "
+                    f"(pointing-plan with share_bits), got {action_space}"
+                )
+            C, S = int(action_space.nvec[0]), len(SHARE_INPUTS)
+        elif isinstance(action_space, spaces.Discrete):
+            C, S = int(action_space.n), 0
+        else:
             raise ValueError(f"CandidatePolicy: needs a Discrete action, got {action_space}")
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
             raise ValueError(
                 f"CandidatePolicy: needs a flat Box observation, got {observation_space}"
             )
-        C, H = int(action_space.n), len(horizons) + 1
-        base_dim = observation_space.shape[0] - C * (2 * H + 1) - 1
+        H = len(horizons) + 1
+        n_share = int(n_receivers) if share else 0
+        base_dim = observation_space.shape[0] - C * (2 * H + 1) - C * n_share * S - 1
         self.layout = CandidateLayout(
-            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps)
+            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps), n_share, S
         )
         if base_dim < 0:
             raise ValueError(
@@ -271,8 +329,12 @@ class CandidatePolicy(ActorCriticPolicy):
         )
 
     def search_parameter(self) -> nn.Parameter:
-        """The linear residual's weights ``(1, 2 H + 1)`` (``residual="linear"``): the vector a
-        direct policy search perturbs; zero is the prior rule."""
+        """The vector a direct policy search perturbs, zero the prior rule: with ``share`` the
+        share weights ``(len(SHARE_FEATURES),)`` (the assignment's residual then stays at
+        zero: the search moves the sharing alone, whose paired differences are small);
+        otherwise the linear residual's weights ``(1, 2 H + 1)`` (``residual="linear"``)."""
+        if self.mlp_extractor.share_weights is not None:
+            return self.mlp_extractor.share_weights
         linear = self.mlp_extractor.linear
         if linear is None:
             raise ValueError("search_parameter: the policy's residual is not linear")

@@ -22,6 +22,7 @@ simulator state.
 
 from __future__ import annotations
 
+from dataclasses import fields
 from typing import Any
 
 import numpy as np
@@ -32,6 +33,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from sensorgym.agents.stereo_pointing import (
     _assignments,
     _keep_bonus,
+    _View,
     _view,
     acquisition_probability,
     drone_rewards,
@@ -40,7 +42,13 @@ from sensorgym.agents.stereo_pointing import (
     rewards_acquired,
     rewards_values,
 )
-from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
+from sensorgym.agents.stereo_pointing_sharing import (
+    SHARE_INPUTS,
+    Sharing,
+    decided_aims,
+    share_inputs,
+    shared_aims,
+)
 from sensorgym.envs.stereo_pointing.simulation import (
     PointingParams,
     assignment_actions,
@@ -95,13 +103,24 @@ class PlanAction(ObservedActionWrapper):
     env's."""
 
     def __init__(
-        self, venv: VecEnv, params: PointingParams | None = None, sharing: Sharing | None = None
+        self,
+        venv: VecEnv,
+        params: PointingParams | None = None,
+        sharing: Sharing | None = None,
+        share_bits: bool = False,
     ):
         p = _pointing_params(venv, params)
         if sharing is not None and not isinstance(sharing, Sharing):
             raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
+        if share_bits and sharing is None:
+            raise ValueError("share_bits: needs a sharing setting (whose partner each bit names)")
         self.sharing = sharing
         """When a receiver aims between two drones; ``None``: always at its own drone."""
+        self.share_bits = bool(share_bits)
+        """The action is ``MultiDiscrete([m^n] + [2] * n)``: the candidate, then per receiver
+        whether it shares with its partner
+        (:func:`~sensorgym.agents.stereo_pointing_sharing.decided_aims`) instead of the
+        ``sharing`` rule's own test."""
         if venv.observation_space.shape != (p.obs_dim,):
             raise ValueError(
                 f"venv: expected the joint observation ({p.obs_dim},), got "
@@ -109,7 +128,11 @@ class PlanAction(ObservedActionWrapper):
             )
         self.candidates = _assignments(p)
         """``(m^n, n)``: candidate ``c`` sends receiver ``k`` to drone ``candidates[c, k]``."""
-        super().__init__(venv, spaces.Discrete(len(self.candidates)))
+        C = len(self.candidates)
+        space: spaces.Space = spaces.Discrete(C)
+        if self.share_bits:
+            space = spaces.MultiDiscrete([C] + [2] * p.n_receivers)
+        super().__init__(venv, space)
         self.params = p
 
     def index(self, assignment: NDArray[Any]) -> NDArray[np.int64]:
@@ -118,23 +141,36 @@ class PlanAction(ObservedActionWrapper):
         return np.ravel_multi_index(tuple(a.T), (self.params.n_drones,) * self.params.n_receivers)
 
     def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
-        choice = np.asarray(actions, dtype=np.int64).reshape(self.num_envs)
+        a = np.asarray(actions, dtype=np.int64).reshape(self.num_envs, -1)
+        width = 1 + self.params.n_receivers if self.share_bits else 1
+        if a.shape[1] != width:
+            raise ValueError(f"actions: expected {width} values per env, got {a.shape[1]}")
+        choice = a[:, 0]
         if np.any((choice < 0) | (choice >= len(self.candidates))):
             raise ValueError(f"actions: candidate indices must lie in [0, {len(self.candidates)})")
         target = self.candidates[choice]
         if self.sharing is None:
             return assignment_actions(self.params, obs, target)
         view = _view(self.params, np.asarray(obs, dtype=np.float64))
-        points, index = shared_aims(self.params, view, target, self.sharing)
+        if self.share_bits:
+            bits = a[:, 1:]
+            if np.any((bits < 0) | (bits > 1)):
+                raise ValueError("actions: share bits must be 0 or 1")
+            points, index = decided_aims(self.params, view, target, self.sharing, bits)
+        else:
+            points, index = shared_aims(self.params, view, target, self.sharing)
         return slew_actions(self.params, view.azimuth, view.elevation, points, index)
 
 
-def plan_wrapper(venv: VecEnv, sharing: bool | dict[str, float] | None = None) -> VecEnv:
+def plan_wrapper(
+    venv: VecEnv, sharing: bool | dict[str, float] | None = None, share_bits: bool = False
+) -> VecEnv:
     """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry). ``sharing``: ``true``
     for the registered :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` (the
     ``plan-acquire-share`` rule's), a mapping of its fields (``margin``, ``fraction``,
-    ``max_rms``), or absent/``false``/``null`` for none."""
-    return PlanAction(venv, sharing=_sharing(sharing))
+    ``max_rms``), or absent/``false``/``null`` for none; ``share_bits``: a share bit per
+    receiver in the action (:class:`PlanAction`)."""
+    return PlanAction(venv, sharing=_sharing(sharing), share_bits=bool(share_bits))
 
 
 def _sharing(value: bool | dict[str, float] | None) -> Sharing | None:
@@ -188,8 +224,11 @@ class PlanFeatures(VecEnvWrapper):
         params: PointingParams | None = None,
         acquisition: bool = False,
         plain_horizons: tuple[int, ...] | list[int] = (),
+        sharing: Sharing | None = None,
     ):
         p = _pointing_params(venv, params)
+        if sharing is not None and not isinstance(sharing, Sharing):
+            raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
         if venv.observation_space.shape != (p.obs_dim,):
             raise ValueError(
                 f"venv: expected the joint observation ({p.obs_dim},), got "
@@ -208,8 +247,12 @@ class PlanFeatures(VecEnvWrapper):
         if not isinstance(stride, int) or stride < 1:
             raise ValueError(f"plan-features: stride must be an integer >= 1, got {stride!r}")
         limit = max_episode_steps or _time_limit(venv)
-        if time_left and not (isinstance(limit, int | np.integer) and limit >= 1):
-            raise ValueError(f"plan-features: time_left needs a time limit, got {limit!r}")
+        if (time_left or sharing is not None) and not (
+            isinstance(limit, int | np.integer) and limit >= 1
+        ):
+            raise ValueError(
+                f"plan-features: time_left and sharing need a time limit, got {limit!r}"
+            )
         self.params = p
         self.horizons = tuple(int(h) for h in horizons)
         self.time_left = bool(time_left)
@@ -220,10 +263,19 @@ class PlanFeatures(VecEnvWrapper):
         self.candidates = _assignments(p)
         C = len(self.candidates)
         H = len(self.horizons) + len(self.plain_horizons) + int(self.time_left)
+        self.sharing = sharing
+        """With a setting, the share block follows: per candidate and receiver the inputs of a
+        learned share decision
+        (:func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs`)."""
         extra = C * (2 * H + 1)
+        share = C * p.n_receivers * len(SHARE_INPUTS) if sharing is not None else 0
         box = venv.observation_space
-        low = np.concatenate([box.low, np.full(extra, -10.0, np.float32)]).astype(np.float32)
-        high = np.concatenate([box.high, np.ones(extra, np.float32)]).astype(np.float32)
+        low = np.concatenate(
+            [box.low, np.full(extra, -10.0, np.float32), np.full(share, -20.0, np.float32)]
+        ).astype(np.float32)
+        high = np.concatenate(
+            [box.high, np.ones(extra, np.float32), np.full(share, 20.0, np.float32)]
+        ).astype(np.float32)
         super().__init__(venv, observation_space=spaces.Box(low, high, dtype=np.float32))
         self._t = np.zeros(venv.num_envs, dtype=np.int64)
 
@@ -254,7 +306,20 @@ class PlanFeatures(VecEnvWrapper):
             parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
             parts.append(np.eye(C)[np.argmax(v, axis=1)])
         parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
+        if self.sharing is not None:
+            parts.append(self.share_block(view, t))
         return np.concatenate(parts, axis=1).astype(np.float32)
+
+    def share_block(self, view: _View, t: NDArray[np.int64]) -> NDArray[np.float64]:
+        """``(N, m^n · n · len(SHARE_INPUTS))``: per candidate (in order), per receiver, the
+        :func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs` of that assignment,
+        the time left ``(T − t) / T`` as the time feature's."""
+        N, C = len(t), len(self.candidates)
+        every = _View(*(np.repeat(getattr(view, f.name), C, axis=0) for f in fields(_View)))
+        target = np.tile(self.candidates, (N, 1))
+        left = np.repeat((self.max_episode_steps - t) / self.max_episode_steps, C)
+        x = share_inputs(self.params, every, target, self.sharing, left)
+        return x.reshape(N, -1)
 
     def base_observation(self, obs: NDArray[Any]) -> NDArray[Any]:
         """The env's own observation in ``obs`` (the features dropped)."""
@@ -282,10 +347,13 @@ class PlanFeatures(VecEnvWrapper):
 def plan_features(venv: VecEnv, **kwargs: Any) -> VecEnv:
     """Factory of the ``plan-features`` wrapper (``WRAPPERS`` registry); keywords as
     :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``,
-    ``acquisition``, ``plain_horizons``)."""
+    ``acquisition``, ``plain_horizons``; ``sharing`` as ``pointing-plan``'s: the share
+    block)."""
     for key in ("horizons", "plain_horizons"):
         if key in kwargs:
             kwargs[key] = tuple(kwargs[key])
+    if "sharing" in kwargs:
+        kwargs["sharing"] = _sharing(kwargs["sharing"])
     return PlanFeatures(venv, **kwargs)
 
 

@@ -11,7 +11,7 @@ import pytest
 import torch as th
 
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
-from sensorgym.agents.stereo_pointing_sharing import Sharing
+from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS, Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.envs.stereo_pointing.wrappers import PlanAction, _find
 from sensorgym.train.ars import ARS, SCENARIO_SEEDS
@@ -123,11 +123,30 @@ def _share_wrappers(sharing) -> list:
     return [{"name": "pointing-plan", "sharing": sharing}, *wrappers[1:]]
 
 
-def test_with_sharing_the_untrained_policy_acts_as_plan_acquire_share():
-    """With ``pointing-plan``'s ``sharing`` the zero residual's env actions are the
-    plan-acquire-share rule's on every step of two episodes of four seeded scenarios; the
-    registered setting shares some receiver-steps, and without it the actions differ."""
-    model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True))
+def _learned_share(**overrides) -> ARS:
+    """The ARS model with share bits: ``pointing-plan`` and ``plan-features`` with the
+    registered sharing, the policy's ``share``."""
+    hp = load_hyperparams("ars", ENV_ID)
+    wrappers = [
+        {"name": "pointing-plan", "sharing": True, "share_bits": True},
+        {"name": "plan-features", "acquisition": True, "sharing": True},
+        {"name": "time-feature"},
+    ]
+    kwargs = {**hp["policy_kwargs"], "share": True}
+    return _model(wrappers=wrappers, policy_kwargs=kwargs, **overrides)
+
+
+@pytest.mark.parametrize("share_bits", [False, True])
+def test_with_sharing_the_untrained_policy_acts_as_plan_acquire_share(share_bits):
+    """With ``pointing-plan``'s ``sharing`` (and with the learned share bits at zero weights)
+    the untrained policy's env actions are the plan-acquire-share rule's on every step of two
+    episodes of four seeded scenarios; the registered setting shares some receiver-steps, and
+    without it the actions differ."""
+    if share_bits:
+        model = _learned_share(n_envs=4, episodes=4)
+        assert model.action_space.shape == (5,) and np.array_equal(model.theta, np.zeros(11))
+    else:
+        model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True))
     plain = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(None))
     plan = _find(model.env, PlanAction, "pointing-plan")
     straight = _find(plain.env, PlanAction, "pointing-plan")
@@ -142,7 +161,8 @@ def test_with_sharing_the_untrained_policy_acts_as_plan_acquire_share():
         ours = plan.env_action(action, plan.last_obs).astype(np.float32)
         theirs, state = rule.predict(plan.last_obs, state, start)
         np.testing.assert_array_equal(ours, theirs)
-        differs += int(np.any(ours != straight.env_action(action, plan.last_obs)))
+        candidate = np.asarray(action).reshape(4, -1)[:, 0]
+        differs += int(np.any(ours != straight.env_action(candidate, plan.last_obs)))
         obs, _, start, _ = model.env.step(action)
     assert differs > 0
 
@@ -154,3 +174,30 @@ def test_bad_sharing_settings_are_refused():
         _model(wrappers=_share_wrappers({"fraction": 1.5}))
     with pytest.raises(ValueError, match="mapping"):
         _model(wrappers=_share_wrappers("yes"))
+
+
+def test_the_share_weights_decide_the_sharing():
+    """A bias weight of -20 keeps every receiver on its drone (plan-acquire's env actions on
+    every step of a seeded episode); +20 sets the share bit of every receiver."""
+    model = _learned_share(n_envs=4, episodes=4)
+    plan = _find(model.env, PlanAction, "pointing-plan")
+    rule = PlanHorizon(PointingParams(), acquisition=True)
+    bias = SHARE_INPUTS.index("bias") - 1  # the rule's logit has no weight
+    for weight in (-20.0, 20.0):
+        theta = np.zeros(11)
+        theta[bias] = weight
+        model.set_theta(theta)
+        model.env.seed(5)
+        obs = model.env.reset()
+        state, start = None, np.ones(4, dtype=bool)
+        for _ in range(150):
+            action, _ = model.predict(obs, deterministic=True)
+            bits = np.asarray(action).reshape(4, -1)[:, 1:]
+            if weight < 0:
+                assert not bits.any()
+                ours = plan.env_action(action, plan.last_obs).astype(np.float32)
+                theirs, state = rule.predict(plan.last_obs, state, start)
+                np.testing.assert_array_equal(ours, theirs)
+            else:
+                assert bits.all()
+            obs, _, start, _ = model.env.step(action)
