@@ -24,8 +24,23 @@ from sensorgym.train.trainer import SEARCH_FILE, train
 ENV_ID = "sensorgym/StereoPointing-v0"
 
 
+#: the assignment residual's search (the shipped ars_seed* runs' settings, without sharing)
+ASSIGNMENT = {
+    "wrappers": [
+        {"name": "pointing-plan"},
+        {"name": "plan-features", "acquisition": True},
+        {"name": "time-feature"},
+    ],
+    "noise_std": 0.3,
+    "learning_rate": 0.1,
+}
+
+
 def _model(n_envs: int = 4, **overrides) -> ARS:
+    """The ARS model of the assignment residual (:data:`ASSIGNMENT`) with ``overrides``."""
     hp = load_hyperparams("ars", ENV_ID)
+    hp.update(ASSIGNMENT)
+    hp["policy_kwargs"] = {**hp["policy_kwargs"], "share": False}
     hp.update(overrides)
     run, kwargs = split_run_settings(hp)
     env = make_sb3_env(ENV_ID, n_envs, 0, wrappers=run["wrappers"])
@@ -100,7 +115,11 @@ def test_bad_settings_are_refused():
         _model(noise_std=0.0)
     with pytest.raises(ValueError, match="search_parameter"):
         _model(
-            policy_kwargs={**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "residual": "mlp"}
+            policy_kwargs={
+                **load_hyperparams("ars", ENV_ID)["policy_kwargs"],
+                "residual": "mlp",
+                "share": False,
+            }
         )
 
 
@@ -118,8 +137,7 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
 
 
 def _share_wrappers(sharing) -> list:
-    wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
-    assert wrappers[0]["name"] == "pointing-plan"
+    wrappers = ASSIGNMENT["wrappers"]
     return [{"name": "pointing-plan", "sharing": sharing}, *wrappers[1:]]
 
 
@@ -134,6 +152,17 @@ def _learned_share(**overrides) -> ARS:
     ]
     kwargs = {**hp["policy_kwargs"], "share": True}
     return _model(wrappers=wrappers, policy_kwargs=kwargs, **overrides)
+
+
+def test_the_registered_entry_learns_the_sharing():
+    """``ars.yml``'s StereoPointing entry is the learned sharing: share bits in the action, the
+    share block in the observation, the 11 share weights searched."""
+    hp = load_hyperparams("ars", ENV_ID)
+    assert hp["policy_kwargs"]["share"] is True
+    assert hp["wrappers"][0] == {"name": "pointing-plan", "sharing": True, "share_bits": True}
+    hp.pop("n_envs")
+    model = _model(**hp)
+    assert model.theta.shape == (11,) and not model.theta.any()
 
 
 @pytest.mark.parametrize("share_bits", [False, True])
