@@ -9,6 +9,13 @@ losing the first, and the reward counts every receiver that sees a drone (its Cr
 theory §4.4). :func:`shared_aims` turns an assignment into such aim points; the margin keeps
 both drones inside the field of view despite the tracks' error. Measured on the tuning seeds
 (``benchmarks/pointing_sharing.py``, ``benchmarks/results/pointing_sharing.json``).
+
+A learned policy decides per receiver instead (``pointing-plan`` with ``share_bits``): its
+logit is the rule's :func:`share_logits` at the receiver's :func:`share_partner` plus a linear
+term of :func:`share_features`, :func:`share_inputs` collects both and :func:`decided_aims`
+aims by the decisions; zero weights are the rule. Whether a state-dependent decision can beat
+the best static setting at all was probed on the tuning seeds
+(``benchmarks/pointing_sharing_state.py``).
 """
 
 from __future__ import annotations

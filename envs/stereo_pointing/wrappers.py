@@ -15,7 +15,10 @@ over the candidate assignments the assignment rules enumerate, in their order.
 :class:`PlanFeatures` (``plan-features``) appends the planner's own evidence to the
 observation: :func:`~sensorgym.agents.stereo_pointing.plan_values` of every candidate on the
 tracker's estimate for a few horizons and for the time left, so that a policy can reproduce the
-``plan-estimate`` rule by an argmax and learn when to deviate from it. Everything it computes
+``plan-estimate`` rule by an argmax and learn when to deviate from it. With ``sharing`` both
+aim a receiver between two drones as the ``plan-acquire-share`` rule does; with ``share_bits``
+the action also says per receiver whether to share, and ``plan-features`` appends what that
+decision may weigh (issue 13). Everything it computes
 comes from the observation and the step count of the episode (fieldable), never from the
 simulator state.
 """
@@ -212,6 +215,12 @@ class PlanFeatures(VecEnvWrapper):
     same layout; ``plain_horizons`` then adds blocks of the plain plan (without acquisition)
     at these horizons, after the ``horizons`` blocks and before the time left, so that a
     policy sees where the two models disagree (``H`` counts them too).
+
+    With ``sharing`` (a :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing`) the share
+    block follows the kept fractions: per candidate and receiver the inputs of a learned share
+    decision, :func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs` (the rule's share
+    logit, then the share features), ``m^n · n · len(SHARE_INPUTS)`` values; a ``pointing-plan``
+    with ``share_bits`` and the same setting acts on them.
     """
 
     def __init__(
