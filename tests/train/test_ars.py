@@ -24,23 +24,8 @@ from sensorgym.train.trainer import SEARCH_FILE, train
 ENV_ID = "sensorgym/StereoPointing-v0"
 
 
-#: the assignment residual's search (the shipped ars_seed* runs' settings, without sharing)
-ASSIGNMENT = {
-    "wrappers": [
-        {"name": "pointing-plan"},
-        {"name": "plan-features", "acquisition": True},
-        {"name": "time-feature"},
-    ],
-    "noise_std": 0.3,
-    "learning_rate": 0.1,
-}
-
-
 def _model(n_envs: int = 4, **overrides) -> ARS:
-    """The ARS model of the assignment residual (:data:`ASSIGNMENT`) with ``overrides``."""
     hp = load_hyperparams("ars", ENV_ID)
-    hp.update(ASSIGNMENT)
-    hp["policy_kwargs"] = {**hp["policy_kwargs"], "share": False}
     hp.update(overrides)
     run, kwargs = split_run_settings(hp)
     env = make_sb3_env(ENV_ID, n_envs, 0, wrappers=run["wrappers"])
@@ -115,11 +100,7 @@ def test_bad_settings_are_refused():
         _model(noise_std=0.0)
     with pytest.raises(ValueError, match="search_parameter"):
         _model(
-            policy_kwargs={
-                **load_hyperparams("ars", ENV_ID)["policy_kwargs"],
-                "residual": "mlp",
-                "share": False,
-            }
+            policy_kwargs={**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "residual": "mlp"}
         )
 
 
@@ -137,32 +118,52 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
 
 
 def _share_wrappers(sharing) -> list:
-    wrappers = ASSIGNMENT["wrappers"]
+    wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
+    assert wrappers[0] == {"name": "pointing-plan"}
     return [{"name": "pointing-plan", "sharing": sharing}, *wrappers[1:]]
 
 
+#: the learned sharing's wrappers (the runs of ``benchmarks/results/pointing_share_ars.json``)
+SHARE_WRAPPERS = [
+    {"name": "pointing-plan", "sharing": True, "share_bits": True},
+    {"name": "plan-features", "acquisition": True, "sharing": True},
+    {"name": "time-feature"},
+]
+
+
 def _learned_share(**overrides) -> ARS:
-    """The ARS model with share bits: ``pointing-plan`` and ``plan-features`` with the
-    registered sharing, the policy's ``share``."""
-    hp = load_hyperparams("ars", ENV_ID)
-    wrappers = [
-        {"name": "pointing-plan", "sharing": True, "share_bits": True},
-        {"name": "plan-features", "acquisition": True, "sharing": True},
-        {"name": "time-feature"},
-    ]
-    kwargs = {**hp["policy_kwargs"], "share": True}
-    return _model(wrappers=wrappers, policy_kwargs=kwargs, **overrides)
+    """The ARS model of the learned sharing: ``pointing-plan`` with the registered sharing and
+    share bits, ``plan-features`` with the share block, the policy's ``share``."""
+    kwargs = {**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "share": True}
+    return _model(wrappers=SHARE_WRAPPERS, policy_kwargs=kwargs, **overrides)
 
 
-def test_the_registered_entry_learns_the_sharing():
-    """``ars.yml``'s StereoPointing entry is the learned sharing: share bits in the action, the
-    share block in the observation, the 11 share weights searched."""
-    hp = load_hyperparams("ars", ENV_ID)
-    assert hp["policy_kwargs"]["share"] is True
-    assert hp["wrappers"][0] == {"name": "pointing-plan", "sharing": True, "share_bits": True}
-    hp.pop("n_envs")
-    model = _model(**hp)
-    assert model.theta.shape == (11,) and not model.theta.any()
+def test_a_learned_sharing_run_reloads_to_the_same_actions(tmp_path):
+    kwargs = {**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "share": True}
+    hp = {"episodes": 2, "n_directions": 1, "noise_std": 0.5, "learning_rate": 1.0}
+    result = train(
+        ENV_ID,
+        "ars",
+        seed=4,
+        timesteps=1,
+        n_envs=2,
+        out=tmp_path,
+        eval_episodes=2,
+        progress=False,
+        curve_points=0,
+        hyperparams={**hp, "wrappers": SHARE_WRAPPERS, "policy_kwargs": kwargs},
+    )
+    loaded = load_model(result.run_dir)
+    assert loaded.theta.shape == (11,) and result.model.theta.any()
+    np.testing.assert_array_equal(loaded.theta, result.model.theta)
+    env = make_sb3_env(ENV_ID, 4, 5, wrappers=SHARE_WRAPPERS)
+    obs = env.reset()
+    for _ in range(3):
+        a, _ = result.model.predict(obs, deterministic=True)
+        b, _ = loaded.predict(obs, deterministic=True)
+        assert a.shape == (4, 5)
+        np.testing.assert_array_equal(a, b)
+        obs, *_ = env.step(a)
 
 
 @pytest.mark.parametrize("share_bits", [False, True])

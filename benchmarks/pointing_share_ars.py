@@ -1,0 +1,100 @@
+"""The learned sharing of ``sensorgym/StereoPointing-v0`` on the tuning seeds (issue 13).
+
+``python benchmarks/pointing_share_ars.py RUN [RUN ...] [--seeds 500 600] [--episodes 256]``
+scores each ``sensorgym train --algo ars`` run folder of the learned sharing (share bits over
+``plan-acquire``'s assignment; the hyperparameters each run recorded, the ``ars.yml`` entry it
+was trained with, are written beside its scores) on the tuning
+seeds, paired episode by episode to ``plan-acquire-share`` (the rule its zero weights are) and
+to the best static sharing setting of the probe, (0.5, 1.0, 3)
+(``benchmarks/pointing_sharing_state.py``), on the same scenarios. Writes
+``benchmarks/results/pointing_share_ars.json``: per run its share weights by feature name,
+scenario seeds, and per seed the paired differences with 95 % intervals. Tuning seeds only
+(never 10000 or 31337): the held-out check is ``sensorgym benchmark``'s.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.agents.stereo_pointing_sharing import SHARE_FEATURES, Sharing
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.train.evaluation import evaluate, make_sb3_env
+from sensorgym.train.models import load_model
+
+RESULTS = Path(__file__).resolve().parent / "results" / "pointing_share_ars.json"
+ENV_ID = "sensorgym/StereoPointing-v0"
+N_ENVS = 16
+#: the probe's best static setting (q, f, max_rms)
+STATIC = Sharing(0.5, 1.0, 3.0)
+
+
+def _paired(ours: np.ndarray, theirs: np.ndarray) -> dict[str, float]:
+    d = ours - theirs
+    return {"mean": float(d.mean()), "ci95": float(1.96 * d.std(ddof=1) / np.sqrt(d.size))}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", type=Path, nargs="+")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[500, 600])
+    ap.add_argument("--episodes", type=int, default=256)
+    ap.add_argument("--out", type=Path, default=RESULTS)
+    args = ap.parse_args()
+    if any(s >= 10_000 for s in args.seeds):
+        raise SystemExit("seeds: tuning seeds only (< 10000); 10000 and up are held out")
+    start = time.perf_counter()
+    params = PointingParams()
+    rules = {
+        "plan-acquire-share": PlanHorizon(params, acquisition=True, sharing=Sharing()),
+        "static (0.5, 1.0, 3)": PlanHorizon(params, acquisition=True, sharing=STATIC),
+    }
+    plain = make_sb3_env(ENV_ID, N_ENVS, 0)
+    base = {
+        (name, seed): np.array(evaluate(rule, plain, args.episodes, seed).returns)
+        for name, rule in rules.items()
+        for seed in args.seeds
+    }
+    out: dict = {
+        "settings": {
+            "env": ENV_ID,
+            "episodes": args.episodes,
+            "seeds": args.seeds,
+            "n_envs": N_ENVS,
+            "rules": {k: float(v.mean()) for k, v in ((f"{n} seed {s}", b) for (n, s), b in base.items())},
+        },
+        "runs": {},
+    }  # fmt: skip
+    for run in args.runs:
+        config = yaml.safe_load((run / "config.yaml").read_text())
+        wrappers = config["hyperparams"]["wrappers"]
+        env = make_sb3_env(ENV_ID, N_ENVS, 0, wrappers=wrappers)
+        model = load_model(run, env)
+        history = json.loads((run / "search.json").read_text())
+        row: dict = {
+            "seed": config["seed"],
+            "hyperparams": config["hyperparams"],
+            "theta": dict(zip(SHARE_FEATURES, model.theta.tolist(), strict=True)),
+            "iterations": len(history),
+            "scenario_seeds": [h["scenario_seed"] for h in history],
+        }
+        for seed in args.seeds:
+            ours = np.array(evaluate(model, env, args.episodes, seed).returns)
+            row[f"seed_{seed}"] = {
+                "mean": float(ours.mean()),
+                **{f"paired_minus_{name}": _paired(ours, base[name, seed]) for name in rules},
+            }
+            print(run.name, seed, json.dumps(row[f"seed_{seed}"]), flush=True)
+        out["runs"][run.name] = row
+    out["settings"]["seconds"] = round(time.perf_counter() - start, 1)
+    args.out.write_text(json.dumps(out, indent=1) + "\n")
+
+
+if __name__ == "__main__":
+    main()
