@@ -21,10 +21,12 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from pointing_sharing import tuning_args
 
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import SHARE_FEATURES, Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.train.benchmark import paired_difference
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.models import load_model
 
@@ -35,20 +37,10 @@ N_ENVS = 16
 STATIC = Sharing(0.5, 1.0, 3.0)
 
 
-def _paired(ours: np.ndarray, theirs: np.ndarray) -> dict[str, float]:
-    d = ours - theirs
-    return {"mean": float(d.mean()), "ci95": float(1.96 * d.std(ddof=1) / np.sqrt(d.size))}
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", type=Path, nargs="+")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[500, 600])
-    ap.add_argument("--episodes", type=int, default=256)
-    ap.add_argument("--out", type=Path, default=RESULTS)
-    args = ap.parse_args()
-    if any(s >= 10_000 for s in args.seeds):
-        raise SystemExit("seeds: tuning seeds only (< 10000); 10000 and up are held out")
+    args = tuning_args(__doc__, RESULTS, [500, 600], ap)
     start = time.perf_counter()
     params = PointingParams()
     rules = {
@@ -88,7 +80,10 @@ def main() -> None:
             ours = np.array(evaluate(model, env, args.episodes, seed).returns)
             row[f"seed_{seed}"] = {
                 "mean": float(ours.mean()),
-                **{f"paired_minus_{name}": _paired(ours, base[name, seed]) for name in rules},
+                **{
+                    f"paired_minus_{name}": paired_difference(ours, base[name, seed])
+                    for name in rules
+                },
             }
             print(run.name, seed, json.dumps(row[f"seed_{seed}"]), flush=True)
         out["runs"][run.name] = row

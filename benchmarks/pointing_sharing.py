@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -31,6 +32,7 @@ from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
+from sensorgym.train.benchmark import paired_difference
 
 RESULTS = Path(__file__).resolve().parent / "results" / "pointing_sharing.json"
 EPISODE_STEPS = 150
@@ -43,9 +45,10 @@ SETTINGS = (
 )  # fmt: skip
 
 
-def play(params: PointingParams, seed: int, batch: int, setting: tuple | None) -> tuple:
-    """Returns ``(returns (B,), share of receiver-steps aimed between two drones)``."""
-    sharing = None if setting is None else Sharing(*setting)
+def play(params: PointingParams, seed: int, batch: int, aim: Callable | None) -> tuple:
+    """``plan-acquire``'s assignments on ``batch`` scenarios of ``seed``, each receiver aimed by
+    ``aim(view, target, t) → (points, target)`` for ``slew_actions`` (``None``: straight at its
+    drone). Returns ``(returns (B,), share of receiver-steps aimed between two drones)``."""
     rule = PlanHorizon(params, acquisition=True)
     rng = np.random.default_rng(seed)
     state = simulation.reset(params, rng, batch)
@@ -55,8 +58,8 @@ def play(params: PointingParams, seed: int, batch: int, setting: tuple | None) -
         view = _view(params, obs.astype(np.float64))
         target = rule.choose(view, np.full(batch, t))
         points = view.position
-        if sharing is not None:
-            points, target = shared_aims(params, view, target, sharing)
+        if aim is not None:
+            points, target = aim(view, target, t)
             shared += int((target >= params.n_drones).sum())
         action = slew_actions(params, view.azimuth, view.elevation, points, target)
         state, reward, _ = simulation.step(params, state, action, rng)
@@ -65,31 +68,56 @@ def play(params: PointingParams, seed: int, batch: int, setting: tuple | None) -
     return total, shared / (batch * EPISODE_STEPS * params.n_receivers)
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[500, 600])
+def setting_aim(params: PointingParams, setting: tuple) -> Callable:
+    """``play``'s ``aim`` of the rule's :func:`shared_aims` at ``setting = (q, f, max_rms)``."""
+    sharing = Sharing(*setting)
+    return lambda view, target, t: shared_aims(params, view, target, sharing)
+
+
+def paired_fields(returns: np.ndarray, base: np.ndarray, against: str) -> dict[str, float]:
+    """A results row's fields of the per-episode difference ``returns − base`` (the same
+    scenarios and noise): its mean (``paired_minus_<against>``), 95 % half-width
+    (:func:`sensorgym.train.benchmark.paired_difference`) and the shares of episodes above and
+    below."""
+    stats, d = paired_difference(returns, base), returns - base
+    return {
+        f"paired_minus_{against}": stats["mean"],
+        "paired_ci95": stats["ci95"],
+        "episodes_above": float((d > 1e-9).mean()),
+        "episodes_below": float((d < -1e-9).mean()),
+    }
+
+
+def tuning_args(
+    doc: str, results: Path, seeds: list[int], ap: argparse.ArgumentParser | None = None
+) -> argparse.Namespace:
+    """The command line of a probe on tuning seeds (``--seeds``, ``--episodes``, ``--out``;
+    ``ap`` may hold more arguments); a held-out seed (10000 and up) is refused."""
+    ap = ap or argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=seeds)
     ap.add_argument("--episodes", type=int, default=256)
-    ap.add_argument("--out", type=Path, default=RESULTS)
+    ap.add_argument("--out", type=Path, default=results)
     args = ap.parse_args()
     if any(s >= 10_000 for s in args.seeds):
         raise SystemExit("seeds: tuning seeds only (< 10000); 10000 and up are held out")
+    return args
+
+
+def main() -> None:
+    args = tuning_args(__doc__, RESULTS, [500, 600])
     params = PointingParams()
     start = time.perf_counter()
     rows = []
     for seed in args.seeds:
         base, _ = play(params, seed, args.episodes, None)
         for setting in SETTINGS:
-            returns, share = play(params, seed, args.episodes, setting)
-            d = returns - base
+            returns, share = play(params, seed, args.episodes, setting_aim(params, setting))
             rows.append({
                 "seed": seed,
                 "margin_sigmas": setting[0], "fov_fraction": setting[1], "max_track_rms_m": setting[2],
                 "plan_acquire": float(base.mean()),
                 "shared": float(returns.mean()),
-                "paired_minus_plan_acquire": float(d.mean()),
-                "paired_ci95": float(1.96 * d.std(ddof=1) / np.sqrt(d.size)),
-                "episodes_above": float((d > 1e-9).mean()),
-                "episodes_below": float((d < -1e-9).mean()),
+                **paired_fields(returns, base, "plan_acquire"),
                 "receiver_steps_shared": share,
             })  # fmt: skip
             r = rows[-1]

@@ -19,16 +19,14 @@ that check. Tuning seeds only (never 10000 or 31337).
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from pointing_sharing import EPISODE_STEPS, paired_fields, play, tuning_args
 
-from sensorgym.agents.stereo_pointing import _view
-from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import (
     SHARE_FEATURES,
     Sharing,
@@ -36,11 +34,9 @@ from sensorgym.agents.stereo_pointing_sharing import (
     share_features,
     share_logits,
 )
-from sensorgym.envs.stereo_pointing import simulation
-from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 RESULTS = Path(__file__).resolve().parent / "results" / "pointing_sharing_state.json"
-EPISODE_STEPS = 150
 #: the best static setting on tuning seeds 500 and 600 (q, f, max_rms)
 STATIC = Sharing(0.5, 1.0, 3.0)
 #: a wide test: no margin, the whole field of view, any track below 1 km
@@ -103,56 +99,36 @@ VARIANTS: dict[str, Callable] = {
 }  # fmt: skip
 
 
-def play(params: PointingParams, seed: int, batch: int, rule: Callable | None) -> tuple:
-    """Returns ``(returns (B,), share of receiver-steps aimed between two drones)``."""
-    planner = PlanHorizon(params, acquisition=True)
-    rng = np.random.default_rng(seed)
-    state = simulation.reset(params, rng, batch)
-    obs = simulation.observe(params, state)
-    total, shared = np.zeros(batch), 0
-    for t in range(EPISODE_STEPS):
-        view = _view(params, obs.astype(np.float64))
-        target = planner.choose(view, np.full(batch, t))
-        points = view.position
-        if rule is not None:
-            left = np.full(batch, (EPISODE_STEPS - t) / EPISODE_STEPS)
-            feats = share_features(params, view, target, left)
-            points, target = aims_between(params, view, target, rule(params, view, target, feats))
-            shared += int((target >= params.n_drones).sum())
-        action = slew_actions(params, view.azimuth, view.elevation, points, target)
-        state, reward, _ = simulation.step(params, state, action, rng)
-        obs = simulation.observe(params, state)
-        total += reward
-    return total, shared / (batch * EPISODE_STEPS * params.n_receivers)
+def rule_aim(params: PointingParams, rule: Callable) -> Callable:
+    """``pointing_sharing.play``'s ``aim`` of a share decision ``rule(params, view, target,
+    features) → (N, n) bool`` on :func:`share_features`, aimed by :func:`aims_between`."""
+
+    def aim(view, target, t):
+        left = np.full(target.shape[0], (EPISODE_STEPS - t) / EPISODE_STEPS)
+        feats = share_features(params, view, target, left)
+        return aims_between(params, view, target, rule(params, view, target, feats))
+
+    return aim
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[500])
-    ap.add_argument("--episodes", type=int, default=256)
-    ap.add_argument("--out", type=Path, default=RESULTS)
-    args = ap.parse_args()
-    if any(s >= 10_000 for s in args.seeds):
-        raise SystemExit("seeds: tuning seeds only (< 10000); 10000 and up are held out")
+    args = tuning_args(__doc__, RESULTS, [500])
     params = PointingParams()
     start = time.perf_counter()
     rows = []
     for seed in args.seeds:
         plain, _ = play(params, seed, args.episodes, None)
-        base, _ = play(params, seed, args.episodes, VARIANTS["static (0.5, 1.0, 3)"])
+        static = rule_aim(params, VARIANTS["static (0.5, 1.0, 3)"])
+        base, _ = play(params, seed, args.episodes, static)
         for name, rule in VARIANTS.items():
-            returns, share = play(params, seed, args.episodes, rule)
-            d = returns - base
+            returns, share = play(params, seed, args.episodes, rule_aim(params, rule))
             rows.append({
                 "seed": seed,
                 "variant": name,
                 "plan_acquire": float(plain.mean()),
                 "static": float(base.mean()),
                 "variant_return": float(returns.mean()),
-                "paired_minus_static": float(d.mean()),
-                "paired_ci95": float(1.96 * d.std(ddof=1) / np.sqrt(d.size)),
-                "episodes_above": float((d > 1e-9).mean()),
-                "episodes_below": float((d < -1e-9).mean()),
+                **paired_fields(returns, base, "static"),
                 "receiver_steps_shared": share,
             })  # fmt: skip
             r = rows[-1]

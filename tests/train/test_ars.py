@@ -61,19 +61,26 @@ def test_the_search_climbs_back_from_a_worse_policy():
     assert all(SCENARIO_SEEDS[0] <= h["scenario_seed"] < SCENARIO_SEEDS[1] for h in model.history)
 
 
+def _tiny_run(out, seed: int, hyperparams: dict):
+    """One ARS iteration of ``sensorgym train`` on two scenarios, saved under ``out``."""
+    return train(ENV_ID, "ars", seed=seed, timesteps=1, n_envs=2, out=out, eval_episodes=2,
+                 progress=False, curve_points=0, hyperparams=hyperparams)  # fmt: skip
+
+
+def _same_actions(model, loaded, env, shape: tuple[int, ...]) -> None:
+    """``model`` and ``loaded`` act alike on three steps of ``env``."""
+    obs = env.reset()
+    for _ in range(3):
+        a, _ = model.predict(obs, deterministic=True)
+        b, _ = loaded.predict(obs, deterministic=True)
+        assert a.shape == shape
+        np.testing.assert_array_equal(a, b)
+        obs, *_ = env.step(a)
+
+
 def test_a_run_reloads_to_the_same_actions(tmp_path):
-    result = train(
-        ENV_ID,
-        "ars",
-        seed=3,
-        timesteps=1,
-        n_envs=2,
-        out=tmp_path,
-        eval_episodes=2,
-        progress=False,
-        curve_points=0,
-        hyperparams={"episodes": 2, "n_directions": 2, "noise_std": 2.0, "learning_rate": 1.0},
-    )
+    hp = {"episodes": 2, "n_directions": 2, "noise_std": 2.0, "learning_rate": 1.0}
+    result = _tiny_run(tmp_path, 3, hp)
     history = json.loads((result.run_dir / SEARCH_FILE).read_text())
     assert len(history) == 1 and history[0]["timesteps"] == 2 * 2 * 2 * 150
     assert not (result.run_dir / "model.zip").exists()
@@ -83,12 +90,7 @@ def test_a_run_reloads_to_the_same_actions(tmp_path):
     env = make_sb3_env(
         ENV_ID, 8, 5, wrappers=split_run_settings(load_hyperparams("ars", ENV_ID))[0]["wrappers"]
     )
-    obs = env.reset()
-    for _ in range(3):
-        a, _ = result.model.predict(obs, deterministic=True)
-        b, _ = loaded.predict(obs, deterministic=True)
-        np.testing.assert_array_equal(a, b)
-        obs, *_ = env.step(a)
+    _same_actions(result.model, loaded, env, (8,))
 
 
 def test_bad_settings_are_refused():
@@ -141,29 +143,11 @@ def _learned_share(**overrides) -> ARS:
 def test_a_learned_sharing_run_reloads_to_the_same_actions(tmp_path):
     kwargs = {**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "share": True}
     hp = {"episodes": 2, "n_directions": 1, "noise_std": 0.5, "learning_rate": 1.0}
-    result = train(
-        ENV_ID,
-        "ars",
-        seed=4,
-        timesteps=1,
-        n_envs=2,
-        out=tmp_path,
-        eval_episodes=2,
-        progress=False,
-        curve_points=0,
-        hyperparams={**hp, "wrappers": SHARE_WRAPPERS, "policy_kwargs": kwargs},
-    )
+    result = _tiny_run(tmp_path, 4, {**hp, "wrappers": SHARE_WRAPPERS, "policy_kwargs": kwargs})
     loaded = load_model(result.run_dir)
     assert loaded.theta.shape == (11,) and result.model.theta.any()
     np.testing.assert_array_equal(loaded.theta, result.model.theta)
-    env = make_sb3_env(ENV_ID, 4, 5, wrappers=SHARE_WRAPPERS)
-    obs = env.reset()
-    for _ in range(3):
-        a, _ = result.model.predict(obs, deterministic=True)
-        b, _ = loaded.predict(obs, deterministic=True)
-        assert a.shape == (4, 5)
-        np.testing.assert_array_equal(a, b)
-        obs, *_ = env.step(a)
+    _same_actions(result.model, loaded, make_sb3_env(ENV_ID, 4, 5, wrappers=SHARE_WRAPPERS), (4, 5))
 
 
 @pytest.mark.parametrize("share_bits", [False, True])
