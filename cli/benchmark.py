@@ -13,9 +13,9 @@ per-episode ``returns`` and the paired differences (``paired``); the numbers go 
 ``OUT/benchmark.png``. ``--param NAME=VALUE`` scores the env at another size or setting
 (every rule; a trained policy only if it was trained with the same params).
 
-The default seed 10000 is held out: no training run draws its scenarios from it (``sensorgym
-train`` trains on its ``--seed`` and evaluates on seed + 10000), so a shipped policy scores here
-what ``docs/scores/`` records.
+The default seed 10000 is held out: no training run draws its scenarios from it or is chosen
+on it (``sensorgym train`` trains on its ``--seed`` and evaluates on the tuning seed 500), so a
+shipped policy scores here what ``docs/scores/`` records.
 """
 
 from __future__ import annotations

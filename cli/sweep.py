@@ -82,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
 
     from sensorgym.train.config import load_hyperparams
     from sensorgym.train.sweep import SweepSettings, parse_space, run_sweep
+    from sensorgym.train.trainer import VALIDATION_SEED
 
     try:
         load_hyperparams(args.algo, args.env)
@@ -120,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
     names = sorted({k for c in doc["configs"].values() for k in c["hyperparams"]})
     table = Table(
         title=f"{args.env}: {args.algo} sweep, evaluation return over seeds "
-        f"({args.eval_episodes} episodes per run, seed + 10000)"
+        f"({args.eval_episodes} episodes per run, validation seed {VALIDATION_SEED})"
     )
     for column in ("config", *names, "seeds", "mean", "±95 %", "per seed"):
         table.add_column(column, justify="left" if column == "config" else "right")

@@ -17,7 +17,7 @@ from sensorgym.train.benchmark import best_rule, paired_difference, paired_to_be
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
 from sensorgym.train.experts import Pretrain, collect, expert_factory, pretrain
 from sensorgym.train.models import load_model
-from sensorgym.train.trainer import train
+from sensorgym.train.trainer import VALIDATION_SEED, train
 from sensorgym.train.wrappers import apply_wrappers, base_observation, check_wrappers
 
 ENV_ID = "sensorgym/BearingsManeuver-v0"
@@ -155,8 +155,8 @@ def test_train_with_wrappers_pretraining_and_a_learning_curve(tmp_path):
     assert (result.run_dir / "curve.png").stat().st_size > 1000
     # the saved policy rebuilds its wrappers: benchmark scores it on the wrapped view, the same
     # scenarios as the rules
-    env = make_sb3_env(ENV_ID, 4, 10_000, wrappers=config["hyperparams"]["wrappers"])
-    stats = evaluate(load_model(result.run_dir, env), env, 4, 10_000)
+    env = make_sb3_env(ENV_ID, 4, VALIDATION_SEED, wrappers=config["hyperparams"]["wrappers"])
+    stats = evaluate(load_model(result.run_dir, env), env, 4, VALIDATION_SEED)
     assert stats.mean == pytest.approx(result.evaluation["trained"]["mean"])
     out = tmp_path / "bench"
     argv = ["benchmark", "--env", ENV_ID, "--episodes", "4", "--n-envs", "4", "--seed", "3"]
