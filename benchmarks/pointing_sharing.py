@@ -125,16 +125,15 @@ def main() -> None:
                   f"{r['shared']:.2f} vs {r['plan_acquire']:.2f}, paired "
                   f"{r['paired_minus_plan_acquire']:+.2f} ± {r['paired_ci95']:.2f}, "
                   f"shared {share:.3%} of receiver-steps")  # fmt: skip
-    out = {
-        "settings": {
-            "env": "sensorgym/StereoPointing-v0",
-            "rule": "plan-acquire",
-            "episodes": args.episodes,
-            "seconds": round(time.perf_counter() - start, 1),
-        },
-        "rows": rows,
-    }
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    write_rows(args.out, {"rule": "plan-acquire", "episodes": args.episodes}, rows, start)
+
+
+def write_rows(path: Path, settings: dict, rows: list, start: float) -> None:
+    """A probe's results file: its settings (the env, ``settings``, the seconds since
+    ``start``) and its rows."""
+    settings = {"env": "sensorgym/StereoPointing-v0", **settings}
+    settings["seconds"] = round(time.perf_counter() - start, 1)
+    path.write_text(json.dumps({"settings": settings, "rows": rows}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

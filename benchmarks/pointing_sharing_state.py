@@ -19,13 +19,12 @@ that check. Tuning seeds only (never 10000 or 31337).
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
-from pointing_sharing import EPISODE_STEPS, paired_fields, play, tuning_args
+from pointing_sharing import EPISODE_STEPS, paired_fields, play, tuning_args, write_rows
 
 from sensorgym.agents.stereo_pointing_sharing import (
     SHARE_FEATURES,
@@ -135,19 +134,14 @@ def main() -> None:
             print(f"seed {seed} {name}: {r['variant_return']:.3f} vs static {r['static']:.3f}, "
                   f"paired {r['paired_minus_static']:+.3f} ± {r['paired_ci95']:.3f}, "
                   f"shared {share:.3%}", flush=True)  # fmt: skip
-    out = {
-        "settings": {
-            "env": "sensorgym/StereoPointing-v0",
-            "assignment": "plan-acquire",
-            "static": [STATIC.margin, STATIC.fraction, STATIC.max_rms],
-            "wide": [WIDE.margin, WIDE.fraction, WIDE.max_rms],
-            "mid": [MID.margin, MID.fraction, MID.max_rms],
-            "episodes": args.episodes,
-            "seconds": round(time.perf_counter() - start, 1),
-        },
-        "rows": rows,
+    settings = {
+        "assignment": "plan-acquire",
+        "static": [STATIC.margin, STATIC.fraction, STATIC.max_rms],
+        "wide": [WIDE.margin, WIDE.fraction, WIDE.max_rms],
+        "mid": [MID.margin, MID.fraction, MID.max_rms],
+        "episodes": args.episodes,
     }
-    args.out.write_text(json.dumps(out, indent=1) + "\n")
+    write_rows(args.out, settings, rows, start)
 
 
 if __name__ == "__main__":
