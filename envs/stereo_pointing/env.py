@@ -114,7 +114,9 @@ class StereoPointingEnv(CoreEnv):
       13 (env unchanged): the rule ``plan-acquire``, ``plan-horizon`` weighing each drone's
       planned return by the chance that the receivers sent to it find it on the track; then
       ``plan-acquire-share``, whose receivers aim between their drone and another one when
-      both fit in the field of view (one receiver fixes two drones).
+      both fit in the field of view (one receiver fixes two drones). Issue 15 (episodes
+      bit-identical): a threaded step draws the direction noise row range by row range while
+      its first chunk already runs (``run_drawn_rows``; the same stream).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}

@@ -199,6 +199,8 @@ class StereoScanningEnv(CoreEnv):
       Later in issue 15 (episodes bit-identical): the raster's pixel-visit iteration takes its
       angles from a polynomial arctangent and falls back to libm's only within the
       polynomial's error (10⁻⁸ rad) of a pixel or sector edge, where the two could disagree.
+      Then (episodes bit-identical): a threaded step draws the direction noise row range by
+      row range while its first chunk already runs (``run_drawn_rows``; the same stream).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
