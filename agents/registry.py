@@ -55,6 +55,9 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "plan-acquire-share": lambda params, _: pointing_horizon.PlanHorizon(
             params, acquisition=True, sharing=pointing_sharing.Sharing()
         ),
+        "plan-fix-first": lambda params, _: pointing_horizon.PlanHorizon(
+            params, acquisition=True, sharing=pointing_sharing.Sharing(), cue_steps=1
+        ),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {

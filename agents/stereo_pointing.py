@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.agents.assignment_solver import (
     SeparableObjective,
@@ -166,10 +166,15 @@ def information_seed(
     crossings."""
     w = np.where(ranges > MIN_RANGE, _weights(params.sigma_ang, ranges), 0.0)
     prior = 1.0 / np.clip(sigma, 1e-6, 1e6) ** 2
-    start = None
-    if aimed is not None:
-        start = np.where(aimed.any(axis=-1), np.argmax(aimed, axis=-1), -1)
+    start = None if aimed is None else aimed_drone(aimed)
     return sequential_greedy(_one_step(kernels.GAIN, los, w, prior, ()), start=start)
+
+
+def aimed_drone(aimed: ArrayLike) -> NDArray[np.int64]:
+    """The drone each receiver is aimed at ``(N, n)`` from :attr:`_View.aimed` ``(N, n, m)``:
+    the first drone it saw or has inside its field of view, ``-1`` for none (in transit)."""
+    aimed = np.asarray(aimed) > 0.0
+    return np.where(aimed.any(axis=-1), np.argmax(aimed, axis=-1), -1)
 
 
 def _starts(params: PointingParams, view: _View) -> list[NDArray[np.int64]]:

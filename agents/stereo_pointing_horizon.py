@@ -36,6 +36,7 @@ from sensorgym.agents.stereo_pointing import (
     _view,
     acquired_values,
     acquisition_probability,
+    aimed_drone,
     geometry_values,
     plan_geometry,
     plan_objective,
@@ -77,6 +78,13 @@ class PlanHorizon:
     """Aim a receiver between its drone and another one that fits in its field of view
     (:mod:`sensorgym.agents.stereo_pointing_sharing`; the ``plan-acquire-share`` rule);
     ``None``: straight at its drone's prediction."""
+    cue_steps: int = 0
+    """On the episode's first ``cue_steps`` steps every receiver aimed at a drone stays on it
+    (the cue's hand-over; a receiver aimed at none follows the plan), so that each track gets
+    its first fix before the plan re-pairs (the ``plan-fix-first`` rule, 1). The plan's
+    acquisition chance is that of the track it sees: on the cue (``σ̂`` ≈ 9 m) a re-pairing
+    sends receivers to predictions that are metres off and leaves both drones without a fix,
+    while one step on the cue brings the tracks to centimetres."""
 
     def __post_init__(self) -> None:
         check_solver(self.solver)
@@ -84,6 +92,8 @@ class PlanHorizon:
             value = getattr(self, name)
             if not isinstance(value, int | np.integer) or value < 1:
                 raise ValueError(f"{name}: must be an integer >= 1, got {value!r}")
+        if not isinstance(self.cue_steps, int | np.integer) or self.cue_steps < 0:
+            raise ValueError(f"cue_steps: must be an integer >= 0, got {self.cue_steps!r}")
         if not (np.isfinite(self.keep_bonus) and self.keep_bonus >= 0.0):
             raise ValueError(f"keep_bonus: must be finite and >= 0, got {self.keep_bonus!r}")
 
@@ -152,6 +162,9 @@ class PlanHorizon:
         t = self.steps(obs.shape[0], state, episode_start)
         view = _view(self.params, obs)
         target = self.choose(view, t)
+        if self.cue_steps:
+            held = aimed_drone(view.aimed)
+            target = np.where((t < self.cue_steps)[:, None] & (held >= 0), held, target)
         points = view.position
         if self.sharing is not None:
             points, target = shared_aims(self.params, view, target, self.sharing)

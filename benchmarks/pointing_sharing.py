@@ -89,13 +89,18 @@ def paired_fields(returns: np.ndarray, base: np.ndarray, against: str) -> dict[s
 
 
 def tuning_args(
-    doc: str, results: Path, seeds: list[int], ap: argparse.ArgumentParser | None = None
+    doc: str,
+    results: Path,
+    seeds: list[int],
+    ap: argparse.ArgumentParser | None = None,
+    episodes: int = 256,
 ) -> argparse.Namespace:
-    """The command line of a probe on tuning seeds (``--seeds``, ``--episodes``, ``--out``;
-    ``ap`` may hold more arguments); a held-out seed (10000 and up) is refused."""
+    """The command line of a probe on tuning seeds (``--seeds``, ``--episodes`` with default
+    ``episodes``, ``--out``; ``ap`` may hold more arguments); a held-out seed (10000 and up) is
+    refused."""
     ap = ap or argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=seeds)
-    ap.add_argument("--episodes", type=int, default=256)
+    ap.add_argument("--episodes", type=int, default=episodes)
     ap.add_argument("--out", type=Path, default=results)
     args = ap.parse_args()
     if any(s >= 10_000 for s in args.seeds):
