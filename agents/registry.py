@@ -17,6 +17,7 @@ from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents import stereo_pointing_horizon as pointing_horizon
+from sensorgym.agents import stereo_pointing_search as pointing_search
 from sensorgym.agents import stereo_pointing_sharing as pointing_sharing
 from sensorgym.agents import stereo_scanning as scanning
 from sensorgym.agents.protocol import PolicyPredictor
@@ -57,6 +58,13 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         ),
         "plan-fix-first": lambda params, _: pointing_horizon.PlanHorizon(
             params, acquisition=True, sharing=pointing_sharing.Sharing(), cue_steps=1
+        ),
+        "plan-search": lambda params, _: pointing_horizon.PlanHorizon(
+            params,
+            acquisition=True,
+            sharing=pointing_sharing.Sharing(),
+            cue_steps=1,
+            search=pointing_search.EpipolarSearch(),
         ),
         "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
     },

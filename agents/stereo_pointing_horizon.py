@@ -41,6 +41,7 @@ from sensorgym.agents.stereo_pointing import (
     plan_geometry,
     plan_objective,
 )
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 
@@ -78,6 +79,10 @@ class PlanHorizon:
     """Aim a receiver between its drone and another one that fits in its field of view
     (:mod:`sensorgym.agents.stereo_pointing_sharing`; the ``plan-acquire-share`` rule);
     ``None``: straight at its drone's prediction."""
+    search: EpipolarSearch | None = None
+    """Send the receivers of a lost drone that one receiver sees along that receiver's line of
+    sight (:mod:`sensorgym.agents.stereo_pointing_search`; the ``plan-search`` rule); ``None``:
+    at the prediction."""
     cue_steps: int = 0
     """On the episode's first ``cue_steps`` steps every receiver aimed at a drone stays on it
     (the cue's hand-over; a receiver aimed at none follows the plan), so that each track gets
@@ -165,9 +170,14 @@ class PlanHorizon:
         if self.cue_steps:
             held = aimed_drone(view.aimed)
             target = np.where((t < self.cue_steps)[:, None] & (held >= 0), held, target)
-        points = view.position
+        points, index = view.position, target
         if self.sharing is not None:
-            points, target = shared_aims(self.params, view, target, self.sharing)
-        action = slew_actions(self.params, view.azimuth, view.elevation, points, target)
+            points, index = shared_aims(self.params, view, target, self.sharing)
+        if self.search is not None:
+            found, searching = search_aims(self.params, view, target, t, self.search)
+            points = np.concatenate([points, found], axis=1)
+            n_points = points.shape[1] - self.params.n_receivers
+            index = np.where(searching, n_points + np.arange(self.params.n_receivers), index)
+        action = slew_actions(self.params, view.azimuth, view.elevation, points, index)
         action = np.asarray(action, dtype=np.float32)
         return (action[0] if single else action), t + 1

@@ -39,13 +39,15 @@ EPISODE_STEPS = 150
 SETTINGS = ((0, 0.3), (1, 0.3), (2, 0.3), (4, 0.3), (0, 1.0), (0, 3.0), (0, 10.0), (1, 1.0))
 
 
-def play(params: PointingParams, rule: PlanHorizon, seed: int, batch: int) -> tuple:
-    """``rule`` on ``batch`` scenarios of ``seed``: returns ``(B,)`` and the share of
-    drone-steps without a fix on the first step and over the episode."""
+def play(params: PointingParams, rule: PlanHorizon, seed: int, batch: int) -> dict:
+    """``rule`` on ``batch`` scenarios of ``seed``: the returns ``(B,)``, the share of
+    drone-steps without a fix on the first step and over the episode, and the number of drones
+    never fixed in their episode."""
     rng = np.random.default_rng(seed)
     state = simulation.reset(params, rng, batch)
     obs = simulation.observe(params, state)
     total, unfixed, first = np.zeros(batch), 0, 0.0
+    never = np.ones((batch, params.n_drones), dtype=bool)
     steps, start = None, np.ones(batch, dtype=bool)
     for t in range(EPISODE_STEPS):
         action, steps = rule.predict(obs, steps, start)
@@ -54,9 +56,15 @@ def play(params: PointingParams, rule: PlanHorizon, seed: int, batch: int) -> tu
         obs = simulation.observe(params, state)
         total += reward
         unfixed += int((~state.fixed).sum())
+        never &= ~state.fixed
         if t == 0:
             first = float((~state.fixed).mean())
-    return total, first, unfixed / (batch * EPISODE_STEPS * params.n_drones)
+    return {
+        "returns": total,
+        "unfixed_first_step": first,
+        "unfixed_drone_steps": unfixed / (batch * EPISODE_STEPS * params.n_drones),
+        "never_fixed_drones": int(never.sum()),
+    }
 
 
 def main() -> None:
@@ -70,7 +78,10 @@ def main() -> None:
             rule = PlanHorizon(
                 params, acquisition=True, sharing=Sharing(), cue_steps=cue_steps, keep_bonus=keep
             )
-            returns, first, unfixed = play(params, rule, seed, args.episodes)
+            run = play(params, rule, seed, args.episodes)
+            returns, first, unfixed = (
+                run[k] for k in ("returns", "unfixed_first_step", "unfixed_drone_steps")
+            )
             base = returns if base is None else base
             rows.append({
                 "seed": seed, "cue_steps": cue_steps, "keep_bonus": keep,

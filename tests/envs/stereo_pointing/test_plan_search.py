@@ -1,0 +1,124 @@
+"""The plan-search rule: the other receivers sent to a lost drone that exactly one receiver sees
+aim along that receiver's boresight ray, swept in range; otherwise it is plan-fix-first."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorgym.agents.registry import rules_for
+from sensorgym.agents.stereo_pointing import _View, _view
+from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
+from sensorgym.agents.stereo_pointing_sharing import Sharing
+from sensorgym.envs.stereo_pointing import simulation
+from sensorgym.envs.stereo_pointing.simulation import PointingParams, boresights
+
+ENV_ID = "sensorgym/StereoPointing-v0"
+
+
+def _lost_view(params: PointingParams, sigma: float, seen_by: tuple[int, ...]) -> _View:
+    """One scenario: drone 0 predicted at ``x̂``, every receiver's boresight through a point 9 m
+    from it (so the prediction is off), seen on the last step by the receivers ``seen_by``;
+    drone 1 elsewhere, tracked to 5 cm."""
+    rec = params.receiver_positions
+    x_hat = np.array([[20.0, 60.0, 90.0], [-70.0, 40.0, -30.0]])
+    truth = x_hat[0] + np.array([6.0, -3.0, 6.0])
+    d = truth - rec
+    azimuth = np.arctan2(d[:, 0], d[:, 2])
+    elevation = np.arctan2(d[:, 1], np.hypot(d[:, 0], d[:, 2]))
+    los = x_hat[None] - rec[:, None]
+    ranges = np.linalg.norm(los, axis=-1)
+    seen = np.zeros((params.n_receivers, params.n_drones))
+    seen[list(seen_by), 0] = 1.0
+    return _View(
+        azimuth=azimuth[None], elevation=elevation[None], seen=seen[None], aimed=seen[None],
+        position=x_hat[None], sigma=np.array([[sigma, 0.05]]), velocity=np.zeros((1, 2, 3)),
+        los=(los / ranges[..., None])[None], ranges=ranges[None],
+    )  # fmt: skip
+
+
+def test_the_searching_receivers_aim_on_the_seeing_receivers_ray_swept_in_range():
+    """Receivers 1 and 3 are sent to drone 0 (``target``), which only receiver 1 saw: receiver 3
+    searches on
+    receiver 1's boresight ray — at the ray's point nearest the prediction on a step whose
+    sweep offset is 0, one sweep step further on the next — and receiver 1 keeps its aim;
+    receivers sent to the tracked drone never search."""
+    params = PointingParams()
+    search = EpipolarSearch()
+    view = _lost_view(params, sigma=10.0, seen_by=(1,))
+    target = np.array([[1, 0, 1, 0]])
+    origin = params.receiver_positions[1]
+    ray = boresights(view.azimuth, view.elevation)[0, 1]
+    rho = ray @ (view.position[0, 0] - origin)
+    points, searching = search_aims(params, view, target, np.array([0]), search)
+    np.testing.assert_array_equal(searching, [[False, False, False, True]])
+    np.testing.assert_allclose(points[0, 3], origin + rho * ray, atol=1e-9)
+    later, _ = search_aims(params, view, target, np.array([1]), search)
+    step = later[0, 3] - points[0, 3]
+    np.testing.assert_allclose(np.cross(step, ray), 0.0, atol=1e-9)  # along the ray
+    mean_range = np.linalg.norm(origin + rho * ray - params.receiver_positions, axis=-1).mean()
+    assert step @ ray == pytest.approx(search.sweep[1] * search.width * params.fov * mean_range)
+
+
+@pytest.mark.parametrize(
+    ("sigma", "seen_by"), [(1.0, (3,)), (10.0, ()), (10.0, (0, 3)), (10.0, (1,)), (10.0, (3,))]
+)
+def test_who_searches_depends_on_the_track_and_the_single_sighting(sigma, seen_by):
+    """Receivers 0 and 3 are sent to drone 0. A track under ``lost_rms``, or a drone that no
+    receiver or two receivers saw: nobody searches. Seen by receiver 3 alone: receiver 0
+    searches; seen by receiver 1 alone (sent elsewhere): both search along its ray."""
+    params = PointingParams()
+    view = _lost_view(params, sigma, seen_by)
+    target = np.array([[0, 1, 1, 0]])
+    _, searching = search_aims(params, view, target, np.array([4]), EpipolarSearch())
+    want = {(3,): [True, False, False, False], (1,): [True, False, False, True]}
+    lost = sigma > EpipolarSearch().lost_rms
+    expected = want.get(seen_by, [False] * 4) if lost else [False] * 4
+    np.testing.assert_array_equal(searching, [expected])
+
+
+def test_without_lost_drones_the_rule_is_plan_fix_first_and_the_registered_one_searches():
+    """With ``lost_rms`` infinite the actions are plan-fix-first's on every step of 16 seeded
+    scenarios; the registered plan-search differs on some steps of 64."""
+    params = PointingParams()
+    rules = rules_for(ENV_ID, params, lambda: None)
+    first = rules["plan-fix-first"]
+    never = PlanHorizon(
+        params,
+        acquisition=True,
+        sharing=Sharing(),
+        cue_steps=1,
+        search=EpipolarSearch(lost_rms=np.inf),
+    )
+    for rule, batch in ((never, 16), (rules["plan-search"], 64)):
+        rng = np.random.default_rng(500)
+        state = simulation.reset(params, rng, batch)
+        differ, steps = 0, None
+        for t in range(60):
+            obs = simulation.observe(params, state)
+            start = np.full(batch, t == 0)
+            a, next_steps = rule.predict(obs, steps, start)
+            differ += int(np.any(a != first.predict(obs, steps, start)[0]))
+            steps = next_steps
+            state, _, _ = simulation.step(params, state, a, rng)
+        assert (differ == 0) if rule is never else (differ > 0)
+
+
+@pytest.mark.parametrize(
+    "bad", [{"lost_rms": -1.0}, {"width": float("nan")}, {"sweep": ()}, {"sweep": (0.5,)}]
+)
+def test_bad_search_settings_are_refused(bad):
+    with pytest.raises(ValueError, match=next(iter(bad))):
+        EpipolarSearch(**bad)
+
+
+def test_a_view_of_the_env_decodes_for_the_search():
+    """The search runs on real observations (shapes and finite points)."""
+    params = PointingParams()
+    obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(2), 8))
+    view = _view(params, obs.astype(np.float64))
+    target = np.tile(np.arange(4) % 2, (8, 1))
+    points, searching = search_aims(params, view, target, np.zeros(8, np.int64), EpipolarSearch())
+    assert points.shape == (8, 4, 3) and searching.shape == (8, 4)
+    assert np.all(np.isfinite(points))
