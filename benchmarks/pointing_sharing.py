@@ -3,9 +3,10 @@
 ``python benchmarks/pointing_sharing.py [--seeds 500 600] [--episodes 256]`` plays the same
 seeded scenarios with ``plan-acquire`` and with ``plan-acquire`` whose receivers aim, when they
 can, between the drone they are sent to and another one
-(:func:`sensorgym.agents.stereo_pointing_sharing.shared_aims`; the registered
-``plan-acquire-share`` rule is the fourth setting, the best of the first four; the last two,
-measured afterwards, are finer steps around it): a receiver whose lines of sight to two
+(:func:`sensorgym.agents.stereo_pointing_sharing.shared_aims`; the ``plan-acquire-share``
+rule was registered with the fourth setting, the best of the first four; the last two,
+measured afterwards, are finer steps around it, and the fifth, the best of all six, is its
+default since): a receiver whose lines of sight to two
 predicted drones are closer than the field of view's width (less a margin for the tracks'
 uncertainty) slews onto their bisector instead, so that one receiver fixes both. The
 assignment rules never do this: their slew controller aims at one prediction. Writes

@@ -116,7 +116,12 @@ class StereoPointingEnv(CoreEnv):
       ``plan-acquire-share``, whose receivers aim between their drone and another one when
       both fit in the field of view (one receiver fixes two drones). Issue 15 (episodes
       bit-identical): a threaded step draws the direction noise row range by row range while
-      its first chunk already runs (``run_drawn_rows``; the same stream).
+      its first chunk already runs (``run_drawn_rows``; the same stream). Later in issue 13
+      (env unchanged): ``plan-acquire-share`` aims between two drones up to the field of
+      view's whole width (was 97 %); the rule ``plan-fix-first`` holds the cue's pairs for the
+      first step, so that every track has its first fix before the plan re-pairs; the rule
+      ``plan-search`` then also sends the receivers of a lost drone that one receiver sees
+      along that receiver's line of sight.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
