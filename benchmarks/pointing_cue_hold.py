@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from pointing_sharing import paired_fields, tuning_args, write_rows
@@ -67,32 +68,48 @@ def play(params: PointingParams, rule: PlanHorizon, seed: int, batch: int) -> di
     }
 
 
+def paired_rows(
+    args: Any, params: PointingParams, variants: list[tuple[dict, PlanHorizon]], against: str
+) -> list[dict]:
+    """Play every ``(fields, rule)`` of ``variants`` on each of ``args.seeds``
+    (``args.episodes`` episodes) and return one results row per seed and variant: ``fields``,
+    the first variant's mean return (named ``against``) and the variant's, the paired
+    difference to the first (:func:`pointing_sharing.paired_fields`) and the other statistics
+    of :func:`play`."""
+    rows = []
+    for seed in args.seeds:
+        base = None
+        for fields, rule in variants:
+            run = play(params, rule, seed, args.episodes)
+            returns = run.pop("returns")
+            base = returns if base is None else base
+            rows.append({
+                "seed": seed, **fields,
+                against: float(base.mean()), "variant": float(returns.mean()),
+                **paired_fields(returns, base, against), **run,
+            })  # fmt: skip
+            r = rows[-1]
+            print(f"seed {seed} {fields}: {r['variant']:.2f}, paired "
+                  f"{r[f'paired_minus_{against}']:+.2f} ± {r['paired_ci95']:.2f}; unfixed "
+                  f"{r['unfixed_first_step']:.1%} on step 1, {r['unfixed_drone_steps']:.2%} "
+                  f"overall, {r['never_fixed_drones']} drones never fixed", flush=True)  # fmt: skip
+    return rows
+
+
 def main() -> None:
     args = tuning_args(__doc__, RESULTS, [500, 600], episodes=512)
     params = PointingParams()
     start = time.perf_counter()
-    rows = []
-    for seed in args.seeds:
-        base = None
-        for cue_steps, keep in SETTINGS:
-            rule = PlanHorizon(
-                params, acquisition=True, sharing=Sharing(), cue_steps=cue_steps, keep_bonus=keep
-            )
-            run = play(params, rule, seed, args.episodes)
-            returns, first, unfixed = (
-                run[k] for k in ("returns", "unfixed_first_step", "unfixed_drone_steps")
-            )
-            base = returns if base is None else base
-            rows.append({
-                "seed": seed, "cue_steps": cue_steps, "keep_bonus": keep,
-                "plan_acquire_share": float(base.mean()), "variant": float(returns.mean()),
-                **paired_fields(returns, base, "plan_acquire_share"),
-                "unfixed_first_step": first, "unfixed_drone_steps": unfixed,
-            })  # fmt: skip
-            r = rows[-1]
-            print(f"seed {seed} cue_steps {cue_steps} keep {keep}: {r['variant']:.2f}, paired "
-                  f"{r['paired_minus_plan_acquire_share']:+.2f} ± {r['paired_ci95']:.2f}; "
-                  f"unfixed {first:.1%} on step 1, {unfixed:.2%} overall", flush=True)  # fmt: skip
+    variants = [
+        (
+            {"cue_steps": cue, "keep_bonus": keep},
+            PlanHorizon(
+                params, acquisition=True, sharing=Sharing(), cue_steps=cue, keep_bonus=keep
+            ),
+        )
+        for cue, keep in SETTINGS
+    ]
+    rows = paired_rows(args, params, variants, "plan_acquire_share")
     write_rows(args.out, {"rule": "plan-acquire-share", "episodes": args.episodes}, rows, start)
 
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from pointing_cue_hold import play
-from pointing_sharing import paired_fields, tuning_args, write_rows
+from pointing_cue_hold import paired_rows
+from pointing_sharing import tuning_args, write_rows
 
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
@@ -37,28 +37,23 @@ def main() -> None:
     args = tuning_args(__doc__, RESULTS, [500, 600], episodes=512)
     params = PointingParams()
     start = time.perf_counter()
-    rows = []
-    for seed in args.seeds:
-        base = None
-        for setting in SETTINGS:
-            search = None if setting is None else EpipolarSearch(*setting)
-            rule = PlanHorizon(
-                params, acquisition=True, sharing=Sharing(), cue_steps=1, search=search
-            )
-            run = play(params, rule, seed, args.episodes)
-            returns = run.pop("returns")
-            base = returns if base is None else base
-            rows.append({
-                "seed": seed,
+    variants = [
+        (
+            {
                 "lost_rms_m": None if setting is None else setting[0],
                 "width_fov": None if setting is None else setting[1],
-                "plan_fix_first": float(base.mean()), "variant": float(returns.mean()),
-                **paired_fields(returns, base, "plan_fix_first"), **run,
-            })  # fmt: skip
-            r = rows[-1]
-            print(f"seed {seed} search {setting}: {r['variant']:.2f}, paired "
-                  f"{r['paired_minus_plan_fix_first']:+.2f} ± {r['paired_ci95']:.2f}; "
-                  f"drones never fixed {r['never_fixed_drones']}", flush=True)  # fmt: skip
+            },
+            PlanHorizon(
+                params,
+                acquisition=True,
+                sharing=Sharing(),
+                cue_steps=1,
+                search=None if setting is None else EpipolarSearch(*setting),
+            ),
+        )
+        for setting in SETTINGS
+    ]
+    rows = paired_rows(args, params, variants, "plan_fix_first")
     write_rows(args.out, {"rule": "plan-fix-first", "episodes": args.episodes}, rows, start)
 
 
