@@ -41,7 +41,7 @@ from sensorgym.agents.stereo_pointing import (
     plan_geometry,
     plan_objective,
 )
-from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch, searched_aims
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 
@@ -167,17 +167,28 @@ class PlanHorizon:
         t = self.steps(obs.shape[0], state, episode_start)
         view = _view(self.params, obs)
         target = self.choose(view, t)
-        if self.cue_steps:
-            held = aimed_drone(view.aimed)
-            target = np.where((t < self.cue_steps)[:, None] & (held >= 0), held, target)
+        target = cue_hold(view.aimed, target, t, self.cue_steps)
         points, index = view.position, target
         if self.sharing is not None:
             points, index = shared_aims(self.params, view, target, self.sharing)
         if self.search is not None:
-            found, searching = search_aims(self.params, view, target, t, self.search)
-            points = np.concatenate([points, found], axis=1)
-            n_points = points.shape[1] - self.params.n_receivers
-            index = np.where(searching, n_points + np.arange(self.params.n_receivers), index)
+            points, index = searched_aims(self.params, view, target, t, self.search, points, index)
         action = slew_actions(self.params, view.azimuth, view.elevation, points, index)
         action = np.asarray(action, dtype=np.float32)
         return (action[0] if single else action), t + 1
+
+
+def cue_hold(
+    aimed: NDArray[Any], target: NDArray[Any], t: NDArray[Any], cue_steps: int
+) -> NDArray[np.int64]:
+    """The drone per receiver ``(N, n)``: ``target``'s, except that on an episode's first
+    ``cue_steps`` steps (``t (N,) < cue_steps``) a receiver aimed at a drone
+    (:func:`~sensorgym.agents.stereo_pointing.aimed_drone` of :attr:`_View.aimed`
+    ``(N, n, m)``) stays on it (:attr:`PlanHorizon.cue_steps`; the ``pointing-plan`` wrapper's
+    ``cue_steps`` holds the same)."""
+    target = np.asarray(target, dtype=np.int64)
+    if not cue_steps:
+        return target
+    held = aimed_drone(aimed)
+    early = np.asarray(t, dtype=np.int64).reshape(-1) < cue_steps
+    return np.where(early[:, None] & (held >= 0), held, target)

@@ -33,6 +33,31 @@ WRAPPERS: dict[str, str] = {
 }
 
 
+class EpisodeSteps:
+    """The step count of each slot's current episode in an SB3 vector env: 0 at reset and at
+    the first observation of a slot's next episode (SB3 vector envs reset a finished slot in
+    the same step). The wrappers that need the time of an episode
+    (:class:`TimeFeature`, ``plan-features``, ``pointing-plan`` with ``cue_steps``) count
+    with it."""
+
+    def __init__(self, num_envs: int):
+        self.t = np.zeros(num_envs, dtype=np.int64)
+        """``(num_envs,)``: steps taken in each slot's current episode."""
+
+    def reset(self) -> None:
+        """Every slot at its episode's first step."""
+        self.t[:] = 0
+
+    def step(self, dones: np.ndarray) -> np.ndarray:
+        """Count one step of every slot and restart the slots whose episode ended
+        (``dones (num_envs,)``); returns the counts reached, before the restart (what a
+        finished episode's terminal observation is at)."""
+        self.t += 1
+        reached = self.t.copy()
+        self.t[np.asarray(dones, dtype=bool)] = 0
+        return reached
+
+
 class ObservedActionWrapper(VecEnvWrapper):
     """An action re-parameterisation that turns the policy's action into the env's own through
     the env's latest observation (which track a receiver watches → gimbal rates slewing onto that
@@ -97,27 +122,26 @@ class TimeFeature(VecEnvWrapper):
         low = np.append(box.low, np.float32(0.0)).astype(box.dtype)
         high = np.append(box.high, np.float32(1.0)).astype(box.dtype)
         super().__init__(venv, observation_space=spaces.Box(low, high, dtype=box.dtype))
-        self._t = np.zeros(venv.num_envs, dtype=np.int64)
+        self._steps = EpisodeSteps(venv.num_envs)
 
     def _with_time(self, obs: np.ndarray) -> np.ndarray:
-        remaining = 1.0 - np.minimum(self._t, self.horizon) / self.horizon
+        remaining = 1.0 - np.minimum(self._steps.t, self.horizon) / self.horizon
         return np.concatenate([obs, remaining[:, None].astype(obs.dtype)], axis=1)
 
     def reset(self) -> np.ndarray:
-        self._t[:] = 0
+        self._steps.reset()
         return self._with_time(self.venv.reset())
 
     def step_wait(self) -> Any:
         obs, rewards, dones, infos = self.venv.step_wait()
-        self._t += 1
+        reached = self._steps.step(dones)
         for i in np.flatnonzero(dones):  # the final observation still counts the last step
             terminal = infos[i].get("terminal_observation")
             if terminal is not None:
-                remaining = 1.0 - min(self._t[i], self.horizon) / self.horizon
+                remaining = 1.0 - min(reached[i], self.horizon) / self.horizon
                 infos[i]["terminal_observation"] = np.append(terminal, remaining).astype(
                     terminal.dtype
                 )
-        self._t[dones] = 0
         return self._with_time(obs), rewards, dones, infos
 
 

@@ -18,7 +18,9 @@ tracker's estimate for a few horizons and for the time left, so that a policy ca
 ``plan-estimate`` rule by an argmax and learn when to deviate from it. With ``sharing`` both
 aim a receiver between two drones as the ``plan-acquire-share`` rule does; with ``share_bits``
 the action also says per receiver whether to share, and ``plan-features`` appends what that
-decision may weigh (issue 13). Everything it computes
+decision may weigh (issue 13). With ``cue_steps`` (1) ``pointing-plan`` holds each receiver on
+the drone it is cued to for the episode's first step as the ``plan-fix-first`` rule does, so
+that with both the zero point of a learned correction is that rule. Everything it computes
 comes from the observation and the step count of the episode (fieldable), never from the
 simulator state.
 """
@@ -45,6 +47,8 @@ from sensorgym.agents.stereo_pointing import (
     rewards_acquired,
     rewards_values,
 )
+from sensorgym.agents.stereo_pointing_horizon import cue_hold
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch, searched_aims
 from sensorgym.agents.stereo_pointing_sharing import (
     SHARE_INPUTS,
     Sharing,
@@ -57,7 +61,7 @@ from sensorgym.envs.stereo_pointing.simulation import (
     assignment_actions,
     slew_actions,
 )
-from sensorgym.train.wrappers import ObservedActionWrapper, _time_limit
+from sensorgym.train.wrappers import EpisodeSteps, ObservedActionWrapper, _time_limit
 
 
 class AssignmentAction(ObservedActionWrapper):
@@ -102,8 +106,13 @@ class PlanAction(ObservedActionWrapper):
     receivers to drones in lexicographic order), slewed onto as by :class:`AssignmentAction`.
     With ``sharing`` a receiver aims instead between its drone and another one that fits in its
     field of view (:func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`, the
-    ``plan-acquire-share`` rule's aiming). Observations, rewards and episodes are the base
-    env's."""
+    ``plan-acquire-share`` rule's aiming). With ``cue_steps`` the wrapper counts the steps of
+    each env's episode (:class:`~sensorgym.train.wrappers.EpisodeSteps`) and on the first
+    ``cue_steps`` a receiver aimed at a drone keeps it whatever the candidate says (the
+    ``plan-fix-first`` rule's hold). With ``search`` the other receivers sent to a lost drone
+    that one receiver sees aim along that receiver's line of sight
+    (:func:`~sensorgym.agents.stereo_pointing_search.searched_aims`, the ``plan-search`` rule's
+    search). Observations, rewards and episodes are the base env's."""
 
     def __init__(
         self,
@@ -111,12 +120,27 @@ class PlanAction(ObservedActionWrapper):
         params: PointingParams | None = None,
         sharing: Sharing | None = None,
         share_bits: bool = False,
+        cue_steps: int = 0,
+        search: EpipolarSearch | None = None,
     ):
         p = _pointing_params(venv, params)
+        if search is not None and not isinstance(search, EpipolarSearch):
+            raise TypeError(f"search: expected an EpipolarSearch or None, got {type(search)!r}")
+        self.search = search
+        """Where the receivers of a lost drone look; ``None``: at its prediction."""
         if sharing is not None and not isinstance(sharing, Sharing):
             raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
         if share_bits and sharing is None:
             raise ValueError("share_bits: needs a sharing setting (whose partner each bit names)")
+        if isinstance(cue_steps, bool) or not isinstance(cue_steps, int | np.integer):
+            raise ValueError(f"cue_steps: must be an integer >= 0, got {cue_steps!r}")
+        if cue_steps < 0:
+            raise ValueError(f"cue_steps: must be an integer >= 0, got {cue_steps!r}")
+        self.cue_steps = int(cue_steps)
+        """On an episode's first ``cue_steps`` steps every receiver aimed at a drone stays on
+        it whatever the candidate says (:func:`~sensorgym.agents.stereo_pointing_horizon.cue_hold`,
+        the ``plan-fix-first`` rule's hold: 1); 0: the candidate alone."""
+        self._steps = EpisodeSteps(venv.num_envs)
         self.sharing = sharing
         """When a receiver aims between two drones; ``None``: always at its own drone."""
         self.share_bits = bool(share_bits)
@@ -152,42 +176,87 @@ class PlanAction(ObservedActionWrapper):
         if np.any((choice < 0) | (choice >= len(self.candidates))):
             raise ValueError(f"actions: candidate indices must lie in [0, {len(self.candidates)})")
         target = self.candidates[choice]
-        if self.sharing is None:
+        if self.sharing is None and not self.cue_steps and self.search is None:
             return assignment_actions(self.params, obs, target)
         view = _view(self.params, np.asarray(obs, dtype=np.float64))
-        if self.share_bits:
+        t = self._steps.t
+        target = cue_hold(view.aimed, target, t, self.cue_steps)
+        points, index = view.position, target
+        if self.sharing is not None and self.share_bits:
             bits = a[:, 1:]
             if np.any((bits < 0) | (bits > 1)):
                 raise ValueError("actions: share bits must be 0 or 1")
             points, index = decided_aims(self.params, view, target, self.sharing, bits)
-        else:
+        elif self.sharing is not None:
             points, index = shared_aims(self.params, view, target, self.sharing)
+        if self.search is not None:
+            points, index = searched_aims(self.params, view, target, t, self.search, points, index)
         return slew_actions(self.params, view.azimuth, view.elevation, points, index)
+
+    def reset(self) -> NDArray[Any]:
+        self._steps.reset()
+        return super().reset()
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = super().step_wait()
+        self._steps.step(dones)
+        return obs, rewards, dones, infos
 
 
 def plan_wrapper(
-    venv: VecEnv, sharing: bool | dict[str, float] | None = None, share_bits: bool = False
+    venv: VecEnv,
+    sharing: bool | dict[str, float] | None = None,
+    share_bits: bool = False,
+    cue_steps: int = 0,
+    search: bool | dict[str, Any] | None = None,
 ) -> VecEnv:
     """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry). ``sharing``: ``true``
     for the registered :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` (the
     ``plan-acquire-share`` rule's), a mapping of its fields (``margin``, ``fraction``,
     ``max_rms``), or absent/``false``/``null`` for none; ``share_bits``: a share bit per
-    receiver in the action (:class:`PlanAction`)."""
-    return PlanAction(venv, sharing=_sharing(sharing), share_bits=bool(share_bits))
+    receiver in the action; ``cue_steps``: the episode's first steps on which a receiver aimed
+    at a drone keeps it (absent: 0, none; the ``plan-fix-first`` rule's 1); ``search``: ``true``
+    for the registered :class:`~sensorgym.agents.stereo_pointing_search.EpipolarSearch` (the
+    ``plan-search`` rule's), a mapping of its fields, or absent/``false``/``null`` for none
+    (:class:`PlanAction`)."""
+    return PlanAction(
+        venv,
+        sharing=_sharing(sharing),
+        share_bits=bool(share_bits),
+        cue_steps=cue_steps,
+        search=_search(search),
+    )
 
 
-def _sharing(value: bool | dict[str, float] | None) -> Sharing | None:
-    """The :class:`Sharing` a wrapper's ``sharing`` keyword names; ``ValueError`` otherwise."""
+def _setting(value: Any, kind: type, name: str, convert: Any) -> Any:
+    """The settings object of class ``kind`` that a wrapper keyword ``name`` names: ``true``
+    its defaults, a mapping of its fields (each value through ``convert(field, value)``),
+    ``false``/``null`` none; ``ValueError`` otherwise."""
     if value is None or value is False:
         return None
     if value is True:
-        return Sharing()
+        return kind()
     if isinstance(value, dict):
-        unknown = set(value) - {"margin", "fraction", "max_rms"}
+        unknown = set(value) - {f.name for f in fields(kind)}
         if unknown:
-            raise ValueError(f"sharing: unknown fields {sorted(unknown)}")
-        return Sharing(**{k: float(v) for k, v in value.items()})
-    raise ValueError(f"sharing: expected true, false, null or a mapping, got {value!r}")
+            raise ValueError(f"{name}: unknown fields {sorted(unknown)}")
+        return kind(**{k: convert(k, v) for k, v in value.items()})
+    raise ValueError(f"{name}: expected true, false, null or a mapping, got {value!r}")
+
+
+def _sharing(value: bool | dict[str, float] | None) -> Sharing | None:
+    """The :class:`Sharing` a wrapper's ``sharing`` keyword names."""
+    return _setting(value, Sharing, "sharing", lambda _, v: float(v))
+
+
+def _search(value: bool | dict[str, Any] | None) -> EpipolarSearch | None:
+    """The :class:`EpipolarSearch` a wrapper's ``search`` keyword names."""
+    return _setting(
+        value,
+        EpipolarSearch,
+        "search",
+        lambda k, v: tuple(int(x) for x in v) if k == "sweep" else float(v),
+    )
 
 
 class PlanFeatures(VecEnvWrapper):
@@ -286,7 +355,7 @@ class PlanFeatures(VecEnvWrapper):
             [box.high, np.ones(extra, np.float32), np.full(share, 20.0, np.float32)]
         ).astype(np.float32)
         super().__init__(venv, observation_space=spaces.Box(low, high, dtype=np.float32))
-        self._t = np.zeros(venv.num_envs, dtype=np.int64)
+        self._steps = EpisodeSteps(venv.num_envs)
 
     def features(self, obs: NDArray[Any], t: NDArray[np.int64]) -> NDArray[np.float32]:
         """The appended features ``(N, m^n (2H + 1))`` of base observations ``(N, obs_dim)``
@@ -335,21 +404,20 @@ class PlanFeatures(VecEnvWrapper):
         return obs[..., : self.params.obs_dim]
 
     def _with_features(self, obs: NDArray[Any]) -> NDArray[np.float32]:
-        return np.concatenate([obs, self.features(obs, self._t)], axis=1).astype(np.float32)
+        return np.concatenate([obs, self.features(obs, self._steps.t)], axis=1).astype(np.float32)
 
     def reset(self) -> NDArray[np.float32]:
-        self._t[:] = 0
+        self._steps.reset()
         return self._with_features(np.asarray(self.venv.reset()))
 
     def step_wait(self) -> Any:
         obs, rewards, dones, infos = self.venv.step_wait()
-        self._t += 1
+        reached = self._steps.step(dones)
         for i in np.flatnonzero(dones):  # the final observation, at its own step count
             terminal = infos[i].get("terminal_observation")
             if terminal is not None:
-                f = self.features(terminal[None], self._t[i : i + 1])[0]
+                f = self.features(terminal[None], reached[i : i + 1])[0]
                 infos[i]["terminal_observation"] = np.concatenate([terminal, f]).astype(np.float32)
-        self._t[dones] = 0
         return self._with_features(np.asarray(obs)), rewards, dones, infos
 
 

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 import torch as th
 
+from sensorgym.agents.registry import RULES
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS, Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.envs.stereo_pointing.wrappers import PlanAction, _find
@@ -36,6 +38,7 @@ def test_the_untrained_policy_is_the_plan_acquire_rule():
     model = _model(episodes=4)
     assert isinstance(model.policy, CandidatePolicy)
     assert np.array_equal(model.theta, np.zeros(9))
+    assert _find(model.env, PlanAction, "pointing-plan").cue_steps == 0
     ours = evaluate(model, model.env, 4, 21)
     rule = PlanHorizon(PointingParams(), acquisition=True)
     theirs = evaluate(rule, make_sb3_env(ENV_ID, 4, 0), 4, 21)
@@ -119,10 +122,22 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
     th.testing.assert_close(x[..., 8], 4.0 * kept)
 
 
-def _share_wrappers(sharing) -> list:
+def _share_wrappers(sharing, **plan) -> list:
+    """The ars.yml entry's wrappers (the shipped runs') with ``pointing-plan``'s ``sharing``
+    (and ``plan`` keywords)."""
     wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
     assert wrappers[0] == {"name": "pointing-plan"}
-    return [{"name": "pointing-plan", "sharing": sharing}, *wrappers[1:]]
+    return [{"name": "pointing-plan", "sharing": sharing, **plan}, *wrappers[1:]]
+
+
+def test_with_the_rules_aims_the_untrained_policy_is_the_plan_search_rule():
+    """``pointing-plan`` with ``sharing``, ``cue_steps: 1`` and ``search``: the untrained
+    policy scores exactly as the registered ``plan-search`` on 4 seeded episodes."""
+    model = _model(episodes=4, wrappers=_share_wrappers(True, cue_steps=1, search=True))
+    ours = evaluate(model, model.env, 4, 21)
+    rule = RULES[ENV_ID]["plan-search"](PointingParams(), lambda: None)
+    theirs = evaluate(rule, make_sb3_env(ENV_ID, 4, 0), 4, 21)
+    assert ours.returns == theirs.returns
 
 
 #: the learned sharing's wrappers (the runs of ``benchmarks/results/pointing_share_ars.json``)
@@ -150,35 +165,59 @@ def test_a_learned_sharing_run_reloads_to_the_same_actions(tmp_path):
     _same_actions(result.model, loaded, make_sb3_env(ENV_ID, 4, 5, wrappers=SHARE_WRAPPERS), (4, 5))
 
 
-@pytest.mark.parametrize("share_bits", [False, True])
-def test_with_sharing_the_untrained_policy_acts_as_plan_acquire_share(share_bits):
+@pytest.mark.parametrize(
+    ("share_bits", "cue_steps", "search"),
+    [(False, 0, False), (True, 0, False), (False, 1, False), (False, 1, True)],
+)
+def test_with_sharing_the_untrained_policy_acts_as_the_rule(share_bits, cue_steps, search):
     """With ``pointing-plan``'s ``sharing`` (and with the learned share bits at zero weights)
     the untrained policy's env actions are the plan-acquire-share rule's on every step of two
-    episodes of four seeded scenarios; the registered setting shares some receiver-steps, and
-    without it the actions differ."""
+    episodes of four seeded scenarios; with ``cue_steps`` 1 as well they are the plan-fix-first
+    rule's, the wrapper's step count restarting with each episode, and with ``search`` too the
+    plan-search rule's. The
+    registered setting shares some receiver-steps (without it the actions differ), and the cue
+    hold changes some first steps (without it the actions differ there)."""
     if share_bits:
         model = _learned_share(n_envs=4, episodes=4)
         assert model.action_space.shape == (5,) and np.array_equal(model.theta, np.zeros(11))
+    elif cue_steps:
+        extra = {"search": True} if search else {}
+        model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True, cue_steps=1, **extra))
     else:
         model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True))
     plain = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(None))
+    no_cue = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True))
     plan = _find(model.env, PlanAction, "pointing-plan")
     straight = _find(plain.env, PlanAction, "pointing-plan")
+    uncued = _find(no_cue.env, PlanAction, "pointing-plan")
     assert plan.sharing == Sharing() and straight.sharing is None
-    rule = PlanHorizon(PointingParams(), acquisition=True, sharing=Sharing())
+    assert plan.cue_steps == cue_steps and uncued.cue_steps == 0
+    assert (plan.search == EpipolarSearch()) if search else plan.search is None
+    rule = PlanHorizon(
+        PointingParams(),
+        acquisition=True,
+        sharing=Sharing(),
+        cue_steps=cue_steps,
+        search=plan.search,
+    )
+    name = "plan-search" if search else "plan-fix-first" if cue_steps else "plan-acquire-share"
+    assert rule == RULES[ENV_ID][name](PointingParams(), lambda: None)
     model.env.seed(21)
     obs = model.env.reset()
     state, start = None, np.ones(4, dtype=bool)
-    differs = 0
-    for _ in range(2 * 150):
+    differs, held = 0, 0
+    for step in range(2 * 150):
         action, _ = model.predict(obs, deterministic=True)
         ours = plan.env_action(action, plan.last_obs).astype(np.float32)
         theirs, state = rule.predict(plan.last_obs, state, start)
         np.testing.assert_array_equal(ours, theirs)
         candidate = np.asarray(action).reshape(4, -1)[:, 0]
         differs += int(np.any(ours != straight.env_action(candidate, plan.last_obs)))
+        if cue_steps and step % 150 == 0:
+            held += int(np.any(ours != uncued.env_action(candidate, plan.last_obs)))
         obs, _, start, _ = model.env.step(action)
     assert differs > 0
+    assert held == (2 if cue_steps else 0)
 
 
 def test_bad_sharing_settings_are_refused():
@@ -188,6 +227,12 @@ def test_bad_sharing_settings_are_refused():
         _model(wrappers=_share_wrappers({"fraction": 1.5}))
     with pytest.raises(ValueError, match="mapping"):
         _model(wrappers=_share_wrappers("yes"))
+    for bad in (-1, 1.5, "1", True):
+        with pytest.raises(ValueError, match="cue_steps"):
+            _model(wrappers=_share_wrappers(True, cue_steps=bad))
+    for bad, match in (({"bogus": 1}, "unknown"), ("yes", "mapping"), ({"lost_rms": -1}, "lost")):
+        with pytest.raises(ValueError, match=match):
+            _model(wrappers=_share_wrappers(True, search=bad))
 
 
 def test_the_share_weights_decide_the_sharing():

@@ -54,7 +54,7 @@ def test_the_features_hold_the_planners_values_and_choice():
         )
         assert np.isclose(f[:, 2 * C : 3 * C], 0.0).any(axis=1).all()  # the best loses nothing
         obs, *_ = env.step(np.zeros((8, 8), dtype=np.float32))
-    assert env._t.tolist() == [6] * 8
+    assert env._steps.t.tolist() == [6] * 8
 
 
 def test_the_features_are_deterministic_and_recover_the_base_observation():
@@ -94,7 +94,7 @@ def test_the_final_observation_gets_its_features_and_the_count_restarts():
     hold = np.zeros((2, 8), dtype=np.float32)
     for _ in range(150):
         obs, _, dones, infos = env.step(hold)
-    assert dones.all() and env._t.tolist() == [0, 0]
+    assert dones.all() and env._steps.t.tolist() == [0, 0]
     final = np.stack([info["terminal_observation"] for info in infos])
     assert final.shape == obs.shape
     np.testing.assert_array_equal(final[:, 52:], env.features(final[:, :52], np.array([150, 150])))
