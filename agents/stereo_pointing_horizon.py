@@ -41,8 +41,8 @@ from sensorgym.agents.stereo_pointing import (
     plan_geometry,
     plan_objective,
 )
-from sensorgym.agents.stereo_pointing_search import EpipolarSearch, searched_aims
-from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
+from sensorgym.agents.stereo_pointing_sharing import Sharing, decided_aims, shared_aims
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 
 
@@ -97,8 +97,7 @@ class PlanHorizon:
             value = getattr(self, name)
             if not isinstance(value, int | np.integer) or value < 1:
                 raise ValueError(f"{name}: must be an integer >= 1, got {value!r}")
-        if not isinstance(self.cue_steps, int | np.integer) or self.cue_steps < 0:
-            raise ValueError(f"cue_steps: must be an integer >= 0, got {self.cue_steps!r}")
+        check_cue_steps(self.cue_steps)
         if not (np.isfinite(self.keep_bonus) and self.keep_bonus >= 0.0):
             raise ValueError(f"keep_bonus: must be finite and >= 0, got {self.keep_bonus!r}")
 
@@ -167,15 +166,53 @@ class PlanHorizon:
         t = self.steps(obs.shape[0], state, episode_start)
         view = _view(self.params, obs)
         target = self.choose(view, t)
-        target = cue_hold(view.aimed, target, t, self.cue_steps)
-        points, index = view.position, target
-        if self.sharing is not None:
-            points, index = shared_aims(self.params, view, target, self.sharing)
-        if self.search is not None:
-            points, index = searched_aims(self.params, view, target, t, self.search, points, index)
+        points, index = plan_aims(
+            self.params, view, target, t, self.cue_steps, self.sharing, self.search
+        )
         action = slew_actions(self.params, view.azimuth, view.elevation, points, index)
         action = np.asarray(action, dtype=np.float32)
         return (action[0] if single else action), t + 1
+
+
+def plan_aims(
+    params: PointingParams,
+    view: _View,
+    target: NDArray[np.int64],
+    t: NDArray[np.int64],
+    cue_steps: int = 0,
+    sharing: Sharing | None = None,
+    search: EpipolarSearch | None = None,
+    share_bits: NDArray[np.int64] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """Aim points ``(N, P, 3)`` and each receiver's point index ``(N, n)`` for
+    :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, from the drone each
+    receiver is sent to ``target (N, n)`` at episode steps ``t (N,)``: the :func:`cue_hold` on
+    the first ``cue_steps`` steps; with ``sharing`` a receiver aims between its drone and
+    another one (:func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`, or as
+    ``share_bits (N, n)`` decide,
+    :func:`~sensorgym.agents.stereo_pointing_sharing.decided_aims`); with ``search`` the
+    receivers of a lost drone search along its one sighting
+    (:func:`~sensorgym.agents.stereo_pointing_search.search_aims`, appended as points ``P − n``
+    onward). The one aiming of the ``plan-*`` rules and the ``pointing-plan`` wrapper."""
+    target = cue_hold(view.aimed, target, t, cue_steps)
+    points, index = view.position, target
+    if sharing is not None and share_bits is not None:
+        points, index = decided_aims(params, view, target, sharing, share_bits)
+    elif sharing is not None:
+        points, index = shared_aims(params, view, target, sharing)
+    if search is not None:
+        found, searching = search_aims(params, view, target, t, search)
+        n_points = points.shape[1]
+        points = np.concatenate([points, found], axis=1)
+        index = np.where(searching, n_points + np.arange(params.n_receivers)[None], index)
+    return points, index
+
+
+def check_cue_steps(cue_steps: Any) -> int:
+    """``cue_steps`` as an int; ``ValueError`` unless it is an integer >= 0 (not a bool)."""
+    if isinstance(cue_steps, bool) or not isinstance(cue_steps, int | np.integer) or cue_steps < 0:
+        raise ValueError(f"cue_steps: must be an integer >= 0, got {cue_steps!r}")
+    return int(cue_steps)
 
 
 def cue_hold(

@@ -86,26 +86,3 @@ def search_aims(
     points = origin + np.maximum(rho + shift * mean_range, MIN_SEARCH_RANGE)[..., None] * ray
     searching = (lost & single)[rows, target] & ~seen[rows, np.arange(n)[None], target]
     return points[rows, target], searching
-
-
-def searched_aims(
-    params: PointingParams,
-    view: _View,
-    target: NDArray[np.int64],
-    t: NDArray[np.int64],
-    search: EpipolarSearch,
-    points: NDArray[np.float64],
-    index: NDArray[np.int64],
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """Aim points and each receiver's point index for
-    :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, from the aims ``points
-    (N, P, 3)``, ``index (N, n)`` a rule would take otherwise (the predictions, or
-    :func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`'): the :func:`search_aims`
-    points appended, and the searching receivers sent to theirs. The one way the
-    ``plan-search`` rule and the ``pointing-plan`` wrapper apply the search."""
-    found, searching = search_aims(params, view, target, t, search)
-    n = params.n_receivers
-    return (
-        np.concatenate([points, found], axis=1),
-        np.where(searching, points.shape[1] + np.arange(n)[None], index),
-    )

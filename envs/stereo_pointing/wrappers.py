@@ -47,14 +47,12 @@ from sensorgym.agents.stereo_pointing import (
     rewards_acquired,
     rewards_values,
 )
-from sensorgym.agents.stereo_pointing_horizon import cue_hold
-from sensorgym.agents.stereo_pointing_search import EpipolarSearch, searched_aims
+from sensorgym.agents.stereo_pointing_horizon import check_cue_steps, plan_aims
+from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import (
     SHARE_INPUTS,
     Sharing,
-    decided_aims,
     share_inputs,
-    shared_aims,
 )
 from sensorgym.envs.stereo_pointing.simulation import (
     PointingParams,
@@ -111,8 +109,9 @@ class PlanAction(ObservedActionWrapper):
     ``cue_steps`` a receiver aimed at a drone keeps it whatever the candidate says (the
     ``plan-fix-first`` rule's hold). With ``search`` the other receivers sent to a lost drone
     that one receiver sees aim along that receiver's line of sight
-    (:func:`~sensorgym.agents.stereo_pointing_search.searched_aims`, the ``plan-search`` rule's
-    search). Observations, rewards and episodes are the base env's."""
+    (:func:`~sensorgym.agents.stereo_pointing_search.search_aims`, the ``plan-search`` rule's
+    search). The aiming is the rules' own,
+    :func:`~sensorgym.agents.stereo_pointing_horizon.plan_aims`. Observations, rewards and episodes are the base env's."""
 
     def __init__(
         self,
@@ -132,11 +131,7 @@ class PlanAction(ObservedActionWrapper):
             raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
         if share_bits and sharing is None:
             raise ValueError("share_bits: needs a sharing setting (whose partner each bit names)")
-        if isinstance(cue_steps, bool) or not isinstance(cue_steps, int | np.integer):
-            raise ValueError(f"cue_steps: must be an integer >= 0, got {cue_steps!r}")
-        if cue_steps < 0:
-            raise ValueError(f"cue_steps: must be an integer >= 0, got {cue_steps!r}")
-        self.cue_steps = int(cue_steps)
+        self.cue_steps = check_cue_steps(cue_steps)
         """On an episode's first ``cue_steps`` steps every receiver aimed at a drone stays on
         it whatever the candidate says (:func:`~sensorgym.agents.stereo_pointing_horizon.cue_hold`,
         the ``plan-fix-first`` rule's hold: 1); 0: the candidate alone."""
@@ -179,18 +174,21 @@ class PlanAction(ObservedActionWrapper):
         if self.sharing is None and not self.cue_steps and self.search is None:
             return assignment_actions(self.params, obs, target)
         view = _view(self.params, np.asarray(obs, dtype=np.float64))
-        t = self._steps.t
-        target = cue_hold(view.aimed, target, t, self.cue_steps)
-        points, index = view.position, target
-        if self.sharing is not None and self.share_bits:
+        bits = None
+        if self.share_bits:
             bits = a[:, 1:]
             if np.any((bits < 0) | (bits > 1)):
                 raise ValueError("actions: share bits must be 0 or 1")
-            points, index = decided_aims(self.params, view, target, self.sharing, bits)
-        elif self.sharing is not None:
-            points, index = shared_aims(self.params, view, target, self.sharing)
-        if self.search is not None:
-            points, index = searched_aims(self.params, view, target, t, self.search, points, index)
+        points, index = plan_aims(
+            self.params,
+            view,
+            target,
+            self._steps.t,
+            self.cue_steps,
+            self.sharing,
+            self.search,
+            bits,
+        )
         return slew_actions(self.params, view.azimuth, view.elevation, points, index)
 
     def reset(self) -> NDArray[Any]:

@@ -66,7 +66,7 @@ def test_a_receiver_aimed_at_no_drone_follows_the_plan_while_the_cue_is_held():
     )
 
 
-@pytest.mark.parametrize("bad", [-1, 1.5])
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
 def test_cue_steps_must_be_a_count(bad):
     with pytest.raises(ValueError, match="cue_steps"):
         PlanHorizon(cue_steps=bad)
