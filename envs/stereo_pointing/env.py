@@ -121,7 +121,8 @@ class StereoPointingEnv(CoreEnv):
       view's whole width (was 97 %); the rule ``plan-fix-first`` holds the cue's pairs for the
       first step, so that every track has its first fix before the plan re-pairs; the rule
       ``plan-search`` then also sends the receivers of a lost drone that one receiver sees
-      along that receiver's line of sight.
+      along that receiver's line of sight. Later in issue 13 (env unchanged): ``plan-search``
+      also sweeps across that line of sight, and the seeing receiver holds it.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}

@@ -249,12 +249,18 @@ def _sharing(value: bool | dict[str, float] | None) -> Sharing | None:
 
 def _search(value: bool | dict[str, Any] | None) -> EpipolarSearch | None:
     """The :class:`EpipolarSearch` a wrapper's ``search`` keyword names."""
-    return _setting(
-        value,
-        EpipolarSearch,
-        "search",
-        lambda k, v: tuple(int(x) for x in v) if k == "sweep" else float(v),
-    )
+    return _setting(value, EpipolarSearch, "search", _search_field)
+
+
+def _search_field(name: str, value: Any) -> Any:
+    """One :class:`EpipolarSearch` field from a wrapper's keywords (YAML gives lists)."""
+    if name == "sweep":
+        return tuple(int(x) for x in value)
+    if name == "across":
+        return tuple(float(x) for x in value)
+    if name == "anchor":
+        return value  # a bool, checked by EpipolarSearch
+    return float(value)
 
 
 class PlanFeatures(VecEnvWrapper):

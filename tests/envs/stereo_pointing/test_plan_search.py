@@ -1,5 +1,6 @@
 """The plan-search rule: the other receivers sent to a lost drone that exactly one receiver sees
-aim along that receiver's boresight ray, swept in range; otherwise it is plan-fix-first."""
+aim along that receiver's boresight ray, swept in range and across it, and the seeing receiver
+holds its ray; otherwise it is plan-fix-first."""
 
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ def test_the_searching_receivers_aim_on_the_seeing_receivers_ray_swept_in_range(
     sweep offset is 0, one sweep step further on the next — and receiver 1 keeps its aim;
     receivers sent to the tracked drone never search."""
     params = PointingParams()
-    search = EpipolarSearch()
+    search = EpipolarSearch(across=(0.0,), anchor=False)
     view = _lost_view(params, sigma=10.0, seen_by=(1,))
     target = np.array([[1, 0, 1, 0]])
     origin = params.receiver_positions[1]
@@ -61,21 +62,69 @@ def test_the_searching_receivers_aim_on_the_seeing_receivers_ray_swept_in_range(
     assert step @ ray == pytest.approx(search.sweep[1] * search.width * params.fov * mean_range)
 
 
+@pytest.mark.parametrize("anchor", [False, True])
 @pytest.mark.parametrize(
     ("sigma", "seen_by"), [(1.0, (3,)), (10.0, ()), (10.0, (0, 3)), (10.0, (1,)), (10.0, (3,))]
 )
-def test_who_searches_depends_on_the_track_and_the_single_sighting(sigma, seen_by):
+def test_who_searches_depends_on_the_track_and_the_single_sighting(sigma, seen_by, anchor):
     """Receivers 0 and 3 are sent to drone 0. A track under ``lost_rms``, or a drone that no
     receiver or two receivers saw: nobody searches. Seen by receiver 3 alone: receiver 0
-    searches; seen by receiver 1 alone (sent elsewhere): both search along its ray."""
+    searches, and receiver 3 holds its ray with the anchor; seen by receiver 1 alone (sent
+    elsewhere): both search along its ray."""
     params = PointingParams()
     view = _lost_view(params, sigma, seen_by)
     target = np.array([[0, 1, 1, 0]])
-    _, searching = search_aims(params, view, target, np.array([4]), EpipolarSearch())
-    want = {(3,): [True, False, False, False], (1,): [True, False, False, True]}
-    lost = sigma > EpipolarSearch().lost_rms
+    search = EpipolarSearch(anchor=anchor)
+    _, searching = search_aims(params, view, target, np.array([4]), search)
+    want = {(3,): [True, False, False, anchor], (1,): [True, False, False, True]}
+    lost = sigma > search.lost_rms
     expected = want.get(seen_by, [False] * 4) if lost else [False] * 4
     np.testing.assert_array_equal(searching, [expected])
+
+
+def test_the_seeing_receiver_holds_its_ray_advanced_by_the_estimated_velocity():
+    """Receiver 1 alone saw the lost drone 0 and is sent to it: with the anchor it aims at its
+    own ray's point nearest the prediction plus ``v̂ · dt`` (not at the prediction, 9 m off);
+    without, it is not among the searching receivers (it aims at the prediction)."""
+    params = PointingParams()
+    view = _lost_view(params, sigma=10.0, seen_by=(1,))
+    velocity = np.array([[[3.0, -1.0, 4.0], [0.0, 0.0, 0.0]]])
+    view = _View(**{**view.__dict__, "velocity": velocity})
+    target = np.array([[1, 0, 1, 0]])
+    origin = params.receiver_positions[1]
+    ray = boresights(view.azimuth, view.elevation)[0, 1]
+    nearest = origin + (ray @ (view.position[0, 0] - origin)) * ray
+    for t in (0, 5):
+        points, searching = search_aims(params, view, target, np.array([t]), EpipolarSearch())
+        assert searching[0, 1]
+        np.testing.assert_allclose(points[0, 1], nearest + velocity[0, 0] * params.dt, atol=1e-9)
+    _, searching = search_aims(params, view, target, np.array([0]), EpipolarSearch(anchor=False))
+    assert not searching[0, 1]
+
+
+def test_the_sweep_moves_across_the_ray_after_each_sweep_along_it():
+    """With ``sweep (0, 1)`` and ``across (0, 0.7, −0.7)``: steps 0 and 1 stay on the ray; on
+    steps 2 and 4 (along offset 0) the searching receiver's point lies ``±0.7 · fov · ρ`` off
+    the nearest point along ``b × d``, perpendicular to the ray ``b`` and to that receiver's
+    line of sight ``d``; step 6 is back on the ray."""
+    params = PointingParams()
+    search = EpipolarSearch(sweep=(0, 1), across=(0.0, 0.7, -0.7))
+    view = _lost_view(params, sigma=10.0, seen_by=(1,))
+    target = np.array([[1, 0, 1, 0]])
+    origin, k = params.receiver_positions[1], params.receiver_positions[3]
+    ray = boresights(view.azimuth, view.elevation)[0, 1]
+    rho = ray @ (view.position[0, 0] - origin)
+    nearest = origin + rho * ray
+    off = {}
+    for t in (0, 1, 2, 4, 6):
+        points, _ = search_aims(params, view, target, np.array([t]), search)
+        off[t] = points[0, 3] - nearest
+    for t in (0, 1, 6):
+        np.testing.assert_allclose(np.cross(off[t], ray), 0.0, atol=1e-9)
+    across = np.cross(ray, nearest - k)
+    across /= np.linalg.norm(across)
+    for t, sign in ((2, 1.0), (4, -1.0)):
+        np.testing.assert_allclose(off[t], sign * 0.7 * params.fov * rho * across, atol=1e-9)
 
 
 def test_without_lost_drones_the_rule_is_plan_fix_first_and_the_registered_one_searches():
@@ -106,7 +155,16 @@ def test_without_lost_drones_the_rule_is_plan_fix_first_and_the_registered_one_s
 
 
 @pytest.mark.parametrize(
-    "bad", [{"lost_rms": -1.0}, {"width": float("nan")}, {"sweep": ()}, {"sweep": (0.5,)}]
+    "bad",
+    [
+        {"lost_rms": -1.0},
+        {"width": float("nan")},
+        {"sweep": ()},
+        {"sweep": (0.5,)},
+        {"across": ()},
+        {"across": (0.0, float("inf"))},
+        {"anchor": "yes"},
+    ],
 )
 def test_bad_search_settings_are_refused(bad):
     with pytest.raises(ValueError, match=next(iter(bad))):
@@ -122,3 +180,16 @@ def test_a_view_of_the_env_decodes_for_the_search():
     points, searching = search_aims(params, view, target, np.zeros(8, np.int64), EpipolarSearch())
     assert points.shape == (8, 4, 3) and searching.shape == (8, 4)
     assert np.all(np.isfinite(points))
+
+
+def test_the_wrappers_search_keyword_takes_every_field_as_yaml_gives_it():
+    """``pointing-plan``'s ``search:`` mapping (lists and ints, as YAML gives them) builds the
+    same :class:`EpipolarSearch`; a non-bool anchor is refused."""
+    from sensorgym.envs.stereo_pointing.wrappers import _search
+
+    given = {"lost_rms": 2, "width": 1, "sweep": [0, 1], "across": [0, 0.5], "anchor": False}
+    want = EpipolarSearch(lost_rms=2.0, width=1.0, sweep=(0, 1), across=(0.0, 0.5), anchor=False)
+    assert _search(given) == want
+    assert _search(True) == EpipolarSearch() and _search(None) is None
+    with pytest.raises(ValueError, match="anchor"):
+        _search({"anchor": "no"})
