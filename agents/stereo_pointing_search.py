@@ -90,7 +90,7 @@ def search_aims(
     aims at that point shifted along the ray by ``sweep[t mod L] · width · fov · r̄`` (``r̄``
     the receivers' mean range to it, ``L = len(sweep)``) and across it by ``across[(t div L)
     mod len(across)] · fov · ρ`` along the unit ``b × d`` (``d`` from ``k`` to the shifted
-    point); ``k*`` itself, if sent to ``j`` and with ``anchor``, aims at the nearest point
+    point; not at all where ``b × d`` vanishes, ``k`` on the ray); ``k*`` itself, if sent to ``j`` and with ``anchor``, aims at the nearest point
     plus ``v̂ · dt``."""
     N, n = target.shape[0], params.n_receivers
     if target.shape != (N, n) or t.shape != (N,):
