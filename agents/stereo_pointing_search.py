@@ -14,7 +14,8 @@ ray from step to step (range is what one sighting leaves open) and, from sweep t
 it (the drone may sit anywhere in the seeing receiver's cone, up to ``fov · ρ`` off the ray).
 The seeing receiver itself, if it is sent to that drone, holds its line of sight (``anchor``):
 slewing onto the prediction, which is metres off, would carry the drone out of its cone before
-the others find it. Measured on the tuning seeds (``benchmarks/pointing_search.py``, ``benchmarks/results/pointing_search.json``).
+the others find it. Measured on the tuning seeds (``benchmarks/pointing_search.py``,
+``benchmarks/results/pointing_search.json``).
 """
 
 from __future__ import annotations
@@ -90,8 +91,8 @@ def search_aims(
     aims at that point shifted along the ray by ``sweep[t mod L] · width · fov · r̄`` (``r̄``
     the receivers' mean range to it, ``L = len(sweep)``) and across it by ``across[(t div L)
     mod len(across)] · fov · ρ`` along the unit ``b × d`` (``d`` from ``k`` to the shifted
-    point; not at all where ``b × d`` vanishes, ``k`` on the ray); ``k*`` itself, if sent to ``j`` and with ``anchor``, aims at the nearest point
-    plus ``v̂ · dt``."""
+    point; not at all where ``b × d`` vanishes, ``k`` on the ray); ``k*`` itself, if sent to
+    ``j`` and with ``anchor``, aims at the nearest point plus ``v̂ · dt``."""
     N, n = target.shape[0], params.n_receivers
     if target.shape != (N, n) or t.shape != (N,):
         raise ValueError(
@@ -105,7 +106,8 @@ def search_aims(
     origin = params._receivers[k_star]  # (N, m, 3)
     ray = boresights(view.azimuth, view.elevation)[rows, k_star]  # (N, m, 3)
     rho = np.einsum("nmc,nmc->nm", ray, view.position - origin)
-    nearest = origin + np.maximum(rho, MIN_SEARCH_RANGE)[..., None] * ray
+    reach = np.maximum(rho, MIN_SEARCH_RANGE)  # range of the nearest point searched
+    nearest = origin + reach[..., None] * ray
     mean_range = np.linalg.norm(nearest[:, :, None] - params._receivers, axis=-1).mean(axis=-1)
     shift = np.asarray(search.sweep)[t % len(search.sweep)][:, None] * search.width * params.fov
     swept = origin + np.maximum(rho + shift * mean_range, MIN_SEARCH_RANGE)[..., None] * ray
@@ -119,8 +121,10 @@ def search_aims(
         cycle = (t // len(search.sweep)) % len(across)
         d = points - params._receivers[None]
         e = np.cross(ray[rows, target], d)
-        e /= np.maximum(np.linalg.norm(e, axis=-1, keepdims=True), 1e-12)
-        radius = params.fov * np.maximum(rho, MIN_SEARCH_RANGE)[rows, target]
+        size = np.linalg.norm(e, axis=-1, keepdims=True)  # |d| sin of the angle between b, d
+        turned = size > 1e-9 * np.linalg.norm(d, axis=-1, keepdims=True)
+        e = np.where(turned, e / np.where(turned, size, 1.0), 0.0)  # 0: k on the ray
+        radius = params.fov * reach[rows, target]
         points = points + (across[cycle][:, None] * radius)[..., None] * e
     searching = sent_lost & ~is_star
     if search.anchor:

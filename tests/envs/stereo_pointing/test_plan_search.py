@@ -127,6 +127,25 @@ def test_the_sweep_moves_across_the_ray_after_each_sweep_along_it():
         np.testing.assert_allclose(off[t], sign * 0.7 * params.fov * rho * across, atol=1e-9)
 
 
+def test_a_searching_receiver_on_the_seeing_receivers_ray_is_not_shifted_across():
+    """Receiver 1's ray runs through receiver 3 (``b × d = 0``): on a step with an across
+    offset, receiver 3's point stays on the ray (finite, no direction to shift in)."""
+    params = PointingParams()
+    view = _lost_view(params, sigma=10.0, seen_by=(1,))
+    rec = params.receiver_positions
+    d = rec[3] - rec[1]
+    azimuth, elevation = view.azimuth.copy(), view.elevation.copy()
+    azimuth[0, 1] = np.arctan2(d[0], d[2])
+    elevation[0, 1] = np.arctan2(d[1], np.hypot(d[0], d[2]))
+    view = _View(**{**view.__dict__, "azimuth": azimuth, "elevation": elevation})
+    search = EpipolarSearch(sweep=(0,), across=(0.0, 0.7))
+    target = np.array([[1, 0, 1, 0]])
+    on_ray, _ = search_aims(params, view, target, np.array([0]), search)
+    shifted, searching = search_aims(params, view, target, np.array([1]), search)
+    assert searching[0, 3] and np.all(np.isfinite(shifted))
+    np.testing.assert_allclose(shifted[0, 3], on_ray[0, 3], atol=1e-9)
+
+
 def test_without_lost_drones_the_rule_is_plan_fix_first_and_the_registered_one_searches():
     """With ``lost_rms`` infinite the actions are plan-fix-first's on every step of 16 seeded
     scenarios; the registered plan-search differs on some steps of 64."""
