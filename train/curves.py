@@ -12,6 +12,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import isotonic_regression
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
@@ -51,6 +54,45 @@ class LearningCurve(BaseCallback):
             self._point()
 
 
+#: the margin around the curve's band and the best rule within which a rule's line is drawn, as a
+#: fraction of their span; a rule further off (holding still at -700 beside a curve near +60)
+#: is named in a note instead, so that it does not flatten the curve
+WINDOW_MARGIN = 0.25
+#: the least vertical distance between two rule labels, points
+LABEL_GAP = 8.0
+
+
+def curve_window(
+    points: list[dict[str, float]], rules: dict[str, float]
+) -> tuple[tuple[float, float], dict[str, float], dict[str, float]]:
+    """The y-range of a learning curve, the rules drawn in it and those left out: the range
+    holds the curve's 95 % band and the best rule, widened by ``WINDOW_MARGIN`` of their span
+    on each side (by 1 where the span is zero); a rule outside it is left out."""
+    values = [p["mean"] - p["ci95"] for p in points] + [p["mean"] + p["ci95"] for p in points]
+    if rules:
+        values.append(max(rules.values()))
+    if not values or not np.all(np.isfinite(values)):
+        raise ValueError("curve_window: need at least one point or rule, every value finite")
+    lo, hi = min(values), max(values)
+    pad = WINDOW_MARGIN * (hi - lo) if hi > lo else 1.0
+    lo, hi = lo - pad, hi + pad
+    shown = {k: v for k, v in rules.items() if lo <= v <= hi}
+    return (lo, hi), shown, {k: v for k, v in rules.items() if k not in shown}
+
+
+def spread_labels(y: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
+    """Label heights nearest ``y`` (least squares) with at least ``gap`` between neighbours, in
+    the same order: sorted from the top, ``a_i <= a_(i-1) - gap`` is ``a_i + i gap``
+    non-increasing, an isotonic regression of ``y_i + i gap``."""
+    y = np.asarray(y, dtype=np.float64)
+    order = np.argsort(-y, kind="stable")
+    shift = gap * np.arange(y.size)
+    fitted = isotonic_regression(y[order] + shift, increasing=False).x - shift
+    out = np.empty_like(y)
+    out[order] = fitted
+    return out
+
+
 def write_curve(
     run_dir: Path,
     title: str,
@@ -59,7 +101,9 @@ def write_curve(
     pretrain_loss: list[float] | None = None,
 ) -> tuple[Path, Path]:
     """``curve.json`` and ``curve.png`` in ``run_dir``: the evaluation return (mean ± 95 %)
-    against samples, each rule's mean as a labelled horizontal line."""
+    against samples, each rule's mean as a labelled horizontal line (labels spread apart where
+    the lines crowd; the rules far below the curve and the best rule named in a note, see
+    :func:`curve_window`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -80,26 +124,45 @@ def write_curve(
     lo = [m - c for m, c in zip(mean, ci, strict=True)]
     hi = [m + c for m, c in zip(mean, ci, strict=True)]
     ax.fill_between(steps, lo, hi, color="#e8833a", alpha=0.2, linewidth=0)
+    (y_lo, y_hi), shown, hidden = curve_window(points, rules)
+    ax.set_ylim(y_lo, y_hi)
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for k, (name, value) in enumerate(sorted(rules.items(), key=lambda kv: -kv[1])):
+    ranked = sorted(shown.items(), key=lambda kv: -kv[1])
+    labels = []
+    for k, (name, value) in enumerate(ranked):
         color = colors[k % len(colors)]
         ax.axhline(value, color=color, linestyle="--", linewidth=1.0)
-        ax.annotate(
-            name,
-            (1.0, value),
-            xycoords=("axes fraction", "data"),
-            xytext=(3, 0),
-            textcoords="offset points",
-            va="center",
-            fontsize=7,
-            color=color,
+        labels.append(
+            ax.annotate(
+                name,
+                (1.0, value),
+                xycoords=("axes fraction", "data"),
+                xytext=(3, 0),
+                textcoords="offset points",
+                va="center",
+                fontsize=7,
+                color=color,
+            )
         )
+    if hidden:
+        note = "off the scale: " + ", ".join(
+            f"{name} {value:.3g}" for name, value in sorted(hidden.items(), key=lambda kv: -kv[1])
+        )
+        ax.text(
+            0.01, 0.02, note, transform=ax.transAxes, fontsize=7, color="0.35", wrap=True,
+            bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
+        )  # fmt: skip
     ax.set_xlabel("samples (environment steps, all scenarios)")
     ax.set_ylabel("evaluation return (mean ± 95 %)")
     ax.set_title(title, fontsize=10, loc="left")
     ax.grid(alpha=0.3)
-    ax.legend(loc="lower right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
     fig.tight_layout()
+    if labels:  # spread the labels in points, now that the axes have their final size
+        to_points = 72.0 / fig.dpi
+        at = np.array([ax.transData.transform((0.0, v))[1] for _, v in ranked]) * to_points
+        for label, dy in zip(labels, spread_labels(at, LABEL_GAP) - at, strict=True):
+            label.set_position((3, dy))
     png_path = run_dir / "curve.png"
     fig.savefig(png_path, dpi=90)
     plt.close(fig)

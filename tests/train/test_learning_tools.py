@@ -14,6 +14,7 @@ from sensorgym.cli.main import main
 from sensorgym.envs import ENV_IDS
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.benchmark import best_rule, paired_difference, paired_to_best_rule, pool
+from sensorgym.train.curves import WINDOW_MARGIN, curve_window, spread_labels, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
 from sensorgym.train.experts import Pretrain, collect, expert_factory, pretrain
 from sensorgym.train.models import load_model
@@ -125,6 +126,43 @@ def test_pretrain_entries_are_checked():
         Pretrain.from_config({"expert": "rule:paper002", "steps": 0})
     with pytest.raises(KeyError, match="no rule"):
         expert_factory("rule:nobody")(make_sb3_env(ENV_ID, 1, 0))
+
+
+def test_the_curve_window_holds_the_band_and_the_best_rule_and_names_the_rest(tmp_path):
+    points = [
+        {"timesteps": 0, "mean": 60.0, "ci95": 10.0},
+        {"timesteps": 8, "mean": 70.0, "ci95": 10.0},
+    ]
+    rules = {"best": 90.0, "near": 45.0, "still": -700.0, "low": 35.0}
+    (lo, hi), shown, hidden = curve_window(points, rules)
+    # the curve's band 50..80 and the best rule 90, widened by a quarter of their span
+    assert (lo, hi) == pytest.approx((50 - WINDOW_MARGIN * 40, 90 + WINDOW_MARGIN * 40))
+    assert shown == {"best": 90.0, "near": 45.0}
+    assert hidden == {"still": -700.0, "low": 35.0}
+    (lo, hi), shown, hidden = curve_window(points, {"best": 75.0, "still": -700.0})
+    assert (lo, hi) == pytest.approx((50 - WINDOW_MARGIN * 30, 80 + WINDOW_MARGIN * 30))
+    assert shown == {"best": 75.0} and hidden == {"still": -700.0}
+    # a flat, exact curve with no rules still gets a window
+    assert curve_window([{"timesteps": 0, "mean": 3.0, "ci95": 0.0}], {})[0] == (2.0, 4.0)
+    with pytest.raises(ValueError, match="finite"):
+        curve_window([{"timesteps": 0, "mean": float("nan"), "ci95": 1.0}], rules)
+    with pytest.raises(ValueError, match="at least one"):
+        curve_window([], {})
+    json_path, png_path = write_curve(tmp_path, "t", points, rules)
+    assert json.loads(json_path.read_text()) == {"points": points, "rules": rules}
+    assert png_path.stat().st_size > 1000
+
+
+def test_spread_labels_keeps_the_order_and_the_gap_and_moves_least():
+    y = np.array([10.0, 0.0, 10.5, 30.0, 9.8])
+    a = spread_labels(y, 2.0)
+    assert list(np.argsort(-a, kind="stable")) == list(np.argsort(-y, kind="stable"))
+    assert np.all(-np.diff(np.sort(a)[::-1]) >= 2.0 - 1e-12)
+    # labels far apart stay where they are; a crowded cluster is centred on its own mean
+    assert a[3] == 30.0 and a[1] == 0.0
+    cluster = np.sort(a[[0, 2, 4]])
+    np.testing.assert_allclose(cluster, np.mean([10.0, 10.5, 9.8]) + np.array([-2.0, 0.0, 2.0]))
+    np.testing.assert_array_equal(spread_labels(np.array([5.0, 1.0]), 2.0), [5.0, 1.0])
 
 
 def test_train_with_wrappers_pretraining_and_a_learning_curve(tmp_path):
