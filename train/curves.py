@@ -18,6 +18,7 @@ from scipy.optimize import isotonic_regression
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
+from sensorgym.train.benchmark import best_rule
 from sensorgym.train.evaluation import evaluate
 
 
@@ -66,11 +67,16 @@ def curve_window(
     points: list[dict[str, float]], rules: dict[str, float]
 ) -> tuple[tuple[float, float], dict[str, float], dict[str, float]]:
     """The y-range of a learning curve, the rules drawn in it and those left out: the range
-    holds the curve's 95 % band and the best rule, widened by ``WINDOW_MARGIN`` of their span
-    on each side (by 1 where the span is zero); a rule outside it is left out."""
+    holds the curve's 95 % band, the best fieldable rule (the one a trained policy must beat,
+    :func:`~sensorgym.train.benchmark.best_rule`) and the highest line (an oracle's ceiling),
+    widened by ``WINDOW_MARGIN`` of their span on each side (by 1 where the span is zero); a
+    rule outside it is left out."""
     values = [p["mean"] - p["ci95"] for p in points] + [p["mean"] + p["ci95"] for p in points]
     if rules:
         values.append(max(rules.values()))
+        best = best_rule({name: {"mean": value} for name, value in rules.items()})
+        if best is not None:
+            values.append(rules[best])
     if not values or not np.all(np.isfinite(values)):
         raise ValueError("curve_window: need at least one point or rule, every value finite")
     lo, hi = min(values), max(values)

@@ -1,4 +1,4 @@
-"""The ``ars`` trainer: its untrained policy is the plan-acquire rule, a search from a
+"""The ``ars`` trainer: its untrained policy is the best rule, plan-search, a search from a
 policy made worse on purpose climbs back on its paired training scenarios, and a run folder
 written by ``sensorgym train`` reloads (no pickle) to the same actions."""
 
@@ -34,15 +34,33 @@ def _model(n_envs: int = 4, **overrides) -> ARS:
     return ALGORITHMS["ars"](run["policy"], env, seed=0, **kwargs)
 
 
-def test_the_untrained_policy_is_the_plan_acquire_rule():
+def _share_wrappers(sharing, **plan) -> list:
+    """The ars.yml entry's wrappers (the shipped runs') with ``pointing-plan`` given only
+    ``sharing`` (and the ``plan`` keywords)."""
+    wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
+    assert wrappers[0]["name"] == "pointing-plan"
+    return [{"name": "pointing-plan", "sharing": sharing, **plan}, *wrappers[1:]]
+
+
+def test_the_untrained_policy_is_the_plan_search_rule_and_without_its_aims_plan_acquire():
+    """The ars.yml entry (the shipped runs') aims through ``pointing-plan`` with ``sharing``,
+    ``cue_steps: 1`` and ``search``: its untrained policy scores exactly as the registered
+    ``plan-search`` on 4 seeded episodes; with the plain ``pointing-plan`` (one drone per
+    receiver, no hold, no search) exactly as ``plan-acquire``."""
     model = _model(episodes=4)
     assert isinstance(model.policy, CandidatePolicy)
     assert np.array_equal(model.theta, np.zeros(9))
-    assert _find(model.env, PlanAction, "pointing-plan").cue_steps == 0
-    ours = evaluate(model, model.env, 4, 21)
+    plan = _find(model.env, PlanAction, "pointing-plan")
+    assert plan.sharing == Sharing() and plan.cue_steps == 1 and plan.search == EpipolarSearch()
+    rule = RULES[ENV_ID]["plan-search"](PointingParams(), lambda: None)
+    theirs = evaluate(rule, make_sb3_env(ENV_ID, 4, 0), 4, 21)
+    assert evaluate(model, model.env, 4, 21).returns == theirs.returns
+    plain = _model(episodes=4, wrappers=_share_wrappers(None))
+    assert _find(plain.env, PlanAction, "pointing-plan").cue_steps == 0
     rule = PlanHorizon(PointingParams(), acquisition=True)
     theirs = evaluate(rule, make_sb3_env(ENV_ID, 4, 0), 4, 21)
-    assert ours.returns == theirs.returns
+    assert evaluate(plain, plain.env, 4, 21).returns == theirs.returns
+    assert theirs.returns != evaluate(model, model.env, 4, 21).returns
 
 
 def test_the_search_climbs_back_from_a_worse_policy():
@@ -120,24 +138,6 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
     th.testing.assert_close(x[..., 3], 150.0 * loss[..., 3])  # the time left at step 0
     assert th.equal(x[..., 4:8].amax(dim=1), th.full((4, 4), 10.0))
     th.testing.assert_close(x[..., 8], 4.0 * kept)
-
-
-def _share_wrappers(sharing, **plan) -> list:
-    """The ars.yml entry's wrappers (the shipped runs') with ``pointing-plan``'s ``sharing``
-    (and ``plan`` keywords)."""
-    wrappers = load_hyperparams("ars", ENV_ID)["wrappers"]
-    assert wrappers[0] == {"name": "pointing-plan"}
-    return [{"name": "pointing-plan", "sharing": sharing, **plan}, *wrappers[1:]]
-
-
-def test_with_the_rules_aims_the_untrained_policy_is_the_plan_search_rule():
-    """``pointing-plan`` with ``sharing``, ``cue_steps: 1`` and ``search``: the untrained
-    policy scores exactly as the registered ``plan-search`` on 4 seeded episodes."""
-    model = _model(episodes=4, wrappers=_share_wrappers(True, cue_steps=1, search=True))
-    ours = evaluate(model, model.env, 4, 21)
-    rule = RULES[ENV_ID]["plan-search"](PointingParams(), lambda: None)
-    theirs = evaluate(rule, make_sb3_env(ENV_ID, 4, 0), 4, 21)
-    assert ours.returns == theirs.returns
 
 
 #: the learned sharing's wrappers (the runs of ``benchmarks/results/pointing_share_ars.json``)

@@ -142,6 +142,10 @@ def test_the_curve_window_holds_the_band_and_the_best_rule_and_names_the_rest(tm
     (lo, hi), shown, hidden = curve_window(points, {"best": 75.0, "still": -700.0})
     assert (lo, hi) == pytest.approx((50 - WINDOW_MARGIN * 30, 80 + WINDOW_MARGIN * 30))
     assert shown == {"best": 75.0} and hidden == {"still": -700.0}
+    # the best fieldable rule stays in view under an oracle's ceiling
+    (lo, hi), shown, hidden = curve_window(points, {"oracle-x": 85.0, "rule": 20.0, "bad": -9.0})
+    assert (lo, hi) == pytest.approx((20 - WINDOW_MARGIN * 65, 85 + WINDOW_MARGIN * 65))
+    assert set(shown) == {"oracle-x", "rule"} and set(hidden) == {"bad"}
     # a flat, exact curve with no rules still gets a window
     assert curve_window([{"timesteps": 0, "mean": 3.0, "ci95": 0.0}], {})[0] == (2.0, 4.0)
     with pytest.raises(ValueError, match="finite"):
