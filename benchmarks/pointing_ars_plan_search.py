@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from pointing_share_ars import ars_run_record
 from pointing_sharing import paired_fields, tuning_args
 
 from sensorgym.agents.registry import RULES
@@ -67,15 +68,8 @@ def main() -> None:
         env = make_sb3_env(ENV_ID, N_ENVS, 0, wrappers=wrappers_of(config))
         model = load_model(run, env)
         weights = model.policy.search_parameter().detach().numpy().ravel()
-        history = json.loads((run / "search.json").read_text())
         names = weight_names(config["hyperparams"]["policy_kwargs"]["horizons"])
-        row: dict = {
-            "seed": config["seed"],
-            "hyperparams": config["hyperparams"],
-            "theta": dict(zip(names, weights.tolist(), strict=True)),
-            "iterations": len(history),
-            "scenario_seeds": [h["scenario_seed"] for h in history],
-        }
+        row = ars_run_record(run, config, names, weights.tolist())
         for seed in args.seeds:
             ours = np.array(evaluate(model, env, args.episodes, seed).returns)
             row[f"seed_{seed}"] = {

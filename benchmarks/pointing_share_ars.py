@@ -41,6 +41,20 @@ STATIC = Sharing(0.5, 1.0, 3.0)
 REGISTERED_THEN = 0.97
 
 
+def ars_run_record(run: Path, config: dict, names: list[str], weights: list[float]) -> dict:
+    """What a results file keeps of an ARS run folder: its training seed, the hyperparameters
+    it recorded (its ``ars.yml`` entry), its vector by feature name, and the number and
+    scenario seeds of its iterations (``search.json``)."""
+    history = json.loads((run / "search.json").read_text())
+    return {
+        "seed": config["seed"],
+        "hyperparams": config["hyperparams"],
+        "theta": dict(zip(names, weights, strict=True)),
+        "iterations": len(history),
+        "scenario_seeds": [h["scenario_seed"] for h in history],
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", type=Path, nargs="+")
@@ -74,14 +88,7 @@ def main() -> None:
         wrappers = config["hyperparams"]["wrappers"]
         env = make_sb3_env(ENV_ID, N_ENVS, 0, wrappers=wrappers)
         model = load_model(run, env)
-        history = json.loads((run / "search.json").read_text())
-        row: dict = {
-            "seed": config["seed"],
-            "hyperparams": config["hyperparams"],
-            "theta": dict(zip(SHARE_FEATURES, model.theta.tolist(), strict=True)),
-            "iterations": len(history),
-            "scenario_seeds": [h["scenario_seed"] for h in history],
-        }
+        row = ars_run_record(run, config, SHARE_FEATURES, model.theta.tolist())
         for seed in args.seeds:
             ours = np.array(evaluate(model, env, args.episodes, seed).returns)
             row[f"seed_{seed}"] = {
