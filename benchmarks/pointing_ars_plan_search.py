@@ -52,17 +52,10 @@ def main() -> None:
     plain = make_sb3_env(ENV_ID, N_ENVS, 0)
     rule = RULES[ENV_ID][RULE](env_params(plain), simulator_state(plain))
     base = {s: np.array(evaluate(rule, plain, args.episodes, s).returns) for s in args.seeds}
-    out: dict = {
-        "settings": {
-            "env": ENV_ID,
-            "episodes": args.episodes,
-            "seeds": args.seeds,
-            "n_envs": N_ENVS,
-            "rule": RULE,
-            "rule_mean": {str(s): float(b.mean()) for s, b in base.items()},
-        },
-        "runs": {},
-    }
+    settings = {"env": ENV_ID, "rule": RULE, "n_envs": N_ENVS, "seeds": args.seeds}
+    settings["episodes"] = args.episodes
+    settings["rule_mean"] = {str(s): float(b.mean()) for s, b in base.items()}
+    out: dict = {"settings": settings, "runs": {}}
     for run in runs:
         config = read_config(run)
         env = make_sb3_env(ENV_ID, N_ENVS, 0, wrappers=wrappers_of(config))
