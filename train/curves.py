@@ -70,19 +70,21 @@ def curve_window(
     holds the curve's 95 % band, the best fieldable rule (the one a trained policy must beat,
     :func:`~sensorgym.train.benchmark.best_rule`) and the highest line (an oracle's ceiling),
     widened by ``WINDOW_MARGIN`` of their span on each side (by 1 where the span is zero); a
-    rule outside it is left out."""
-    values = [p["mean"] - p["ci95"] for p in points] + [p["mean"] + p["ci95"] for p in points]
-    if rules:
-        values.append(max(rules.values()))
-        best = best_rule({name: {"mean": value} for name, value in rules.items()})
+    rule outside it is left out. Non-finite values (a diverged evaluation) take no part in the
+    range and such rules are left out (the note names them); with nothing finite the range is
+    ``(-1, 1)``: the picture is drawn whatever the numbers, at the end of a long run."""
+    band = [p["mean"] + s * p["ci95"] for p in points for s in (-1.0, 1.0)]
+    finite = {k: v for k, v in rules.items() if np.isfinite(v)}
+    values = [v for v in band if np.isfinite(v)]
+    if finite:
+        values.append(max(finite.values()))
+        best = best_rule({name: {"mean": value} for name, value in finite.items()})
         if best is not None:
-            values.append(rules[best])
-    if not values or not np.all(np.isfinite(values)):
-        raise ValueError("curve_window: need at least one point or rule, every value finite")
-    lo, hi = min(values), max(values)
+            values.append(finite[best])
+    lo, hi = (min(values), max(values)) if values else (0.0, 0.0)
     pad = WINDOW_MARGIN * (hi - lo) if hi > lo else 1.0
     lo, hi = lo - pad, hi + pad
-    shown = {k: v for k, v in rules.items() if lo <= v <= hi}
+    shown = {k: v for k, v in finite.items() if lo <= v <= hi}
     return (lo, hi), shown, {k: v for k, v in rules.items() if k not in shown}
 
 
@@ -151,7 +153,7 @@ def write_curve(
             )
         )
     if hidden:
-        note = "off the scale: " + ", ".join(
+        note = "not drawn (off the scale): " + ", ".join(
             f"{name} {value:.3g}" for name, value in sorted(hidden.items(), key=lambda kv: -kv[1])
         )
         ax.text(

@@ -148,10 +148,16 @@ def test_the_curve_window_holds_the_band_and_the_best_rule_and_names_the_rest(tm
     assert set(shown) == {"oracle-x", "rule"} and set(hidden) == {"bad"}
     # a flat, exact curve with no rules still gets a window
     assert curve_window([{"timesteps": 0, "mean": 3.0, "ci95": 0.0}], {})[0] == (2.0, 4.0)
-    with pytest.raises(ValueError, match="finite"):
-        curve_window([{"timesteps": 0, "mean": float("nan"), "ci95": 1.0}], rules)
-    with pytest.raises(ValueError, match="at least one"):
-        curve_window([], {})
+    # a diverged evaluation: the finite values set the range, a non-finite rule is named
+    nan = float("nan")
+    (lo, hi), shown, hidden = curve_window(
+        [*points, {"timesteps": 9, "mean": nan, "ci95": 1.0}], {"best": 90.0, "broken": nan}
+    )
+    assert (lo, hi) == pytest.approx((50 - WINDOW_MARGIN * 40, 90 + WINDOW_MARGIN * 40))
+    assert shown == {"best": 90.0} and list(hidden) == ["broken"]
+    assert curve_window([], {})[0] == (-1.0, 1.0)
+    assert curve_window([{"timesteps": 0, "mean": nan, "ci95": nan}], {"x": nan})[0] == (-1.0, 1.0)
+    write_curve(tmp_path, "t", [{"timesteps": 0, "mean": nan, "ci95": nan}], {"x": nan})
     json_path, png_path = write_curve(tmp_path, "t", points, rules)
     assert json.loads(json_path.read_text()) == {"points": points, "rules": rules}
     assert png_path.stat().st_size > 1000
