@@ -71,8 +71,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from rich.console import Console
 
-    from sensorgym.train.benchmark import paired_to_best_rule, plot_scores, registered_envs
+    from sensorgym.train.benchmark import paired_to_best_rule, registered_envs
     from sensorgym.train.models import RunFolderError, check_run_folder
+    from sensorgym.train.score_chart import plot_scores
 
     if args.n_envs < 1 or args.episodes < args.n_envs:
         raise SystemExit(

@@ -1,4 +1,4 @@
-"""Scoring every policy of an env on the same seeded scenarios, and the chart of the scores.
+"""Scoring every policy of an env on the same seeded scenarios (the chart: :mod:`.score_chart`).
 
 A policy is named by a :class:`PolicySpec`: a rule registered in
 :mod:`sensorgym.agents.registry`, or a ``sensorgym train`` run folder (given by the user or
@@ -187,44 +187,3 @@ def paired_to_best_rule(results: dict[str, dict[str, Any]]) -> tuple[str | None,
         for name, r in results.items()
         if name != best and len(r.get("returns", ())) == len(ref)
     }
-
-
-def plot_scores(
-    scores: dict[str, dict[str, dict[str, float]]], path: Path, title: str = "episode return"
-) -> Path:
-    """A PNG at ``path``: per env (one panel each, its own scale) a horizontal bar per policy,
-    mean episode return with its 95 % interval; trained policies in orange, rules in blue."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    envs = [e for e, rows in scores.items() if rows]
-    if not envs:
-        raise ValueError("scores: no env has any result to plot")
-    heights = [0.6 + 0.32 * len(scores[e]) for e in envs]
-    fig, axes = plt.subplots(
-        len(envs),
-        1,
-        figsize=(7.5, sum(heights) + 0.6),
-        gridspec_kw={"height_ratios": heights},
-        squeeze=False,
-    )
-    for ax, env_id in zip(axes[:, 0], envs, strict=True):
-        rows = sorted(scores[env_id].items(), key=lambda kv: kv[1]["mean"])
-        names = [name for name, _ in rows]
-        means = [r["mean"] for _, r in rows]
-        cis = [r["ci95"] for _, r in rows]
-        colors = ["#e8833a" if ":" in name else "#4878a8" for name in names]
-        ax.barh(names, means, xerr=cis, color=colors, capsize=3, height=0.6)
-        ax.axvline(0.0, color="black", linewidth=0.6)
-        ax.set_title(env_id, fontsize=10, loc="left")
-        ax.tick_params(labelsize=8)
-        ax.grid(axis="x", alpha=0.3)
-    axes[-1, 0].set_xlabel(f"{title} (mean ± 95 % interval)", fontsize=9)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=90)
-    plt.close(fig)
-    return path

@@ -302,7 +302,7 @@ def run_sweep(
     (out / "sweep.json").write_text(json.dumps(doc, indent=2) + "\n")
     plot_sweep(doc, out / "sweep.png")
     if benchmark:
-        from sensorgym.train.benchmark import plot_scores
+        from sensorgym.train.score_chart import plot_scores
 
         plot_scores({settings.env_id: benchmark}, out / "benchmark.png")
     return doc
