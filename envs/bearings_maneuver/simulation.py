@@ -63,6 +63,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.bearings_maneuver import kernels
 from sensorgym.envs.shells.contract import OBS_CLIP, EnvSpaces
+from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
@@ -94,7 +95,7 @@ OBS_DIM = 13
 
 
 @dataclass(frozen=True)
-class ManeuverParams:
+class ManeuverParams(FieldsOnlyPickle):
     """Scenario, tracker and reward settings of the platform-manoeuvre environments."""
 
     world: PlatformWorldParams = field(default_factory=PlatformWorldParams)

@@ -46,6 +46,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
+from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.stereo_placement import kernels
 from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, draw_normals, solve_period
@@ -71,7 +72,7 @@ def default_delays(n: int) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class PlacementParams:
+class PlacementParams(FieldsOnlyPickle):
     """Receivers, drone, scan timing, noise and reward of the receiver-placement environments."""
 
     n_receivers: int | None = None

@@ -56,6 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
 from sensorgym.envs.shells.normals import standard_normal_rows
+from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_drawn_rows
 from sensorgym.envs.stereo_pointing import kernels
 from sensorgym.envs.stereo_pointing.kernels import lines_of_sight_batch, pointing_offsets_batch
@@ -69,7 +70,7 @@ BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
-class PointingParams:
+class PointingParams(FieldsOnlyPickle):
     """Layout, drones, sensors, tracker and reward of the receiver-pointing environments."""
 
     n_receivers: int = 4

@@ -41,6 +41,7 @@ from scipy.stats import chi2
 
 from sensorgym.envs.shells.contract import EnvSpaces, with_agent_index
 from sensorgym.envs.shells.normals import standard_normal_rows
+from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_drawn_rows, run_rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
@@ -134,7 +135,7 @@ def _per_receiver(name: str, value, n: int, default) -> tuple[float, ...]:
 
 
 @dataclass(frozen=True)
-class ScanningParams:
+class ScanningParams(FieldsOnlyPickle):
     """Receivers, rasters, drones, noise, tracker and reward of the scanning environments."""
 
     n_receivers: int | None = None

@@ -4,7 +4,9 @@ autoreset modes, bad actions, rendering, pickling, and the rules' ``predict`` co
 
 from __future__ import annotations
 
+import dataclasses
 import pickle
+import sys
 
 import gymnasium as gym
 import numpy as np
@@ -153,19 +155,41 @@ def test_render_draws_the_episode(env_id):
         type(env.unwrapped)(render_mode="ansi")
 
 
+def _kernel_signatures() -> int:
+    """How many compiled signatures sensorgym's numba kernels hold in this process (one more
+    means a kernel was compiled, or loaded from the disk cache, for new argument types)."""
+    from numba.core.dispatcher import Dispatcher
+
+    return sum(
+        len(obj.signatures)
+        for name, module in list(sys.modules.items())
+        if name.startswith("sensorgym.")
+        for obj in vars(module).values()
+        if isinstance(obj, Dispatcher)
+    )
+
+
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_pickle_round_trip_mid_episode(env_id):
-    """A pickled env continues exactly as the original (SubprocVecEnv and checkpoints need it)."""
+    """A pickled env continues exactly as the original (SubprocVecEnv and checkpoints need it),
+    with the kernels the original uses: its params pickle without their read-only derived
+    arrays, which would come back writable, a new argument type for numba (the first step of
+    the copy compiled every kernel again, a minute for StereoScanning)."""
     env = gym.make(env_id)
     env.reset(seed=5)
     actions = _actions(env, 4)
     env.step(actions[0])
+    env.step(actions[1])
     twin = pickle.loads(pickle.dumps(env))
-    for a in actions[1:]:
+    params = twin.unwrapped.params
+    assert set(params.__getstate__()) == {f.name for f in dataclasses.fields(params)}
+    compiled = _kernel_signatures()
+    for a in actions[2:]:
         o1, r1, *_ = env.step(a)
         o2, r2, *_ = twin.step(a)
         np.testing.assert_array_equal(o1, o2)
         assert r1 == r2
+    assert _kernel_signatures() == compiled
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
