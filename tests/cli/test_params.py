@@ -50,7 +50,12 @@ def test_commands_take_params_and_a_policy_refuses_another_size(tmp_path, capsys
         out=tmp_path,
         eval_episodes=2,
         progress=False,
-        hyperparams={"n_steps": 32, "batch_size": 64},
+        # the YAML's imitation phase, made small (its 60,000 expert steps were most of the time)
+        hyperparams={
+            "n_steps": 32,
+            "batch_size": 64,
+            "pretrain": {"expert": "rule:lookahead-estimate", "steps": 64, "epochs": 1},
+        },
         curve_points=0,
         params={"bank_members": 4},
     )
