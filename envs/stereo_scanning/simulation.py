@@ -737,6 +737,10 @@ def step(
     else:
         clutter_count = _zeros(params, "clutter_count", (B, n), np.int64)
         clutter_uv = _zeros(params, "clutter_uv", (B, n, max(params.max_clutter, 1), 2))
+    # read-only like the zeros: numba types a read-only array apart from a writable one, and
+    # the step kernel would be compiled once more (half a minute) for every mix of the two
+    for drawn in (pos_noise, clutter_count, clutter_uv):
+        drawn.flags.writeable = False
     out = _outputs(params, B)
     reward, terminated = np.empty(B), np.empty(B, bool)
     # the state's arrays go in as they are: step and start make them float64 and C-contiguous

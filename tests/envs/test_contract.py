@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import pickle
-import sys
 
 import gymnasium as gym
 import numpy as np
@@ -17,6 +16,7 @@ from stable_baselines3.common.env_checker import check_env as sb3_check_env
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.agents.registry import RULES, rules_for
 from sensorgym.envs import ENV_IDS
+from tests.kernel_signatures import kernel_signatures
 
 
 def _vector(env_id: str, num_envs: int, **kwargs):
@@ -155,20 +155,6 @@ def test_render_draws_the_episode(env_id):
         type(env.unwrapped)(render_mode="ansi")
 
 
-def _kernel_signatures() -> int:
-    """How many compiled signatures sensorgym's numba kernels hold in this process (one more
-    means a kernel was compiled, or loaded from the disk cache, for new argument types)."""
-    from numba.core.dispatcher import Dispatcher
-
-    return sum(
-        len(obj.signatures)
-        for name, module in list(sys.modules.items())
-        if name.startswith("sensorgym.")
-        for obj in vars(module).values()
-        if isinstance(obj, Dispatcher)
-    )
-
-
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_pickle_round_trip_mid_episode(env_id):
     """A pickled env continues exactly as the original (SubprocVecEnv and checkpoints need it),
@@ -183,13 +169,13 @@ def test_pickle_round_trip_mid_episode(env_id):
     twin = pickle.loads(pickle.dumps(env))
     params = twin.unwrapped.params
     assert set(params.__getstate__()) == {f.name for f in dataclasses.fields(params)}
-    compiled = _kernel_signatures()
+    compiled = kernel_signatures()
     for a in actions[2:]:
         o1, r1, *_ = env.step(a)
         o2, r2, *_ = twin.step(a)
         np.testing.assert_array_equal(o1, o2)
         assert r1 == r2
-    assert _kernel_signatures() == compiled
+    assert kernel_signatures() == compiled
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)

@@ -11,6 +11,7 @@ from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.envs.stereo_scanning.env import StereoScanningVectorEnv
 from sensorgym.envs.stereo_scanning.simulation import ScanningParams
 from tests.conftest import assert_same_tree, random_play
+from tests.kernel_signatures import kernel_signatures
 
 # 300 scenarios: split over two threads (at least MIN_ROWS_PER_THREAD rows each)
 BATCH = 300
@@ -60,3 +61,21 @@ def test_the_pipelined_split_gives_the_calling_thread_the_last_rows(monkeypatch)
     lasts = [c for c in chunks if c[1] == BATCH]
     assert len(firsts) == len(lasts) == 12
     assert all(first[1] == last[0] for first, last in zip(firsts, lasts, strict=True))
+
+
+def test_noise_settings_share_one_step_kernel():
+    """Position noise and clutter pass drawn arrays where the default passes read-only zeros;
+    the drawn ones are read-only too, so the step kernel is not compiled again for them (numba
+    types read-only arrays apart: half a minute per mix on a fresh install)."""
+    variants = [
+        ScanningParams(),
+        ScanningParams(position_sigma=0.5, clutter_rate=1.0),
+        ScanningParams(clutter_rate=1.0),
+        ScanningParams(position_sigma=0.5),
+    ]
+    counts = []
+    for params in variants:
+        env = StereoScanningVectorEnv(num_envs=4, params=params, max_episode_steps=5)
+        random_play(env, 3)
+        counts.append(kernel_signatures())
+    assert counts == [counts[0]] * len(variants)
