@@ -51,14 +51,14 @@ def bar_window(intervals: dict[str, tuple[float, float]], core: set[str]) -> tup
 def core_rows(rows: dict[str, Any], best: str | None) -> set[str]:
     """The rows a panel must show whole: the best fieldable rule, every trained policy (a name
     with ``:``), every oracle."""
-    trained = {k for k in rows if not is_rule(k) or k.startswith(ORACLE_PREFIX)}
-    return trained | ({best} if best is not None else set())
+    core = {k for k in rows if not is_rule(k) or k.startswith(ORACLE_PREFIX)}
+    return core | ({best} if best is not None else set())
 
 
 def _bars(ax: Any, names: list[str], mean: list[float], ci: list[float], core: set[str]) -> None:
     """One panel: a bar per row from zero to its mean with its 95 % interval, the axis from
-    :func:`bar_window`, each bar cut at the axis labelled with its value (on a white ground: the visible stub of
-    a cut bar may be narrower than the text)."""
+    :func:`bar_window`, each bar cut at the axis labelled with its value (on a white ground:
+    the visible stub of a cut bar may be narrower than the text)."""
     colors = [RULE_COLOR if is_rule(n) else TRAINED_COLOR for n in names]
     ax.barh(names, mean, xerr=ci, color=colors, capsize=3, height=0.6)
     intervals = {n: (m - c, m + c) for n, m, c in zip(names, mean, ci, strict=True)}
