@@ -157,8 +157,9 @@ def results_summary() -> str:
     lines = [
         "| env | episodes, seed | best rule | its mean | trained policies | their mean | "
         "paired − best rule, mean over runs (95 % t interval across runs) | runs above the rule "
-        "(paired 95 % interval > 0) | oracle ceiling |",
-        "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: |",
+        "(paired 95 % interval > 0) | runs above by the paired IQM (bootstrap 95 % > 0) | "
+        "oracle ceiling |",
+        "| --- | --- | --- | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
     for env in SCORE_ENVS:
         doc = _score_doc(env)
@@ -170,9 +171,9 @@ def results_summary() -> str:
         if not runs or best is None:
             lines.append(
                 f"| `{env}` | {settings['episodes']}, {settings['seed']} | {best} | "
-                f"{res[best]['mean']:.3f} | none | | | | {ceiling} |"
+                f"{res[best]['mean']:.3f} | none | | | | | {ceiling} |"
                 if best
-                else f"| `{env}` | | | | none | | | | {ceiling} |"
+                else f"| `{env}` | | | | none | | | | | {ceiling} |"
             )
             continue
         diffs = [paired[name]["mean"] for name in runs]
@@ -184,12 +185,13 @@ def results_summary() -> str:
         else:
             across = f"{mean:+.3f} (one run)"
         above = sum(paired[n]["mean"] - paired[n]["ci95"] > 0 for n in runs)
+        robust = sum(paired[n]["iqm_ci95"][0] > 0 for n in runs)
         trained_mean = sum(res[n]["mean"] for n in runs) / len(runs)
         names = ", ".join(f"`{n.split(':', 1)[1]}`" for n in runs)
         lines.append(
             f"| `{env}` | {settings['episodes']}, {settings['seed']} | `{best}` | "
             f"{res[best]['mean']:.3f} | {names} | {trained_mean:.3f} | {across} | "
-            f"{above} of {len(runs)} | {ceiling} |"
+            f"{above} of {len(runs)} | {robust} of {len(runs)} | {ceiling} |"
         )
     return "\n".join(lines)
 
@@ -201,21 +203,29 @@ def results_env(env: str) -> str:
     lines = [
         f"Seed {settings['seed']}, {settings['episodes']} episodes, {settings['n_envs']} "
         f"scenarios at a time (`docs/scores/sensorgym__{env}.json`); the paired difference is "
-        f"per episode, on the same scenarios, to the best rule `{best}`:",
+        f"per episode, on the same scenarios, to the best rule `{best}`; its interquartile mean "
+        f"(IQM) has a bootstrap interval, and better / worse count the episodes:",
         "",
-        "| policy | mean return | ± 95 % | paired − best rule | paired 95 % interval |",
-        "| --- | ---: | ---: | ---: | ---: |",
+        "| policy | mean return | ± 95 % | paired − best rule | paired 95 % interval | "
+        "paired IQM | IQM 95 % interval | better / worse |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for name, r in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"]):
         d = paired.get(name)
         if name == best:
-            diff, interval = "(best rule)", ""
+            cells = ["(best rule)", "", "", "", ""]
         elif d is None:
-            diff, interval = "", ""
+            cells = [""] * 5
         else:
-            diff = f"{d['mean']:+.3f}"
-            interval = f"[{d['mean'] - d['ci95']:+.3f}, {d['mean'] + d['ci95']:+.3f}]"
-        lines.append(f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | {diff} | {interval} |")
+            lo, hi = d["iqm_ci95"]
+            cells = [
+                f"{d['mean']:+.3f}",
+                f"[{d['mean'] - d['ci95']:+.3f}, {d['mean'] + d['ci95']:+.3f}]",
+                f"{d['iqm']:+.3f}",
+                f"[{lo:+.3f}, {hi:+.3f}]",
+                f"{d['better']} / {d['worse']}",
+            ]
+        lines.append(f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 

@@ -7,7 +7,10 @@ seed over the same scenarios, in the same order (:func:`sensorgym.train.evaluati
 the native vector env). One table per env shows mean return, the 95 % confidence half-width and
 interval, the mean episode length and each policy's paired difference to the best fieldable
 rule (oracles, which see the truth, excluded): the mean and 95 % interval of the per-episode
-difference on the same scenarios. The JSON also holds the standard deviation, every policy's
+difference on the same scenarios; beside it the difference's interquartile mean with a bootstrap
+95 % interval (what a typical episode gains, robust to a few episodes hundreds apart) and how
+many episodes the policy did better and worse than the best rule
+(:func:`sensorgym.train.benchmark.paired_difference`). The JSON also holds the standard deviation, every policy's
 per-episode ``returns`` and the paired differences (``paired``); the numbers go to
 ``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
 ``OUT/benchmark.png``. ``--param NAME=VALUE`` scores the env at another size or setting
@@ -171,12 +174,23 @@ def _benchmark(
 
     best, paired = paired_to_best_rule(results)
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
-    columns = ("policy", "mean", "±95 %", "95 % interval", "length", f"paired − {best}")
+    columns = (
+        "policy",
+        "mean",
+        "±95 %",
+        "95 % interval",
+        "length",
+        f"paired − {best}",
+        "paired IQM",
+        "better/worse",
+    )
     for column in columns:
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
         d = paired.get(name)
         diff = "best rule" if name == best else "" if d is None else _interval(d)
+        robust = _iqm(d) if d is not None and "iqm" in d else ""
+        counts = f"{d['better']}/{d['worse']}" if d is not None and "better" in d else ""
         table.add_row(
             name,
             f"{r['mean']:.3f}",
@@ -184,9 +198,19 @@ def _benchmark(
             f"[{r['mean'] - r['ci95']:.2f}, {r['mean'] + r['ci95']:.2f}]",
             f"{r['mean_length']:.1f}",
             diff,
+            robust,
+            counts,
         )
     console.print(table)
     return results
+
+
+def _iqm(d: dict[str, Any]) -> str:
+    """``iqm [lo, hi]`` of a paired difference (bootstrap interval), marked like
+    :func:`_interval`."""
+    lo, hi = d["iqm_ci95"]
+    mark = " +" if lo > 0 else " −" if hi < 0 else ""
+    return f"{d['iqm']:+.3f} [{lo:+.2f}, {hi:+.2f}]{mark}"
 
 
 def _interval(d: dict[str, float]) -> str:

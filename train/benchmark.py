@@ -154,11 +154,28 @@ def best_rule(results: dict[str, dict[str, Any]]) -> str | None:
     return max(rules, key=rules.__getitem__) if rules else None
 
 
-def paired_difference(a: list[float], b: list[float]) -> dict[str, float]:
-    """Mean, standard deviation and normal 95 % half-width of the per-episode difference
-    ``a − b`` of two policies' returns on the same scenarios (:func:`score` with one seed and
-    batch gives them in the same episode order): pairing removes the scenario-to-scenario
-    spread both share, so the interval is far tighter than the two separate ones."""
+#: resamples of the paired bootstrap; its generator is seeded, so committed numbers reproduce
+BOOTSTRAP_RESAMPLES = 9999
+#: a per-episode difference smaller than this counts as a tie (identical play gives exactly 0)
+TIE_TOLERANCE = 1e-9
+
+
+def paired_difference(a: list[float], b: list[float]) -> dict[str, Any]:
+    """The per-episode difference ``d = a − b`` of two policies' returns on the same scenarios
+    (:func:`score` with one seed and batch gives them in the same episode order): pairing
+    removes the scenario-to-scenario spread both share, so its interval is far tighter than the
+    two separate ones.
+
+    * ``mean``, ``std``, ``ci95``: the mean of ``d`` and its normal 95 % half-width — the
+      issue-13 criterion.
+    * ``iqm``, ``iqm_ci95``: the interquartile mean of ``d`` (25 % trimmed each side) and its
+      95 % percentile-bootstrap interval ``[lo, hi]`` over episodes (Agarwal et al. 2021, "Deep
+      RL at the edge of the statistical precipice"): what a typical episode gains, which a few
+      episodes with a drone lost or found (hundreds each) cannot carry.
+    * ``better``, ``worse``: how many episodes ``a`` beat ``b``, and lost to it (the rest tie).
+    """
+    from scipy.stats import bootstrap, trim_mean
+
     x, y = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
     if x.shape != y.shape or x.ndim != 1 or x.size < 2:
         raise ValueError(
@@ -166,12 +183,33 @@ def paired_difference(a: list[float], b: list[float]) -> dict[str, float]:
             f"{x.shape} and {y.shape}"
         )
     d = x - y
+    if not np.all(np.isfinite(d)):
+        raise ValueError("paired_difference: the returns must be finite")
     sd = float(d.std(ddof=1))
+
+    def iqm(sample: np.ndarray, axis: int = -1) -> np.ndarray:
+        return trim_mean(sample, 0.25, axis=axis)
+
+    if np.ptp(d) > 0:
+        boot = bootstrap(
+            (d,),
+            iqm,
+            n_resamples=BOOTSTRAP_RESAMPLES,
+            method="percentile",
+            rng=np.random.default_rng(0),
+        ).confidence_interval
+        iqm_ci = [float(boot.low), float(boot.high)]
+    else:  # every episode the same difference: nothing to resample
+        iqm_ci = [float(d[0]), float(d[0])]
     return {
         "mean": float(d.mean()),
         "std": sd,
         "ci95": float(1.96 * sd / np.sqrt(d.size)),
         "episodes": int(d.size),
+        "iqm": float(iqm(d)),
+        "iqm_ci95": iqm_ci,
+        "better": int(np.sum(d > TIE_TOLERANCE)),
+        "worse": int(np.sum(d < -TIE_TOLERANCE)),
     }
 
 

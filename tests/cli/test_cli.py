@@ -46,10 +46,13 @@ def test_no_arguments_runs_the_main_job_the_benchmark_of_every_env(tmp_path, mon
             assert f"shipped:{run}" in per_env["results"]
         for r in per_env["results"].values():
             assert r["episodes"] == 2 and r["ci95"] >= 0.0
+        for d in per_env["paired"].values():  # the robust view beside the mean
+            assert d["better"] + d["worse"] <= 2 and len(d["iqm_ci95"]) == 2
     assert shipped_policies("sensorgym/StereoPlacement-v0")  # one is shipped at least
     with Image.open(out / "benchmark.png") as png:
         assert png.format == "PNG" and png.size[1] > png.size[0] / 2
     assert "benchmark.png" in printed and "95 % interval" in printed
+    assert "paired IQM" in printed and "better/worse" in printed
 
 
 def test_version(capsys):
