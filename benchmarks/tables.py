@@ -225,7 +225,9 @@ def results_env(env: str) -> str:
                 f"[{lo:+.3f}, {hi:+.3f}]",
                 f"{d['better']} / {d['worse']}",
             ]
-        lines.append(f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |")
+        lines.append(
+            f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |"
+        )
     return "\n".join(lines)
 
 
