@@ -14,6 +14,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sensorgym.cli.params import add_hyperparam_argument, hyperparams_from
+
 HELP = "Multi-seed training and hyperparameter search on Ray (local or a cluster), aggregated."
 
 DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
@@ -46,6 +48,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--asha", action="store_true", help="stop lagging trials early (ASHA scheduler)"
     )
+    add_hyperparam_argument(parser)
     parser.add_argument("--eval-episodes", type=int, default=64, help="per trial")
     parser.add_argument(
         "--benchmark-episodes",
@@ -80,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
-    from sensorgym.train.config import load_hyperparams
+    from sensorgym.train.config import check_overrides, load_hyperparams
     from sensorgym.train.sweep import SweepSettings, parse_space, run_sweep
     from sensorgym.train.trainer import VALIDATION_SEED
 
@@ -95,6 +98,11 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise SystemExit(f"--space: {exc}") from None
         space[name] = spec.partition("=")[2]
+    fixed = hyperparams_from(args.algo, args.env, args.hyperparam)
+    try:  # a searched name must be an entry the recipe can take, like a fixed one
+        check_overrides(args.algo, args.env, {**fixed, **dict.fromkeys(space, 0)})
+    except KeyError as exc:
+        raise SystemExit(f"--space: {exc.args[0]}") from None
     if args.samples < 1 or args.eval_episodes < 1 or args.benchmark_episodes < 0:
         raise SystemExit("--samples and --eval-episodes must be >= 1, --benchmark-episodes >= 0")
     settings = SweepSettings(
@@ -104,6 +112,7 @@ def run(args: argparse.Namespace) -> int:
         timesteps=args.timesteps,
         n_envs=args.n_envs,
         space=space,
+        fixed=fixed,
         samples=args.samples,
         search_seed=args.search_seed,
         asha=args.asha,

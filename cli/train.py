@@ -1,7 +1,9 @@
 """``sensorgym train``: SB3 training on a registered env's native vector env.
 
-Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--timesteps`` and
-``--n-envs`` override them. The run folder gets the policy weights ``policy.safetensors`` (data
+Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--timesteps``,
+``--n-envs`` and ``--hyperparam KEY=VALUE`` (any entry, the value read as YAML; a dotted KEY
+such as ``pretrain.steps`` reaches inside a mapping, ``pretrain=null`` leaves the imitation
+out) override them. The run folder gets the policy weights ``policy.safetensors`` (data
 only: loading them runs no code), the resolved ``config.yaml``, ``evaluation.json`` (the
 trained policy beside the heuristic rules, same seed and scenarios) and the learning curve
 ``curve.json``/``curve.png`` (evaluation return against samples, the rules as lines); ``sensorgym benchmark
@@ -14,7 +16,12 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from sensorgym.cli.params import add_param_argument, params_from
+from sensorgym.cli.params import (
+    add_hyperparam_argument,
+    add_param_argument,
+    hyperparams_from,
+    params_from,
+)
 
 HELP = "Train an SB3 policy (PPO or SAC) on an environment and score it beside the rules."
 
@@ -56,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="evaluations during learning for curve.json/curve.png (default 10; 0: none)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_hyperparam_argument(parser)
     add_param_argument(parser)
 
 
@@ -71,6 +79,7 @@ def run(args: argparse.Namespace) -> int:
     except KeyError as exc:
         raise SystemExit(f"--env/--algo: {exc.args[0]}") from None
     params = params_from(args.env, args.param)
+    overrides = hyperparams_from(args.algo, args.env, args.hyperparam)
     result = train(
         args.env,
         args.algo,
@@ -85,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
         tensorboard=args.tensorboard,
         curve_points=args.curve_points,
         params=params,
+        hyperparams=overrides,
     )
     table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
     for column in ("policy", "mean", "±95 %"):

@@ -4,6 +4,11 @@ The defaults train briefly (a policy worth having needs the YAML's 200 000+ step
 ``sensorgym train`` without ``--timesteps``).
 
     python examples/train_and_compare.py [--timesteps 20000] [--episodes 32] [--out results/examples]
+        [--pretrain-steps N]
+
+``--pretrain-steps`` shows how a recipe entry is overridden (``train(hyperparams=...)``, the
+``--hyperparam`` option of ``sensorgym train``): the steps of the imitation phase that comes
+before PPO (``pretrain.steps`` in ``train/hyperparams/ppo.yml``).
 """
 
 from __future__ import annotations
@@ -25,11 +30,14 @@ def main(argv: list[str] | None = None) -> dict[str, float]:
     parser.add_argument("--episodes", type=int, default=32)
     parser.add_argument("--seed", type=int, default=0, help="training seed")
     parser.add_argument("--out", type=Path, default=Path("results/examples"))
+    parser.add_argument("--pretrain-steps", type=int, default=None, help="default: the YAML's")
     args = parser.parse_args(argv)
 
     # train on seed `seed`; the run folder holds the weights (safetensors) and config.yaml
+    overrides = {} if args.pretrain_steps is None else {"pretrain.steps": args.pretrain_steps}
     result = train(ENV_ID, "ppo", seed=args.seed, timesteps=args.timesteps, n_envs=16,
-                   out=args.out, eval_episodes=16, progress=False)  # fmt: skip
+                   out=args.out, eval_episodes=16, progress=False,
+                   hyperparams=overrides)  # fmt: skip
     print(f"trained {args.timesteps} steps, saved {result.run_dir}")
 
     # reload it (no pickle) and score it beside the rules on held-out scenarios

@@ -6,6 +6,8 @@ import math
 import runpy
 from pathlib import Path
 
+from sensorgym.train.models import read_config
+
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
@@ -34,10 +36,12 @@ def test_write_your_own_rule():
 
 def test_train_and_compare(tmp_path):
     scores = _main("train_and_compare")(["--timesteps", "512", "--episodes", "8",
+                                         "--pretrain-steps", "2000",
                                          "--out", str(tmp_path)])  # fmt: skip
     assert "ppo (ours)" in scores and "paper002" in scores
     assert all(math.isfinite(v) for v in scores.values())
-    assert (tmp_path / "sensorgym__BearingsManeuver-v0" / "ppo_seed0" / "config.yaml").is_file()
+    config = read_config(tmp_path / "sensorgym__BearingsManeuver-v0" / "ppo_seed0")
+    assert config["hyperparams"]["pretrain"]["steps"] == 2000
 
 
 def test_train_shared_policy(tmp_path, capsys):

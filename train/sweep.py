@@ -51,6 +51,9 @@ class SweepSettings:
     """Scenarios per training step (``None``: the YAML's)."""
     space: dict[str, str] = field(default_factory=dict)
     """Hyperparameter name → ``KIND:ARGS`` (:func:`parse_space`); empty: the YAML's values."""
+    fixed: dict[str, Any] = field(default_factory=dict)
+    """Hyperparameters set for every trial (``--hyperparam``; dotted keys reach inside a
+    mapping, :func:`~sensorgym.train.config.apply_overrides`); the searched ones go on top."""
     samples: int = 1
     """Configurations drawn from ``space`` (each trained with every seed)."""
     search_seed: int = 0
@@ -154,7 +157,7 @@ def _trial(config: dict[str, Any], settings: SweepSettings, out: str) -> None:
         out=Path(out) / "trials" / tag,
         eval_episodes=settings.eval_episodes,
         progress=False,
-        hyperparams=overrides,
+        hyperparams={**settings.fixed, **overrides},
         callbacks=[reporter],
     )
     trained = result.evaluation["trained"]

@@ -24,7 +24,14 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES
-from sensorgym.train.config import ALGORITHMS, for_mode, load_hyperparams, split_run_settings
+from sensorgym.train.config import (
+    ALGORITHMS,
+    apply_overrides,
+    check_algo_kwargs,
+    for_mode,
+    load_hyperparams,
+    split_run_settings,
+)
 from sensorgym.train.curves import LearningCurve, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
 from sensorgym.train.experts import Pretrain, pretrain
@@ -116,8 +123,10 @@ def train(
     are small MLPs, one thread is never slower on them, and torch's default thread pool can
     stall a run many times over on a busy 2-core machine); it is restored afterwards.
 
-    ``hyperparams`` override entries of the YAML's (a sweep's sampled configuration; they are
-    saved in ``config.yaml`` like the rest). ``tensorboard``: a folder for TensorBoard event
+    ``hyperparams`` override entries of the YAML's (``--hyperparam``, a sweep's sampled
+    configuration; a dotted key such as ``pretrain.steps`` one inside a mapping,
+    :func:`~sensorgym.train.config.apply_overrides`); the resolved set is saved in
+    ``config.yaml``. ``tensorboard``: a folder for TensorBoard event
     files — SB3's scalars plus the env's accuracy metrics per episode
     (:class:`EpisodeInfoLogger`) — in ``<tensorboard>/<env id with __>_<algo>_seed<seed>_1``.
     ``callbacks`` are further SB3 callbacks run during learning.
@@ -173,13 +182,13 @@ def _train(
     curve_points: int,
     params: dict[str, Any],
 ) -> TrainResult:
-    hp = for_mode(load_hyperparams(algo, env_id), agents)
-    hp.update(overrides)
+    hp = apply_overrides(for_mode(load_hyperparams(algo, env_id), agents), overrides)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
     if n_envs is not None:
         hp["n_envs"] = n_envs
     run, algo_kwargs = split_run_settings(hp)
+    check_algo_kwargs(algo, algo_kwargs)
     if run["n_timesteps"] < 1 or run["n_envs"] < 1:
         raise ValueError(f"timesteps and n_envs must be >= 1, got {run}")
     if curve_points < 0:

@@ -20,12 +20,14 @@ ENV = "sensorgym/BearingsManeuver-v0"
 
 def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
     args = ["--seeds", "0", "1", "--timesteps", "2048", "--n-envs", "8", "--eval-episodes", "4"]
+    args += ["--hyperparam", "pretrain.steps=2000"]  # a small imitation phase, set for every trial
     bench = ["--benchmark-episodes", "8", "--benchmark-chunk", "4"]  # 2 Ray tasks per policy
     assert main(["sweep", *args, *bench, "--num-cpus", "2", "--out", str(tmp_path)]) == 0
     printed = capsys.readouterr().out
     assert "yaml (best)" in printed and "±95 %" in printed and "sweep.png" in printed
     doc = json.loads((tmp_path / "sweep.json").read_text())
     assert doc["best"] == "yaml" and doc["incomplete"] == 0
+    assert doc["settings"]["fixed"] == {"pretrain.steps": 2000}
     (config,) = doc["configs"].values()
     assert config["seeds"] == [0, 1]
     # every trial is an ordinary `sensorgym train` run folder, whose evaluation is aggregated
@@ -33,6 +35,7 @@ def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
     for seed, run_dir in zip(config["seeds"], config["run_dirs"], strict=True):
         assert read_config(run_dir)["seed"] == seed
         assert read_config(run_dir)["hyperparams"]["n_timesteps"] == 2048
+        assert read_config(run_dir)["hyperparams"]["pretrain"]["steps"] == 2000
         evaluation = json.loads((tmp_path / run_dir / "evaluation.json").read_text())
         returns.append(evaluation["results"]["trained"]["mean"])
     assert config["returns"] == returns
@@ -92,3 +95,11 @@ def test_aggregate_groups_configurations_over_seeds():
     assert ca["ci95"] == pytest.approx(stats.t.ppf(0.975, 1) * np.std([1, 2], ddof=1) / 2**0.5)
     assert doc["configs"][config_tag(b)]["ci95"] is None  # one seed: no interval
     assert config_tag({}) == "yaml" and config_tag(a) != config_tag(b)
+
+
+def test_sweep_refuses_names_the_recipe_cannot_take_before_starting_ray(tmp_path):
+    with pytest.raises(SystemExit, match=r"--space: \['learnin_rate'\]"):
+        main(["sweep", "--space", "learnin_rate=grid:1e-3", "--out", str(tmp_path)])
+    with pytest.raises(SystemExit, match=r"--hyperparam: .*not a mapping"):
+        main(["sweep", "--hyperparam", "n_steps.size=3", "--out", str(tmp_path)])
+    assert not any(tmp_path.iterdir())  # nothing was started or written

@@ -14,7 +14,13 @@ from sensorgym.agents.bearings_maneuver import StraightCourse
 from sensorgym.cli.main import main
 from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
-from sensorgym.train.config import load_hyperparams, split_run_settings
+from sensorgym.train.config import (
+    apply_overrides,
+    check_overrides,
+    load_hyperparams,
+    parse_override,
+    split_run_settings,
+)
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.models import WEIGHTS_FILE, load_model, read_config
 from sensorgym.train.sb3_vec_env import SB3VecEnv
@@ -57,6 +63,38 @@ def test_hyperparameters_come_from_yaml():
         load_hyperparams("ppo", "sensorgym/Nothing-v0")
     with pytest.raises(KeyError, match="algo"):
         load_hyperparams("dqn", ENV_ID)
+
+
+def test_hyperparameter_overrides_reach_inside_mappings_and_refuse_typos():
+    hp = load_hyperparams("ppo", ENV_ID)
+    assert parse_override("learning_rate=3e-4") == ("learning_rate", 3e-4)  # not PyYAML's str
+    assert parse_override("policy_kwargs={lr: [1E5, 2.5e-3]}")[1] == {"lr": [1e5, 2.5e-3]}
+    assert parse_override("pretrain.expert=rule:plan-search") == (
+        "pretrain.expert",
+        "rule:plan-search",
+    )
+    assert parse_override("policy_kwargs={net_arch: [64, 64]}") == (
+        "policy_kwargs",
+        {"net_arch": [64, 64]},
+    )
+    new = apply_overrides(hp, dict([parse_override("pretrain.steps=2000")]))
+    assert (
+        new["pretrain"]["steps"] == 2000 and new["pretrain"]["expert"] == hp["pretrain"]["expert"]
+    )
+    assert hp["pretrain"]["steps"] == 30000  # the loaded set is left as it was
+    # null leaves an optional run setting out: no imitation phase
+    run, _ = split_run_settings(apply_overrides(hp, {"pretrain": None}))
+    assert "pretrain" not in run
+    assert check_overrides("ppo", ENV_ID, {"gamma": 0.95})["gamma"] == 0.95
+    with pytest.raises(KeyError, match=r"learnin_rate.*not a run setting"):
+        check_overrides("ppo", ENV_ID, {"learnin_rate": 1e-4})
+    with pytest.raises(KeyError, match="seed"):  # the trainer sets it: --seed
+        check_overrides("ppo", ENV_ID, {"seed": 3})
+    with pytest.raises(KeyError, match="not a mapping"):
+        apply_overrides(hp, {"n_steps.size": 3})
+    for bad in ("learning_rate", "=3", "pretrain..steps=1", "gamma=[0.9"):
+        with pytest.raises(ValueError, match="--hyperparam"):
+            parse_override(bad)
 
 
 def test_train_saves_a_model_that_loads_and_acts_the_same(tmp_path):
@@ -202,9 +240,15 @@ def test_train_command_with_parameter_sharing_then_benchmark_the_saved_run(tmp_p
 
 def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
     args = ["--algo", "sac", "--timesteps", "300", "--n-envs", "2", "--eval-episodes", "2"]
-    assert main(["train", *args, "--out", str(tmp_path), "--no-progress"]) == 0
+    small = ["--hyperparam", "policy_kwargs={net_arch: [32, 32]}", "--hyperparam", "tau=0.01"]
+    assert main(["train", *args, *small, "--out", str(tmp_path), "--no-progress"]) == 0
     run_dir = tmp_path / "sensorgym__BearingsManeuver-v0" / "sac_seed0"
-    assert read_config(run_dir)["algo"] == "sac"
+    config = read_config(run_dir)
+    assert config["algo"] == "sac" and config["hyperparams"]["tau"] == 0.01
+    assert config["hyperparams"]["policy_kwargs"]["net_arch"] == [32, 32]
+    assert load_model(run_dir).actor.latent_pi[0].out_features == 32
+    with pytest.raises(SystemExit, match=r"--hyperparam: .*tua"):
+        main(["train", *args, "--hyperparam", "tua=0.01", "--out", str(tmp_path)])
     bench = ["--env", ENV_ID, "--episodes", "2", "--n-envs", "2", "--model", str(run_dir)]
     assert main(["benchmark", *bench, "--out", str(tmp_path / "bench")]) == 0
     results = json.loads((tmp_path / "bench" / "sensorgym__BearingsManeuver-v0.json").read_text())
