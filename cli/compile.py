@@ -6,7 +6,10 @@ single-threaded and takes minutes for all envs in one process (``benchmarks/cold
 so this command compiles them in parallel: one process per env package (variants sharing a
 package's kernels, such as ``BearingsManeuverBook-v0``, go with it), each making the Gymnasium
 env and the native vector env, stepping both, and playing one short episode of every
-registered rule, exactly as ``sensorgym benchmark`` will. With a warm cache it only loads
+registered rule, exactly as ``sensorgym benchmark`` will; then two decisions of every rule at
+each params variant in the simulation module's ``COMPILE_VARIANTS`` (sizes or settings whose
+episodes take other compiled paths: degenerate periods, polynomial searches at many receivers),
+so that no run stalls midway on them. With a warm cache it only loads
 (seconds: the rules' episodes are played all the same); with ``--stamp FILE`` it does nothing
 when FILE holds the digest of the current sources (:func:`source_digest`) — the set-up scripts
 run it that way after every install.
@@ -17,6 +20,7 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+from typing import Any
 
 HELP = "compile every env's and rule's kernels into numba's disk cache, one process per env"
 
@@ -86,9 +90,12 @@ def groups(env_ids: list[str]) -> list[list[str]]:
 
 def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
     """Compile (or load) what ``env_ids`` use: the compiled normal draws of large batches
-    (:mod:`sensorgym.envs.shells.normals`), the Gymnasium env, stepped once, then one episode of each registered rule on the native vector env of two scenarios (as
-    ``sensorgym benchmark`` scores it). Returns the ids, the seconds taken and the number of
-    rules played."""
+    (:mod:`sensorgym.envs.shells.normals`), the Gymnasium env, stepped once, then one episode
+    of each registered rule on the native vector env of two scenarios (as ``sensorgym
+    benchmark`` scores it); then, at each params variant the env's simulation module lists in
+    ``COMPILE_VARIANTS`` (sizes or settings whose episodes take other compiled paths), two
+    decisions of each rule that applies there (:func:`decide`). Returns the ids, the seconds
+    taken and the number of rules played at the defaults."""
     import time
 
     import gymnasium as gym
@@ -106,6 +113,7 @@ def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
         env = gym.make(env_id)
         env.reset(seed=0)
         env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
+        variants = getattr(env.unwrapped.simulation, "COMPILE_VARIANTS", ())
         env.close()
         for spec in policies_for(env_id, shipped=False).values():
             try:
@@ -113,7 +121,34 @@ def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
             except NotApplicable:
                 continue
             played += 1
+        for fields in variants:
+            decide(env_id, fields)
     return env_ids, time.perf_counter() - t0, played
+
+
+def decide(env_id: str, fields: dict[str, Any], steps: int = 2) -> list[str]:
+    """``steps`` decisions of every rule registered for ``env_id`` that applies at the params
+    ``fields``, each followed by a step of the native vector env of two scenarios; returns the
+    rules that decided."""
+    from sensorgym.agents.registry import RULES
+    from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
+
+    env = make_sb3_env(env_id, 2, 0, **fields)
+    decided = []
+    try:
+        for name, make_rule in RULES.get(env_id, {}).items():
+            try:
+                rule = make_rule(env_params(env), simulator_state(env))
+            except ValueError:  # a rule that does not apply at these params
+                continue
+            obs = env.reset()
+            for _ in range(steps):
+                action, _ = rule.predict(obs, deterministic=True)
+                obs, *_ = env.step(action)
+            decided.append(name)
+    finally:
+        env.close()
+    return decided
 
 
 def run(args: argparse.Namespace) -> int:

@@ -61,6 +61,13 @@ BoolArray = NDArray[np.bool_]
 #: the 3-receiver delays, s (and the span of the default delays of more receivers)
 DEFAULT_DELAYS = (0.0, 0.25, 0.6)
 
+#: params fields whose episodes reach compiled paths the defaults do not: the rules' coordinate
+#: search past ``AUTO_EXHAUSTIVE`` joint moves (16 receivers), and equal delays, whose every
+#: solve is degenerate (the step's slow rows: the generic solve, the tracker coasting).
+#: ``sensorgym compile`` steps the env and decides with every rule at each of them, so that
+#: neither costs a run its compile time midway (:func:`sensorgym.cli.compile.warm`).
+COMPILE_VARIANTS: tuple[dict[str, Any], ...] = ({"n_receivers": 16}, {"delays": (0.3, 0.3, 0.3)})
+
 
 def default_delays(n: int) -> tuple[float, ...]:
     """The fix delays ``(n,)`` of ``n`` receivers when none are given, s: ``(0, 0.25, 0.6)`` for

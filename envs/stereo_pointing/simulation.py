@@ -68,6 +68,12 @@ from sensorgym.trackers.validation import count, finite_array
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
+#: params fields whose episodes reach compiled paths the defaults do not: more assignments than
+#: the exhaustive search takes (9 receivers, 4 drones), where the assignment rules turn to their
+#: polynomial solvers. ``sensorgym compile`` steps the env and decides with every rule at each
+#: (:func:`sensorgym.cli.compile.warm`).
+COMPILE_VARIANTS: tuple[dict[str, Any], ...] = ({"n_receivers": 9, "n_drones": 4},)
+
 
 @dataclass(frozen=True)
 class PointingParams(FieldsOnlyPickle):

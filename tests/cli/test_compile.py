@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from sensorgym.cli.compile import groups, warm
+from sensorgym.cli.compile import decide, groups, warm
 from sensorgym.cli.main import main
 from sensorgym.train.benchmark import registered_envs
 
@@ -27,6 +27,28 @@ def test_warm_steps_the_env_and_plays_every_registered_rule():
     assert played == len(RULES[env_id])
     # the env's kernels are compiled (or loaded from the cache) in this process
     assert kernels.step_kernel.signatures and kernels.reset_kernel.signatures
+
+
+def test_every_compile_variant_is_valid_and_every_rule_decides_there():
+    import gymnasium as gym
+
+    from sensorgym.agents.registry import RULES
+    from sensorgym.envs.stereo_placement import kernels as placement
+    from sensorgym.trackers.stereo import kernels as stereo
+
+    found = 0
+    for env_id in registered_envs():
+        env = gym.make(env_id).unwrapped
+        variants = getattr(env.simulation, "COMPILE_VARIANTS", ())
+        for fields in variants:
+            env.params_type(**fields)  # the params' own validation takes them
+            assert decide(env_id, fields) == list(RULES[env_id]), (env_id, fields)
+            found += 1
+    assert found >= 3
+    # the paths they are there for were taken: the generic solve of degenerate periods, the
+    # polynomial assignment solvers
+    assert placement.period_systems.signatures and placement.period_finish.signatures
+    assert stereo.assignment_ascent_batch.signatures and stereo.assignment_greedy_batch.signatures
 
 
 def test_compile_command_runs_and_refuses_unknown_ids(capsys):
