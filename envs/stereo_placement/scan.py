@@ -161,6 +161,12 @@ def solve_period(
     """:func:`scan_period` with its noise draws ``normals (B, n, 3)`` given: the generic path
     (any ``n``; systems the closed form leaves re-solved on the SVD path)."""
     d = np.ascontiguousarray(delays, dtype=np.float64)
+    # C-ordered float64 whatever the caller's layout (a no-op for the env's arrays): numba
+    # compiles the kernels once more for each other layout
+    start, end, drone_end, drone_velocity, previous, normals = (
+        np.ascontiguousarray(x, dtype=np.float64)
+        for x in (start, end, drone_end, drone_velocity, previous, normals)
+    )
     B, n = start.shape[0], d.shape[0]
     m, p = n - 1, n + 3
     noisy = sigma_ang > 0.0
@@ -219,7 +225,7 @@ def scan(
     """
     arrays = (start, end, drone_end, drone_velocity)
     start, end, drone_end, drone_velocity = (np.ascontiguousarray(x, np.float64) for x in arrays)
-    aim = np.asarray(aim, dtype=np.float64)
+    aim = np.ascontiguousarray(aim, dtype=np.float64)
     previous = np.concatenate([aim, np.zeros_like(aim)], -1)  # aim + ½τ·0 = aim
     fix, geometry, *_ = scan_period(
         delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity,

@@ -58,6 +58,25 @@ def test_reported_velocity_sigma_is_close_to_the_monte_carlo_scatter():
     assert 0.7 < np.median(fix.velocity_sigma) / scatter < 1.3
 
 
+def test_scan_of_any_layout_uses_the_kernels_the_env_compiled():
+    """Broadcast (strided) inputs to :func:`scan` reach the kernels C-ordered, as the env's own
+    arrays do: no second compile (15 s on a fresh install) for another layout."""
+    from sensorgym.envs.stereo_placement import kernels
+
+    params = PlacementParams(delays=(0.3, 0.3, 0.3))  # every period degenerate: the slow rows
+    state = core.reset(params, np.random.default_rng(0), 2)
+    core.step(params, state, np.zeros((2, 6)), np.random.default_rng(0))
+    env_layouts = set(kernels.period_systems.signatures) | set(kernels.period_finish.signatures)
+    assert env_layouts
+    o = np.broadcast_to([[0.0, 0.0, 0.0], [40.0, 0.0, 0.0], [0.0, 0.0, 40.0]], (4, 3, 3))
+    p = np.broadcast_to([10.0, 50.0, 20.0], (4, 3))
+    v = np.broadcast_to([8.0, 0.0, 3.0], (4, 3))
+    scan(np.array([0.0, 0.25, 0.6]), 1.0, 1e-3, 1.2, o, o, p, v, p, np.random.default_rng(1))
+    assert set(kernels.period_systems.signatures) | set(kernels.period_finish.signatures) == (
+        env_layouts
+    )
+
+
 def test_noisy_fixes_on_a_circle_are_accurate_and_clustered_ones_are_not():
     """OC-3: the same drones fixed from a 15 m cluster and from the √2·h circle."""
     params = PlacementParams()
