@@ -41,6 +41,7 @@ from sensorgym.trackers.bearings.models import (
     predict,
 )
 from sensorgym.trackers.geometry import wrap_angle
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -107,7 +108,7 @@ def polar_moments(
 def _flat(v: FloatArray, shape: tuple[int, ...]) -> FloatArray:
     """``v`` broadcast to ``shape``, contiguous float64, flattened (to the last axis when
     ``shape`` has trailing axes, else to one)."""
-    return np.ascontiguousarray(np.broadcast_to(v, shape), dtype=np.float64).reshape(-1)
+    return kernel_array(v, shape).reshape(-1)
 
 
 def angle_spread_moments(

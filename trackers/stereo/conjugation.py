@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
 from sensorgym.trackers.validation import check_unit_norms, finite_array, unit_vectors
 
@@ -253,10 +254,9 @@ def _broadcast(x: FloatArray, shape: tuple[int, ...]) -> FloatArray:
 
 
 def _flat(x: FloatArray, batch: tuple[int, ...], tail: tuple[int, ...]) -> FloatArray:
-    """``x`` broadcast to ``(*batch, *tail)`` as a C-contiguous ``(N, *tail)`` array (no copy if
-    it already is one)."""
-    x = _broadcast(x, (*batch, *tail)).reshape(math.prod(batch), *tail)
-    return x if x.flags.c_contiguous else np.ascontiguousarray(x)
+    """``x`` broadcast to ``(*batch, *tail)`` as a kernel input ``(N, *tail)``
+    (:func:`kernel_array`: no copy if it already is one)."""
+    return kernel_array(x, (*batch, *tail)).reshape(math.prod(batch), *tail)
 
 
 def _solve_closed_form(

@@ -38,6 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.stereo import kernels
 from sensorgym.trackers.stereo.kernels import CONDITION, MIN_FIX_RANGE, MIN_RANGE
 
@@ -63,9 +64,9 @@ MAX_REWARD_CLIP = 1e6
 
 
 def _flat(value: ArrayLike, shape: tuple[int, ...], dtype=np.float64) -> np.ndarray:
-    """``value`` broadcast to ``shape`` as a C-contiguous array of ``dtype`` with the batch axes
+    """``value`` broadcast to ``shape`` as a kernel input (:func:`kernel_array`), the batch axes
     ``shape[:-k]`` flattened by the caller's reshape."""
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(value, dtype=dtype), shape))
+    return kernel_array(value, shape, dtype)
 
 
 def _views(mask: ArrayLike | None, shape: tuple[int, ...]) -> np.ndarray:
