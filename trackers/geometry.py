@@ -41,6 +41,7 @@ from sensorgym.trackers.geometry_kernels import (
     relative_pose_batch,
     unit_from_angles_batch,
 )
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -92,8 +93,8 @@ def unit_from_angles(azimuth: ArrayLike, elevation: ArrayLike) -> FloatArray:
     out = np.empty((*shape, 3))
     # a = (cos θ sin φ, sin θ, cos θ cos φ)  (geometry_kernels.unit_from_angles3)
     unit_from_angles_batch(
-        np.ascontiguousarray(np.broadcast_to(phi, shape)).reshape(-1),
-        np.ascontiguousarray(np.broadcast_to(theta, shape)).reshape(-1),
+        kernel_array(phi, shape).reshape(-1),
+        kernel_array(theta, shape).reshape(-1),
         out.reshape(-1, 3),
     )
     return out
@@ -193,7 +194,7 @@ def look_at_rotation(
     t = finite_array(target, "target", tail=(3,))
     u = finite_array(up, "up", tail=(3,))
     shape = np.broadcast_shapes(p.shape, t.shape, u.shape)
-    flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 3)) for x in (p, t, u)]
+    flat = [kernel_array(x, shape).reshape(-1, 3) for x in (p, t, u)]
     out = np.empty((flat[0].shape[0], 3, 3))
     # Z = (t − p)/‖t − p‖,  Y = (up − (up·Z) Z)/‖·‖,  X = Y × Z  (geometry_kernels.look_at3)
     code = look_at_batch(*flat, out)
@@ -220,7 +221,7 @@ def relative_pose(
     ok = finite_array(ok, "ok", tail=(3,))
     shape = np.broadcast_shapes(R1.shape[:-2], Rk.shape[:-2], o1.shape[:-1], ok.shape[:-1])
     flat = [
-        np.ascontiguousarray(np.broadcast_to(x, (*shape, *tail)).reshape(-1, *tail))
+        kernel_array(x, (*shape, *tail)).reshape(-1, *tail)
         for x, tail in ((R1, (3, 3)), (o1, (3,)), (Rk, (3, 3)), (ok, (3,)))
     ]
     P, b = np.empty((flat[0].shape[0], 3, 3)), np.empty((flat[0].shape[0], 3))

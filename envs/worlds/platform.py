@@ -55,6 +55,7 @@ from sensorgym.trackers.bearings.models import (
     cwna_covariance,
 )
 from sensorgym.trackers.geometry import wrap_angle
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -167,7 +168,7 @@ def fly(
         p.reshape(-1, 2),
         h.reshape(-1),
         v.reshape(-1),
-        np.ascontiguousarray(np.broadcast_to(c, (*shape, 2))).reshape(-1, 2),
+        kernel_array(c, (*shape, 2)).reshape(-1, 2),
         float(params.dt),
         float(params.max_turn_rate),
         float(params.max_speed_change),
@@ -250,8 +251,8 @@ def noisy_bearings(
     t = finite_array(target_position, "target_position", tail=(2,))
     p = finite_array(platform_position, "platform_position", tail=(2,))
     shape = np.broadcast_shapes(t.shape[:-1], p.shape[:-1])
-    t = np.ascontiguousarray(np.broadcast_to(t, (*shape, 2))).reshape(-1, 2)
-    p = np.ascontiguousarray(np.broadcast_to(p, (*shape, 2))).reshape(-1, 2)
+    t = kernel_array(t, (*shape, 2)).reshape(-1, 2)
+    p = kernel_array(p, (*shape, 2)).reshape(-1, 2)
     if np.any((t[:, 0] == p[:, 0]) & (t[:, 1] == p[:, 1])):
         raise ValueError("target_position: coincides with the platform, bearing undefined")
     eps = rng.standard_normal(shape)

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike, NDArray
 from sensorgym.envs.worlds.scanning import ReceiverLayout
 from sensorgym.trackers.geometry import look_at_rotation
 from sensorgym.trackers.geometry_kernels import perturb_batch
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -145,9 +146,7 @@ def perturb_directions(a: ArrayLike, sigma_ang: ArrayLike, rng: np.random.Genera
     # δ = (I − a aᵀ) z σ,  (a + δ)/‖a + δ‖  (geometry_kernels.perturbed_direction3; zeros stay)
     sig = np.broadcast_to(s, np.broadcast_shapes(s.shape, a.shape[:-1]))
     shape = (*sig.shape, 3)
-    flat_a, flat_z = (
-        np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 3)) for x in (a, z)
-    )
+    flat_a, flat_z = (kernel_array(x, shape).reshape(-1, 3) for x in (a, z))
     out = np.empty(flat_a.shape)
     perturb_batch(flat_a, flat_z, np.ascontiguousarray(sig, dtype=np.float64).reshape(-1), out)
     return out.reshape(shape)

@@ -62,6 +62,7 @@ from sensorgym.trackers.bearings.models import (
     cwna_covariance,
     cwna_covariance_factor,
 )
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
@@ -335,10 +336,10 @@ def update_bound_factor(
     out = np.empty((*batch, STATE_DIM, STATE_DIM))
     # triangularise the pre-array [[r σ, n̂ᵀ L_pos], [0, L]]  (compiled: kernels.bound_update)
     kernels.bound_update_batch(
-        np.ascontiguousarray(np.broadcast_to(L, out.shape)).reshape(-1, STATE_DIM, STATE_DIM),
-        np.ascontiguousarray(np.broadcast_to(x, (*batch, STATE_DIM))).reshape(-1, STATE_DIM),
-        np.ascontiguousarray(np.broadcast_to(p, (*batch, 2))).reshape(-1, 2),
-        np.ascontiguousarray(np.broadcast_to(s, batch)).reshape(-1),
+        kernel_array(L, out.shape).reshape(-1, STATE_DIM, STATE_DIM),
+        kernel_array(x, (*batch, STATE_DIM)).reshape(-1, STATE_DIM),
+        kernel_array(p, (*batch, 2)).reshape(-1, 2),
+        kernel_array(s, batch).reshape(-1),
         out.reshape(-1, STATE_DIM, STATE_DIM),
     )
     return out
@@ -365,11 +366,9 @@ def factor_range_bound(
     out = np.empty(batch)
     # compiled: kernels.range_sigma
     kernels.range_sigma_batch(
-        np.ascontiguousarray(np.broadcast_to(L, (*batch, STATE_DIM, STATE_DIM))).reshape(
-            -1, STATE_DIM, STATE_DIM
-        ),
-        np.ascontiguousarray(np.broadcast_to(t, (*batch, 2))).reshape(-1, 2),
-        np.ascontiguousarray(np.broadcast_to(p, (*batch, 2))).reshape(-1, 2),
+        kernel_array(L, (*batch, STATE_DIM, STATE_DIM)).reshape(-1, STATE_DIM, STATE_DIM),
+        kernel_array(t, (*batch, 2)).reshape(-1, 2),
+        kernel_array(p, (*batch, 2)).reshape(-1, 2),
         out.reshape(-1),
     )
     return out

@@ -43,6 +43,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.stereo import kernels
 from sensorgym.trackers.stereo.kernels import RCOND, SCREEN
 from sensorgym.trackers.validation import finite_array
@@ -156,15 +157,15 @@ def cv_update(track: CVTrack, z: ArrayLike, R: ArrayLike, mask: ArrayLike) -> CV
     R = np.asarray(R, dtype=np.float64)
     m = np.asarray(mask, dtype=bool)
     batch = np.broadcast_shapes(track.x.shape[:-1], z.shape[:-1], R.shape[:-2], m.shape)
-    x = np.ascontiguousarray(np.broadcast_to(track.x, (*batch, 6)), dtype=np.float64)
-    P = np.ascontiguousarray(np.broadcast_to(track.P, (*batch, 6, 6)), dtype=np.float64)
+    x = kernel_array(track.x, (*batch, 6))
+    P = kernel_array(track.P, (*batch, 6, 6))
     x_out, P_out = np.empty_like(x), np.empty_like(P)
     kernels.cv_update_batch(
         x.reshape(-1, 6),
         P.reshape(-1, 6, 6),
-        np.ascontiguousarray(np.broadcast_to(z, (*batch, 3))).reshape(-1, 3),
-        np.ascontiguousarray(np.broadcast_to(R, (*batch, 3, 3))).reshape(-1, 3, 3),
-        np.ascontiguousarray(np.broadcast_to(m, batch)).reshape(-1),
+        kernel_array(z, (*batch, 3)).reshape(-1, 3),
+        kernel_array(R, (*batch, 3, 3)).reshape(-1, 3, 3),
+        kernel_array(m, batch, bool).reshape(-1),
         x_out.reshape(-1, 6),
         P_out.reshape(-1, 6, 6),
     )
