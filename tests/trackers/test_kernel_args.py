@@ -44,3 +44,23 @@ def test_public_functions_compile_one_signature_whatever_the_inputs_layout():
         call()
     assert len(kernels.position_information_batch.signatures) == 1
     assert len(kernels.weighted_fix_batch.signatures) == 1
+
+
+def test_geometry_and_filter_wrappers_compile_one_signature_too():
+    from sensorgym.trackers import geometry_kernels
+    from sensorgym.trackers.geometry import look_at_rotation, relative_pose
+    from sensorgym.trackers.stereo.kalman import cv_prior, cv_update
+
+    rng = np.random.default_rng(1)
+    p = rng.normal(0.0, 10.0, (5, 3))
+    t = p + rng.normal(0.0, 10.0, (5, 3)) + np.array([0.0, 0.0, 100.0])
+    R = look_at_rotation(p, t)  # up broadcast: a read-only view
+    look_at_rotation(np.asfortranarray(np.stack([p, p]))[0], t, np.tile([0.0, 1.0, 0.0], (5, 1)))
+    relative_pose(R[0], p[0], R, p)  # R1, o1 broadcast
+    relative_pose(R, p, R[::-1].copy(), p[::-1])
+    track = cv_prior(p, np.zeros((5, 3)), 5.0, 2.0)
+    cv_update(track, t, np.eye(3), True)  # R and mask broadcast
+    cv_update(track, t, np.broadcast_to(np.eye(3), (5, 3, 3)).copy(), np.ones(5, bool))
+    assert len(geometry_kernels.look_at_batch.signatures) == 1
+    assert len(geometry_kernels.relative_pose_batch.signatures) == 1
+    assert len(kernels.cv_update_batch.signatures) == 1
