@@ -122,14 +122,14 @@ def _exponent_floats(value: Any) -> Any:
 def apply_overrides(hp: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     """A copy of the hyperparameter set ``hp`` with ``overrides`` set: a plain key replaces the
     entry (``null`` for ``wrappers``/``pretrain`` leaves them out), a dotted key
-    (``pretrain.steps``) the entry inside that mapping; a dotted key through anything but a
-    mapping raises ``KeyError``."""
+    (``pretrain.steps``) the entry inside that mapping, made if the set has none
+    (``policy_kwargs.net_arch``); a dotted key through anything else raises ``KeyError``."""
     out = dict(hp)
     for key, value in overrides.items():
         *path, last = key.split(".")
         node = out
         for i, part in enumerate(path):
-            child = node.get(part)
+            child = node.get(part, {})
             if not isinstance(child, dict):
                 where = ".".join(path[: i + 1])
                 raise KeyError(f"hyperparameter {key!r}: {where!r} is {child!r}, not a mapping")

@@ -92,6 +92,10 @@ def test_hyperparameter_overrides_reach_inside_mappings_and_refuse_typos():
         check_overrides("ppo", ENV_ID, {"seed": 3})
     with pytest.raises(KeyError, match="not a mapping"):
         apply_overrides(hp, {"n_steps.size": 3})
+    with pytest.raises(KeyError, match="not a mapping"):  # null is not a missing mapping
+        apply_overrides(hp, {"pretrain": None, "pretrain.steps": 3})
+    made = apply_overrides({"policy": "MlpPolicy"}, {"policy_kwargs.net_arch": [8]})
+    assert made == {"policy": "MlpPolicy", "policy_kwargs": {"net_arch": [8]}}
     for bad in ("learning_rate", "=3", "pretrain..steps=1", "gamma=[0.9"):
         with pytest.raises(ValueError, match="--hyperparam"):
             parse_override(bad)
