@@ -8,10 +8,12 @@ from pathlib import Path
 import pytest
 
 WORLDS = Path(__file__).resolve().parents[3] / "envs" / "worlds"
-#: shared geometry, input checks and the bearings motion/measurement model, not trackers
+#: shared geometry, input checks, the kernels' input form and the bearings motion/measurement
+#: model, not trackers
 ALLOWED = {
     "sensorgym.trackers.geometry",
     "sensorgym.trackers.geometry_kernels",
+    "sensorgym.trackers.kernel_args",
     "sensorgym.trackers.validation",
     "sensorgym.trackers.bearings.models",
 }
