@@ -188,8 +188,8 @@ def _benchmark(
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
         d = paired.get(name)
-        diff = "best rule" if name == best else "" if d is None else _interval(d)
-        robust = _iqm(d) if d is not None and "iqm" in d else ""
+        diff = "best rule" if name == best else "" if d is None else paired_cell(d)
+        robust = iqm_cell(d) if d is not None and "iqm" in d else ""
         counts = f"{d['better']}/{d['worse']}" if d is not None and "better" in d else ""
         table.add_row(
             name,
@@ -205,15 +205,15 @@ def _benchmark(
     return results
 
 
-def _iqm(d: dict[str, Any]) -> str:
+def iqm_cell(d: dict[str, Any]) -> str:
     """``iqm [lo, hi]`` of a paired difference (bootstrap interval), marked like
-    :func:`_interval`."""
+    :func:`paired_cell`."""
     lo, hi = d["iqm_ci95"]
     mark = " +" if lo > 0 else " −" if hi < 0 else ""
     return f"{d['iqm']:+.3f} [{lo:+.2f}, {hi:+.2f}]{mark}"
 
 
-def _interval(d: dict[str, float]) -> str:
+def paired_cell(d: dict[str, float]) -> str:
     """``mean [lo, hi]`` of a paired difference, marked ``+``/``−`` when the 95 % interval
     lies above/below zero."""
     lo, hi = d["mean"] - d["ci95"], d["mean"] + d["ci95"]

@@ -5,7 +5,8 @@ Hyperparameters come from ``train/hyperparams/<algo>.yml`` for the env id; ``--t
 such as ``pretrain.steps`` reaches inside a mapping, ``pretrain=null`` leaves the imitation
 out) override them. The run folder gets the policy weights ``policy.safetensors`` (data
 only: loading them runs no code), the resolved ``config.yaml``, ``evaluation.json`` (the
-trained policy beside the heuristic rules, same seed and scenarios) and the learning curve
+trained policy beside the heuristic rules, same seed and scenarios; the printed table pairs
+every policy to the best rule as ``sensorgym benchmark`` does, on the tuning seed) and the learning curve
 ``curve.json``/``curve.png`` (evaluation return against samples, the rules as lines); ``sensorgym benchmark
 --model RUN_FOLDER`` scores it again later. ``--param NAME=VALUE`` trains at another size or
 setting of the env (recorded in ``config.yaml``; the policy then refuses other settings). ``--tensorboard DIR`` logs the run for TensorBoard.
@@ -14,6 +15,7 @@ setting of the env (recorded in ``config.yaml``; the policy then refuses other s
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from sensorgym.cli.params import (
@@ -71,8 +73,10 @@ def run(args: argparse.Namespace) -> int:
     from rich.console import Console
     from rich.table import Table
 
+    from sensorgym.cli.benchmark import iqm_cell, paired_cell
+    from sensorgym.train.benchmark import best_rule, paired_difference
     from sensorgym.train.config import load_hyperparams
-    from sensorgym.train.trainer import train
+    from sensorgym.train.trainer import VALIDATION_SEED, train
 
     try:
         load_hyperparams(args.algo, args.env)
@@ -96,12 +100,36 @@ def run(args: argparse.Namespace) -> int:
         params=params,
         hyperparams=overrides,
     )
-    table = Table(title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes)")
-    for column in ("policy", "mean", "±95 %"):
+    # the trained policy and the rules on the same scenarios, paired to the best fieldable rule
+    # (as `sensorgym benchmark` does on the held-out seed; this is the tuning seed)
+    scores = result.evaluation
+    best = best_rule({k: v for k, v in scores.items() if k != "trained"})
+    ref = scores[best].get("returns") if best is not None else None
+    paired = {
+        name: paired_difference(r["returns"], ref)
+        for name, r in scores.items()
+        if ref and name != best and len(r.get("returns", ())) == len(ref)
+    }
+    table = Table(
+        title=f"{args.env}: episode return ({args.eval_episodes} evaluation episodes, "
+        f"tuning seed {VALIDATION_SEED})"
+    )
+    columns = ("policy", "mean", "±95 %", f"paired − {best}", "paired IQM", "better/worse")
+    for column in columns if paired else columns[:3]:
         table.add_column(column, justify="left" if column == "policy" else "right")
-    for name, r in sorted(result.evaluation.items(), key=lambda kv: -kv[1]["mean"]):
-        table.add_row(name, f"{r['mean']:.3f}", f"{r['ci95']:.3f}")
-    console = Console()
+    for name, r in sorted(scores.items(), key=lambda kv: -kv[1]["mean"]):
+        row = [name, f"{r['mean']:.3f}", f"{r['ci95']:.3f}"]
+        if paired:
+            d = paired.get(name)
+            row += (
+                ["best rule", "", ""]
+                if name == best
+                else ["", "", ""]
+                if d is None
+                else [paired_cell(d), iqm_cell(d), f"{d['better']}/{d['worse']}"]
+            )
+        table.add_row(*row)
+    console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
     console.print(table)
     console.print(f"saved {result.run_dir}")
     if args.tensorboard is not None:

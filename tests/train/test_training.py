@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from types import SimpleNamespace
 
 import numpy as np
@@ -246,6 +247,9 @@ def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
     args = ["--algo", "sac", "--timesteps", "300", "--n-envs", "2", "--eval-episodes", "2"]
     small = ["--hyperparam", "policy_kwargs={net_arch: [32, 32]}", "--hyperparam", "tau=0.01"]
     assert main(["train", *args, *small, "--out", str(tmp_path), "--no-progress"]) == 0
+    printed = capsys.readouterr().out  # the run beside the rules, paired to the best one
+    assert "tuning seed 500" in printed and "paired IQM" in printed
+    assert re.search(r"trained .* (best rule|[-+]\d)", printed)
     run_dir = tmp_path / "sensorgym__BearingsManeuver-v0" / "sac_seed0"
     config = read_config(run_dir)
     assert config["algo"] == "sac" and config["hyperparams"]["tau"] == 0.01
@@ -257,7 +261,7 @@ def test_train_command_with_sac_then_benchmark_the_saved_run(tmp_path, capsys):
     assert main(["benchmark", *bench, "--out", str(tmp_path / "bench")]) == 0
     results = json.loads((tmp_path / "bench" / "sensorgym__BearingsManeuver-v0.json").read_text())
     assert "model:sac_seed0" in results["results"]
-    assert "trained" in capsys.readouterr().out
+    assert "model:sac_seed0" in capsys.readouterr().out
 
 
 def test_infos_fast_path_equals_the_general_path():
