@@ -119,15 +119,11 @@ def run(args: argparse.Namespace) -> int:
         table.add_column(column, justify="left" if column == "policy" else "right")
     for name, r in sorted(scores.items(), key=lambda kv: -kv[1]["mean"]):
         row = [name, f"{r['mean']:.3f}", f"{r['ci95']:.3f}"]
-        if paired:
-            d = paired.get(name)
-            row += (
-                ["best rule", "", ""]
-                if name == best
-                else ["", "", ""]
-                if d is None
-                else [paired_cell(d), iqm_cell(d), f"{d['better']}/{d['worse']}"]
-            )
+        d = paired.get(name)
+        if d is not None:
+            row += [paired_cell(d), iqm_cell(d), f"{d['better']}/{d['worse']}"]
+        elif paired:
+            row += ["best rule" if name == best else "", "", ""]
         table.add_row(*row)
     console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
     console.print(table)

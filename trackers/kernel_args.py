@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike, DTypeLike
 def kernel_array(
     value: ArrayLike, shape: tuple[int, ...], dtype: DTypeLike = np.float64
 ) -> np.ndarray:
-    """``value`` broadcast to ``shape`` as a C-contiguous, writable array of ``dtype``; a copy
-    only where it is not one already (no copy of an array that already is)."""
+    """``value`` broadcast to ``shape`` as a C-contiguous, writable array of ``dtype``; copied
+    only where it is not one already."""
     a = np.asarray(value, dtype=dtype)
     if a.shape != shape:
         a = np.broadcast_to(a, shape)

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.envs.stereo_placement import kernels
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.stereo.conjugation import DEFAULT_COND_MAX, solve_conjugation
 
 FloatArray = NDArray[np.float64]
@@ -160,12 +161,11 @@ def solve_period(
 ) -> tuple[ScanFix, ScanGeometry, FloatArray, FloatArray, FloatArray]:
     """:func:`scan_period` with its noise draws ``normals (B, n, 3)`` given: the generic path
     (any ``n``; systems the closed form leaves re-solved on the SVD path)."""
-    d = np.ascontiguousarray(delays, dtype=np.float64)
-    # C-ordered float64 whatever the caller's layout (a no-op for the env's arrays): numba
-    # compiles the kernels once more for each other layout
-    start, end, drone_end, drone_velocity, previous, normals = (
-        np.ascontiguousarray(x, dtype=np.float64)
-        for x in (start, end, drone_end, drone_velocity, previous, normals)
+    # one form whatever the caller's layout (no copy of the env's arrays): numba compiles the
+    # kernels once more for each other layout or read-only input
+    d, start, end, drone_end, drone_velocity, previous, normals = (
+        kernel_array(x, np.shape(x))
+        for x in (delays, start, end, drone_end, drone_velocity, previous, normals)
     )
     B, n = start.shape[0], d.shape[0]
     m, p = n - 1, n + 3

@@ -15,7 +15,7 @@ def test_kernel_array_is_c_ordered_writable_and_copies_only_when_it_must():
     for odd in (
         np.broadcast_to(a, (3, 4)),  # read-only view, nothing broadcast
         np.asfortranarray(a),
-        a[:, ::2].repeat(2, axis=1),
+        np.arange(24.0).reshape(3, 8)[:, ::2],  # strided
         np.arange(4.0),  # broadcast
     ):
         out = kernel_array(odd, (3, 4))
