@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 from typing import Any
 
+from sensorgym.cli.console import make_console, print_written
 from sensorgym.cli.params import add_param_argument, params_from
 
 HELP = "Score every rule and trained policy on every env (seeded, same scenarios), with a chart."
@@ -72,8 +72,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rich.console import Console
-
     from sensorgym.train.benchmark import paired_to_best_rule, registered_envs
     from sensorgym.train.models import RunFolderError, check_run_folder
     from sensorgym.train.score_chart import plot_scores
@@ -97,7 +95,7 @@ def run(args: argparse.Namespace) -> int:
             raise SystemExit(f"--model: {exc}") from None
         if trained_on not in env_ids:
             raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
-    console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
+    console = make_console()
     settings: dict[str, Any] = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
     scores: dict[str, dict[str, dict[str, float]]] = {}
     written: list[Path] = []
@@ -124,9 +122,7 @@ def run(args: argparse.Namespace) -> int:
         written.append(summary)
         if not args.no_chart:
             written.append(plot_scores(scores, args.out / "benchmark.png"))
-    console.print("wrote:")
-    for path in written:
-        console.print(f"  {path}")
+    print_written(console, written)
     return 0
 
 

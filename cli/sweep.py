@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sensorgym.cli.console import make_console, print_written
 from sensorgym.cli.params import add_hyperparam_argument, hyperparams_from
 
 HELP = "Multi-seed training and hyperparameter search on Ray (local or a cluster), aggregated."
@@ -80,7 +81,6 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(
             "sweep: needs Ray: pip install 'sensorgym[ray]' (or 'ray[tune]')"
         ) from None
-    from rich.console import Console
     from rich.table import Table
 
     from sensorgym.train.config import check_overrides, load_hyperparams
@@ -121,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         benchmark_chunk=args.benchmark_chunk,
         cpus_per_trial=args.cpus_per_trial,
     )
-    console = Console()
+    console = make_console()
     with console.status(f"sweep on Ray: {args.algo} on {args.env}, seeds {list(settings.seeds)}"):
         doc = run_sweep(
             settings, args.out, address=args.address, num_cpus=args.num_cpus, verbose=args.verbose
@@ -155,10 +155,8 @@ def run(args: argparse.Namespace) -> int:
             bench.add_row(name, f"{r['mean']:.3f}", f"{r['ci95']:.3f}")
         console.print(bench)
     out = args.out.resolve()
-    console.print("wrote:")
-    for name in ("sweep.json", "sweep.png", "benchmark.png", "trials"):
-        if (out / name).exists():
-            console.print(f"  {out / name}")
+    names = ("sweep.json", "sweep.png", "benchmark.png", "trials")
+    print_written(console, [out / name for name in names if (out / name).exists()])
     return 0
 
 

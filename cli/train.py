@@ -15,9 +15,9 @@ setting of the env (recorded in ``config.yaml``; the policy then refuses other s
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 
+from sensorgym.cli.console import make_console, print_path
 from sensorgym.cli.params import (
     add_hyperparam_argument,
     add_param_argument,
@@ -70,7 +70,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rich.console import Console
     from rich.table import Table
 
     from sensorgym.cli.benchmark import iqm_cell, paired_cell
@@ -125,9 +124,9 @@ def run(args: argparse.Namespace) -> int:
         elif paired:
             row += ["best rule" if name == best else "", "", ""]
         table.add_row(*row)
-    console = Console(width=None if sys.stdout.isatty() else 160)  # logs keep whole tables
+    console = make_console()
     console.print(table)
-    console.print(f"saved {result.run_dir}")
+    print_path(console, "saved ", result.run_dir)
     if args.tensorboard is not None:
-        console.print(f"TensorBoard event files in {args.tensorboard}")
+        print_path(console, "TensorBoard event files in ", args.tensorboard)
     return 0

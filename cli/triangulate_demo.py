@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorgym.cli.console import make_console, print_path
 from sensorgym.envs.worlds.stereo_scene import pair_scene, perturb_directions
 from sensorgym.trackers.stereo.accuracy import (
     pair_range_sigma,
@@ -89,7 +90,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from rich.console import Console
     from rich.table import Table
 
     if args.runs < 2:
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             f"{r['position_crlb_rms']:.4f}",
             f"{r['position_ml_rms']:.4f}",
         )
-    console = Console()
+    console = make_console()
     console.print(table)
     console.print(
         f"iid: papers' model, i.i.d. error σₑ = {args.sigma_e:g} m on the conjugation equations; "
@@ -129,5 +129,5 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(rows, indent=2) + "\n")
-        console.print(f"wrote {args.json}")
+        print_path(console, "wrote ", args.json)
     return 0

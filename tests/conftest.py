@@ -2,12 +2,24 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
 from sensorgym.envs.worlds.scanning import ReceiverLayout
 from sensorgym.envs.worlds.stereo_scene import StereoScene
 from sensorgym.trackers.geometry import look_at_rotation
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """A pytest-xdist worker shares the CPUs with the other workers: its env batches are not
+    split over threads (``SENSORGYM_THREADS``) and torch keeps to one thread, unless the
+    environment says otherwise. Tests of the threaded paths set ``SENSORGYM_THREADS``
+    themselves. Set before any test imports torch, which reads ``OMP_NUM_THREADS`` then."""
+    if hasattr(config, "workerinput"):
+        for name in ("SENSORGYM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(name, "1")
 
 
 @pytest.fixture

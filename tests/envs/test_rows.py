@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import multiprocessing as mp
+import os
 import time
 
 import numpy as np
@@ -121,3 +122,8 @@ def test_a_failed_draw_waits_for_the_started_chunks(monkeypatch):
     with pytest.raises(RuntimeError, match="draw failed"):
         rows.run_drawn_rows(1024, draw, kernel_on, key="test-failed-draw")
     assert len(finished) == 1  # the pool's chunk had ended before the error was raised
+
+
+def test_unset_means_the_cpus_this_process_may_run_on(monkeypatch):
+    monkeypatch.delenv("SENSORGYM_THREADS", raising=False)  # set to 1 in pytest-xdist workers
+    assert rows.threads() == min(8, len(os.sched_getaffinity(0)))
