@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.envs.shells.rows import run_rows
+from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.stereo import kernels
 
 FloatArray = NDArray[np.float64]
@@ -152,7 +153,7 @@ def _bonus(objective: SeparableObjective, bonus: FloatArray | None) -> FloatArra
     """``bonus (B, n, m)`` as the kernels take it (zeros for none)."""
     if bonus is None:
         return np.zeros(objective.shape)
-    return np.ascontiguousarray(np.broadcast_to(bonus, objective.shape), dtype=np.float64)
+    return kernel_array(bonus, objective.shape)
 
 
 def sequential_greedy(

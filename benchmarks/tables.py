@@ -259,10 +259,17 @@ def cold_start() -> str:
     """Seconds from a fresh interpreter to every env's first steps, with an empty and a warm
     numba cache (``benchmarks/cold_start.py``)."""
     doc = json.loads((RESULTS / "cold_start.json").read_text())
-    lines = ["| | cold (empty cache), s | warm (cached kernels), s |", "| --- | ---: | ---: |"]
+    lines = [
+        "| | cold (empty cache), s | warm (cached kernels), s | functions compiled (cold)"
+        " | compiles beyond one per function |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
     for r in doc["results"]:
-        case = r["case"] if r["case"] in ("import", "total") else f"`{r['case']}`"
-        lines.append(f"| {case} | {r['cold_s']:.1f} | {r['warm_s']:.2f} |")
+        plain = r["case"] in ("import", "total") or "`" in r["case"]
+        case = r["case"] if plain else f"`{r['case']}`"
+        counts = [r.get("functions_compiled"), r.get("second_specialisations")]
+        cells = " | ".join("" if c is None else str(c) for c in counts)
+        lines.append(f"| {case} | {r['cold_s']:.1f} | {r['warm_s']:.2f} | {cells} |")
     return "\n".join(lines)
 
 

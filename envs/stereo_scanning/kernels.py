@@ -884,7 +884,7 @@ def step_rows(
                 kap,
                 M1,
             )
-        screen_candidates(i, nc, used_n, la, fixes, fix_count, O, R, P, b, sig,
+        screen_candidates(i, np.int64(nc), used_n, la, fixes, fix_count, O, R, P, b, sig,
                           position_sigma, gate_q, max_speed, max_accel, cond_max, chi2_max, X, J,
                           Q, kap, M1, dt, cmem, cpos, cvel, ctime, csig, cdt, cok, ctaken, r_a1,
                           r_ak, r_P, r_b, r_dt, r_X, r_J, r_Q, r_kap, r_M1, r_sg,

@@ -714,7 +714,7 @@ def assignment_ascent_batch(kind, u, w, ready, prior, weight, consts, starts, bo
     held = np.empty(m)
     a = np.empty(n, np.int64)
     for b in range(lo, hi):
-        size = 0
+        size = np.int64(0)  # not a literal: _score_drone compiles once
         best_score = -np.inf
         for t in range(T):
             for k in range(n):

@@ -127,6 +127,37 @@ def test_compiled_ascent_makes_the_moves_of_the_plain_ascent(kind):
     )
 
 
+def test_a_broadcast_bonus_solves_alike_and_compiles_no_second_signature():
+    """A bonus given per receiver and drone ``(n, m)`` is broadcast to every scenario (a
+    read-only view): the solvers take it through ``kernel_array``, so it gives the result of
+    the full array and the kernels keep one compiled signature (a read-only array is another
+    numba type: a second compile of the ascent costs seconds on a fresh install)."""
+    rng = np.random.default_rng(3)
+    N, S, n, m = 5, 2, 4, 3
+    u = rng.normal(size=(N, S, n, m, 3))
+    u /= np.linalg.norm(u, axis=-1, keepdims=True)
+    objective = SeparableObjective(
+        kind=kernels.GAIN,
+        u=u,
+        w=rng.uniform(0.5, 2.0, (N, S, n, m)),
+        ready=np.ones((N, S, n, m), bool),
+        prior=rng.uniform(0.1, 1.0, (N, m)),
+        weight=np.ones((N, S)),
+        consts=np.array([30.0]),
+    )
+    per_pair = rng.uniform(0.0, 0.5, (n, m))
+    full = np.tile(per_pair, (N, 1, 1))
+    start = rng.integers(0, m, (N, n))
+    np.testing.assert_array_equal(
+        improve(objective, start, per_pair), improve(objective, start, full)
+    )
+    np.testing.assert_array_equal(
+        sequential_greedy(objective, per_pair), sequential_greedy(objective, full)
+    )
+    assert len(kernels.assignment_ascent_batch.signatures) == 1
+    assert len(kernels.assignment_greedy_batch.signatures) == 1
+
+
 def test_trace_of_the_inverse_is_the_inverses_diagonal_bit_for_bit():
     """``position_sigma`` reads ``tr I⁻¹`` off the column solves of the inverse: the same bits
     as summing the diagonal of :func:`~sensorgym.trackers.stereo.kernels.inverse3`."""
