@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from sensorgym.envs.worlds.gimbal import StraightTrajectory, TurningTrajectory, measure_angles
-from sensorgym.reproduce.experiments.reporting import format_checks, round_off
+from sensorgym.reproduce.experiments.reporting import format_checks, round_off, target_check
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angles.prediction import ABCPredictor
 
@@ -166,39 +166,39 @@ def reproduce(
     checks = []
     worst = max(v for d in exact.values() for v in d.values())
     checks.append(
-        {
-            "id": "RT-6",
-            "what": f"noise-free A-B-C prediction, k ≤ {gate}, any Y_C, paper + oblique",
-            "paper": "exact (implied)",
-            "ours": f"max |error| {round_off(worst, ROUND_OFF_DEG)}°",
-            "status": "matched" if worst < 1e-9 else "missed",
-            "reason": "" if worst < 1e-9 else "error above 1e-9°",
-        }
+        target_check(
+            "RT-6",
+            f"noise-free A-B-C prediction, k ≤ {gate}, any Y_C, paper + oblique",
+            "exact (implied)",
+            f"max |error| {round_off(worst, ROUND_OFF_DEG)}°",
+            worst < 1e-9,
+            "error above 1e-9°",
+        )
     )
     idx = [int(h) - 1 for h in HORIZONS if h <= gate]
     abc = errors["abc"]
     small = [max(abc["rms_azimuth_deg"][i], abc["rms_elevation_deg"][i]) for i in idx if i < 100]
     ok = max(small) < 0.05
     checks.append(
-        {
-            "id": "RT-7",
-            "what": "noisy A-B-C errors (σ = 0.001°, N = 50, memory 10), k ≤ 100",
-            "paper": "same small order over realisations (figures only)",
-            "ours": f"RMS {min(small):.4f}–{max(small):.4f}° over {runs} runs",
-            "status": "matched" if ok else "missed",
-            "reason": "" if ok else "errors not of the order of 0.001–0.02°",
-        }
+        target_check(
+            "RT-7",
+            "noisy A-B-C errors (σ = 0.001°, N = 50, memory 10), k ≤ 100",
+            "same small order over realisations (figures only)",
+            f"RMS {min(small):.4f}–{max(small):.4f}° over {runs} runs",
+            ok,
+            "errors not of the order of 0.001–0.02°",
+        )
     )
     ratio = abc["rms_azimuth_deg"][99] / errors["kalman"]["rms_azimuth_deg"][99]
     checks.append(
-        {
-            "id": "§8.1",
-            "what": "kinematic model beats angle-polynomial extrapolation (k = 100, azimuth)",
-            "paper": "kinematic model preferred",
-            "ours": f"A-B-C / Kalman RMS = {ratio:.3f}",
-            "status": "matched" if ratio < 1.0 else "missed",
-            "reason": "" if ratio < 1.0 else "angle-space filter better",
-        }
+        target_check(
+            "§8.1",
+            "kinematic model beats angle-polynomial extrapolation (k = 100, azimuth)",
+            "kinematic model preferred",
+            f"A-B-C / Kalman RMS = {ratio:.3f}",
+            ratio < 1.0,
+            "angle-space filter better",
+        )
     )
     return {
         "runs": runs,

@@ -31,7 +31,7 @@ import numpy as np
 from sensorgym.envs.worlds.drones import GroupSpec, Trajectories, random_group
 from sensorgym.envs.worlds.scanning import RasterScan
 from sensorgym.envs.worlds.stereo import NoiseModel, ReceiverLayout, simulate
-from sensorgym.reproduce.experiments.reporting import format_checks
+from sensorgym.reproduce.experiments.reporting import format_checks, target_check
 from sensorgym.trackers.geometry import look_at_rotation
 from sensorgym.trackers.stereo.algebraic_detection import algebraic_single, economical
 from sensorgym.trackers.stereo.algorithmic_detection import AlgorithmicParams, detect_algorithmic
@@ -292,16 +292,7 @@ def reproduce(
     checks = []
 
     def check(id_, what, paper, ours, ok, why):
-        checks.append(
-            {
-                "id": id_,
-                "what": what,
-                "paper": paper,
-                "ours": ours,
-                "status": "matched" if ok else "missed",
-                "reason": "" if ok else why,
-            }
-        )
+        checks.append(target_check(id_, what, paper, ours, ok, why))
 
     ratio = v2["error_3_params"] / v2["error_6_params"]
     check(

@@ -24,7 +24,7 @@ import numpy as np
 
 from sensorgym.envs.worlds.imaging import ImagingScene
 from sensorgym.reproduce.experiments.paper004_closed_loop import matched_model, simulate_closed_loop
-from sensorgym.reproduce.experiments.reporting import format_checks, round_off
+from sensorgym.reproduce.experiments.reporting import format_checks, round_off, target_check
 from sensorgym.trackers.fusion.detection_probability import (
     axis_holding_probability,
     combined_detection_parameter,
@@ -201,21 +201,11 @@ def bridge(runs: int, frames: int, seed: int) -> dict:
 
 
 def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
-    def entry(id_: str, what: str, paper: str, ours: str, ok: bool, reason: str) -> dict:
-        return {
-            "id": id_,
-            "what": what,
-            "paper": paper,
-            "ours": ours,
-            "status": "matched" if ok else "missed",
-            "reason": "" if ok else reason,
-        }
-
     out = []
     rt14 = f["rt14"]
     p3 = rt14["ours_P"][2]
     out.append(
-        entry(
+        target_check(
             "RT-14",
             "eq. (9) P(q=3, F=0.01); (9) at q = 1,2,3,5,7 within 1e-4; (13) inverts (9)",
             "0.7497",
@@ -228,7 +218,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
     for form in FORMS:
         steps = f["rt15"][form]["steps"]
         out.append(
-            entry(
+            target_check(
                 "RT-15",
                 f"(11{'a' if form == 'mixture' else 'b'}) steps to 5 % of δ_∞, q = 2,3,5,7,10",
                 "5…20 steps (RT-15 tolerance 3–20, theory §12.5)",
@@ -247,7 +237,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
         mono = bool(np.all(np.diff(err) < 0.0))
         tag = "a" if form == "mixture" else "b"
         out.append(
-            entry(
+            target_check(
                 "RT-16",
                 f"(11{tag}) Δ decreasing in q and P, flattening at large q",
                 "qualitative (Fig. 2)",
@@ -258,7 +248,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
             )
         )
         out.append(
-            entry(
+            target_check(
                 "RT-16",
                 f"(11{tag}) no further error reduction above q ≈ 7",
                 "no gain for q > 7",
@@ -272,7 +262,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
     singles = [v["lost_fraction"] for k, v in s.items() if k.startswith("channel")]
     strong = s["one strong channel"]["lost_fraction"]
     out.append(
-        entry(
+        target_check(
             "§9.5-4",
             "several mediocre channels keep lock where one channel cannot",
             "synergy (qualitative)",
@@ -286,7 +276,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
         dev_a = max(abs(r["tracker_mean_delta"] / r["eq11a_delta"] - 1.0) for r in b["rows"])
         dev_b = max(abs(r["tracker_mean_delta"] / r["eq11b_delta"] - 1.0) for r in b["rows"])
         out.append(
-            entry(
+            target_check(
                 "§13.36",
                 "the synthesised filter's mean posterior variance follows (11a), not (11b)",
                 "(11) illegible",
@@ -298,7 +288,7 @@ def checks(f: dict, s: dict, b: dict | None = None) -> list[dict]:
     chain = s["fused (4 weak)"]["view_accuracy_kept"]
     flat = s["fused, uniform π"]["view_accuracy_kept"]
     out.append(
-        entry(
+        target_check(
             "§9.2",
             "transition probabilities reject implausibly fast view changes",
             "interference immunity (qualitative)",

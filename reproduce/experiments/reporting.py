@@ -6,6 +6,19 @@ from pathlib import Path
 from typing import Any
 
 
+def target_check(id_: str, what: str, paper: str, ours: str, ok: bool, why: str) -> dict:
+    """One check of a reproduction: the paper's value beside ours, ``matched`` where ``ok``,
+    else ``missed`` with the reason ``why`` (the row :func:`format_checks` prints)."""
+    return {
+        "id": id_,
+        "what": what,
+        "paper": paper,
+        "ours": ours,
+        "status": "matched" if ok else "missed",
+        "reason": "" if ok else why,
+    }
+
+
 def format_checks(checks: list[dict]) -> list[str]:
     """The "Targets (theory §12)" block: one line per check with the paper's value beside ours.
 

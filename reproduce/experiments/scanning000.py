@@ -24,7 +24,15 @@ import numpy as np
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.envs.stereo_scanning import simulation as sim
 from sensorgym.envs.worlds.drones import GroupSpec, random_group
-from sensorgym.reproduce.experiments.paper000 import CELLS, Scenario000, format_tables
+from sensorgym.reproduce.experiments.paper000 import (
+    CELLS,
+    Scenario000,
+    delay_ratio_checks,
+    detection_checks,
+    format_tables,
+    maxwell_checks,
+    table_cells,
+)
 from sensorgym.reproduce.experiments.reporting import format_checks
 from sensorgym.trackers.stereo.association import match_tracks
 
@@ -110,58 +118,17 @@ def run_cell(
     }
 
 
-def _check(id_: str, what: str, paper: str, ours: str, ok: bool, why: str) -> dict:
-    return {
-        "id": id_,
-        "what": what,
-        "paper": paper,
-        "ours": ours,
-        "status": "matched" if ok else "missed",
-        "reason": "" if ok else why,
-    }
-
-
 def reproduce(runs: int = 1000, seed: int = 0, scenario: Scenario000 | None = None) -> dict:
     """Every cell of Tables 1–2 through the env, and RT-2 … RT-4 with the reproduction's
     tolerances. Pure; no printing. Each cell draws from its own child of ``SeedSequence(seed)``."""
     scenario = Scenario000() if scenario is None else scenario
     seeds = np.random.SeedSequence(seed).spawn(len(CELLS))
-    cells = []
-    for (table, alg, m, delays, pd, ps, pp), ss in zip(CELLS, seeds, strict=True):
-        ours = run_cell(np.random.default_rng(ss), scenario, alg, m, delays, runs)
-        cells.append(
-            {
-                "table": table,
-                "algorithm": alg,
-                "m": m,
-                "delays": list(delays),
-                "paper": {"d_avg": pd, "d_std": ps, "pr_m": pp},
-                "ours": ours,
-            }
-        )
-    c = {(x["algorithm"], x["m"], tuple(x["delays"])): x["ours"] for x in cells}
-    checks = []
-    for dl in ((0.1, 0.2), (0.3, 0.4)):
-        o = c[("proposed", 1, dl)]
-        ok = 0.14 <= o["d_avg"] <= 0.18 and 0.055 <= o["d_std"] <= 0.08
-        checks.append(_check("RT-2", f"proposed m=1 Δt={dl}: d_avg/σ_d in [0.14,0.18]/[0.055,0.08]",
-                             "0.15/0.07", f"{o['d_avg']:.3f}/{o['d_std']:.3f}", ok,
-                             "outside the Maxwell band"))  # fmt: skip
-    for m, paper_ratio in ((1, 2.48), (2, 2.58)):
-        r = c[("alternative", m, (0.25,))]["d_avg"] / c[("alternative", m, (0.10,))]["d_avg"]
-        checks.append(_check("RT-3", f"alternative m={m}: d_avg(0.25)/d_avg(0.10) = 2.5 ± 0.3",
-                             f"{paper_ratio:.2f}", f"{r:.2f}", abs(r - 2.5) <= 0.3,
-                             "ratio outside 2.2–2.8"))  # fmt: skip
-    for m in (1, 2):
-        lo, hi = c[("alternative", m, (0.10,))]["pr_m"], c[("alternative", m, (0.25,))]["pr_m"]
-        checks.append(_check("RT-4", f"alternative m={m}: Pr_m falls with Δt",
-                             "1.00→0.71" if m == 1 else "0.97→0.60", f"{lo:.2f}→{hi:.2f}",
-                             hi < lo, "no fall with delay"))  # fmt: skip
-    for key, o in c.items():
-        if key[0] == "proposed":
-            checks.append(_check("RT-4", f"proposed m={key[1]} Δt={key[2]}: Pr_m ≥ 0.9", "≥ 0.95",
-                                 f"{o['pr_m']:.3f}", o["pr_m"] >= 0.9,
-                                 "detection probability below 0.9"))  # fmt: skip
+    results = [
+        run_cell(np.random.default_rng(ss), scenario, cell[1], cell[2], cell[3], runs)
+        for cell, ss in zip(CELLS, seeds, strict=True)
+    ]
+    cells = table_cells(results)
+    checks = maxwell_checks(cells) + delay_ratio_checks(cells) + detection_checks(cells)
     return {
         "runs": runs,
         "seed": seed,
