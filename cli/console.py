@@ -27,10 +27,9 @@ def make_console() -> Console:
     return Console(width=None if sys.stdout.isatty() else LOG_WIDTH)
 
 
-def print_path(console: Console, text: str, path: Path | str | None = None) -> None:
+def print_path(console: Console, text: str, path: Path | str) -> None:
     """Print ``text`` followed by ``path`` on one unwrapped line, with no markup read in either."""
-    line = text if path is None else f"{text}{path}"
-    console.print(line, soft_wrap=True, markup=False, highlight=False)
+    console.print(f"{text}{path}", soft_wrap=True, markup=False, highlight=False)
 
 
 def print_written(console: Console, paths: Iterable[Path | str]) -> None:
