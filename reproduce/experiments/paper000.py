@@ -331,4 +331,15 @@ def format_report(result: dict) -> str:
     return "\n".join(lines)
 
 
-__all__ = ["CELLS", "Scenario000", "format_report", "format_tables", "reproduce", "run_cell"]
+__all__ = [
+    "CELLS",
+    "Scenario000",
+    "delay_ratio_checks",
+    "detection_checks",
+    "format_report",
+    "format_tables",
+    "maxwell_checks",
+    "reproduce",
+    "run_cell",
+    "table_cells",
+]
