@@ -80,7 +80,7 @@ from sensorgym.trackers.bearings.filters import (
 )
 from sensorgym.trackers.bearings.kernels import STATE_DIM, accuracy_batch
 from sensorgym.trackers.bearings.models import BearingsGaussian
-from sensorgym.trackers.validation import count
+from sensorgym.trackers.validation import check_fields, count
 
 #: accuracies are kept inside ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that every reward
 #: ``ln m_k − ln m_{k+1}`` is finite (a documented fallback: physical scales never reach it)
@@ -134,8 +134,7 @@ class ManeuverParams(FieldsOnlyPickle):
     """Reward subtracted on that termination (the return is a log-factor, so 5 ≈ e⁵)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.world, PlatformWorldParams):
-            raise TypeError(f"world: expected PlatformWorldParams, got {type(self.world).__name__}")
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         lo, hi = _pair(self, "initial_range")
         if not 0.0 < lo <= hi:
             raise ValueError(f"initial_range: need 0 < low <= high, got {self.initial_range}")

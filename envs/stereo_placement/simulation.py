@@ -52,7 +52,7 @@ from sensorgym.envs.stereo_placement import kernels
 from sensorgym.envs.stereo_placement.scan import ScanFix, ScanGeometry, draw_normals, solve_period
 from sensorgym.trackers.stereo.conjugation import DEFAULT_COND_MAX
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -118,9 +118,8 @@ class PlacementParams(FieldsOnlyPickle):
     """``R``: the reward ``ln(σ_ref/σ_pos)`` is clipped to ``[−R, R]``; ``−R`` when degenerate."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         n = self.n_receivers
-        if n is not None and (isinstance(n, bool) or not isinstance(n, (int, np.integer))):
-            raise ValueError(f"n_receivers: must be an integer, got {n!r}")
         if n is not None and n < 3:
             raise ValueError(f"n_receivers: need at least 3 (velocity-aware conjugation), got {n}")
         if self.delays is None:

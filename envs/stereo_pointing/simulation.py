@@ -63,7 +63,7 @@ from sensorgym.envs.stereo_pointing.kernels import lines_of_sight_batch, pointin
 from sensorgym.trackers.geometry import angles_from_unit, unit_from_angles
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
 from sensorgym.trackers.stereo.kalman import CVTrack, cv_predict
-from sensorgym.trackers.validation import count, finite_array
+from sensorgym.trackers.validation import check_fields, count, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -126,6 +126,7 @@ class PointingParams(FieldsOnlyPickle):
     drone is not fixed (fewer than two views)."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         count(self.n_receivers, "n_receivers", minimum=2)
         count(self.n_drones, "n_drones")
         if not (np.isfinite(self.circle_radius) and self.circle_radius > 0.0):

@@ -47,7 +47,7 @@ from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
 from sensorgym.trackers.stereo.association import norm_quantile
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, count, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -100,11 +100,9 @@ def default_offsets(n: int) -> tuple[float, ...]:
 def _receiver_count(
     n: int | None, azimuths: tuple[float, ...] | None, offsets: tuple[float, ...] | None
 ) -> int:
-    """``n``: :attr:`ScanningParams.n_receivers`, else the length of the first given tuple,
-    else 3."""
+    """``n``: :attr:`ScanningParams.n_receivers` (an integer: :func:`check_fields` has seen
+    it), else the length of the first given tuple, else 3."""
     if n is not None:
-        if isinstance(n, bool) or not isinstance(n, int | np.integer):
-            raise ValueError(f"n_receivers: must be an integer, got {n!r}")
         if n < 3:
             raise ValueError(f"n_receivers: need at least 3 (velocity-aware conjugation), got {n}")
         return int(n)
@@ -253,6 +251,7 @@ class ScanningParams(FieldsOnlyPickle):
     period end (one-to-one, greedy), m."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         n = _receiver_count(self.n_receivers, self.receiver_azimuths, self.scan_offsets)
         azimuths = _per_receiver("receiver_azimuths", self.receiver_azimuths, n, default_azimuths)
         offsets = _per_receiver("scan_offsets", self.scan_offsets, n, default_offsets)
@@ -309,15 +308,11 @@ class ScanningParams(FieldsOnlyPickle):
             raise ValueError(f"scan_offsets: must be finite and >= 0, got {offsets}")
         if np.any(off + self.sweep_time > self.period + 1e-12):
             raise ValueError("scan_offsets: every sweep must end within the period")
-        for name, low in (("n_drones", 1), ("raster_lines", 1), ("pixel_iterations", 1),
-                          ("confirm_hits", 1), ("track_capacity", 1), ("track_slots", 1)):  # fmt: skip
-            value = getattr(self, name)
-            if not (isinstance(value, int | np.integer) and value >= low):
-                raise ValueError(f"{name}: must be an integer >= {low}, got {value!r}")
+        for name in ("n_drones", "raster_lines", "pixel_iterations", "confirm_hits",
+                     "track_capacity", "track_slots"):  # fmt: skip
+            count(getattr(self, name), name, minimum=1)
         for name in ("close_drones", "late_drones", "max_clutter", "max_misses", "ghost_misses"):
-            value = getattr(self, name)
-            if not (isinstance(value, int | np.integer) and value >= 0):
-                raise ValueError(f"{name}: must be an integer >= 0, got {value!r}")
+            count(getattr(self, name), name, minimum=0)
         if self.close_drones + 1 > self.n_drones and self.close_drones > 0:
             raise ValueError("close_drones: must be smaller than n_drones")
         if self.late_drones > self.n_drones:

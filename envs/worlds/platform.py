@@ -56,7 +56,7 @@ from sensorgym.trackers.bearings.models import (
 )
 from sensorgym.trackers.geometry import wrap_angle
 from sensorgym.trackers.kernel_args import kernel_array
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 
@@ -81,6 +81,7 @@ class PlatformWorldParams:
     """Bearing noise standard deviation ``σ`` (rad)."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field a real number, not a bool
         for name in ("dt", "max_turn_rate", "min_speed", "max_speed", "max_speed_change"):
             value = getattr(self, name)
             if not np.isfinite(value) or value < 0.0:

@@ -49,15 +49,19 @@ def test_n_receivers_sets_the_size_and_a_spread_of_delays():
 
 
 @pytest.mark.parametrize(
-    "kwargs, message",
+    "kwargs, error, message",
     [
-        ({"n_receivers": 2}, "n_receivers: need at least 3"),
-        ({"n_receivers": 4.5}, "n_receivers: must be an integer"),
-        ({"n_receivers": 5, "delays": (0.0, 0.25, 0.6)}, "delays: 3 values for n_receivers = 5"),
+        ({"n_receivers": 2}, ValueError, "n_receivers: need at least 3"),
+        ({"n_receivers": 4.5}, TypeError, "n_receivers: must be an integer"),  # a count's type
+        (
+            {"n_receivers": 5, "delays": (0.0, 0.25, 0.6)},
+            ValueError,
+            "delays: 3 values for n_receivers = 5",
+        ),
     ],
 )
-def test_n_receivers_is_validated(kwargs, message):
-    with pytest.raises(ValueError, match=message):
+def test_n_receivers_is_validated(kwargs, error, message):
+    with pytest.raises(error, match=message):
         PlacementParams(**kwargs)
 
 

@@ -59,17 +59,17 @@ def test_default_layout_of_n_receivers():
 
 
 @pytest.mark.parametrize(
-    "fields, match",
+    "fields, error, match",
     [
-        ({"n_receivers": 2}, "n_receivers"),
-        ({"n_receivers": 3.0}, "n_receivers"),
-        ({"n_receivers": 4, "receiver_azimuths": (0.0, 1.0, 2.0)}, "receiver_azimuths"),
-        ({"n_receivers": 5, "scan_offsets": (0.0, 0.25, 0.5)}, "scan_offsets"),
-        ({"receiver_azimuths": (0.0, 1.0, 2.0, 1.0)}, "share a place"),
+        ({"n_receivers": 2}, ValueError, "n_receivers"),
+        ({"n_receivers": 3.0}, TypeError, "n_receivers: must be an integer"),  # a count's type
+        ({"n_receivers": 4, "receiver_azimuths": (0.0, 1.0, 2.0)}, ValueError, "receiver_azimuths"),
+        ({"n_receivers": 5, "scan_offsets": (0.0, 0.25, 0.5)}, ValueError, "scan_offsets"),
+        ({"receiver_azimuths": (0.0, 1.0, 2.0, 1.0)}, ValueError, "share a place"),
     ],
 )
-def test_bad_sizes_name_the_field(fields, match):
-    with pytest.raises(ValueError, match=match):
+def test_bad_sizes_name_the_field(fields, error, match):
+    with pytest.raises(error, match=match):
         ScanningParams(**fields)
 
 
