@@ -3,11 +3,17 @@
 The core steps one scenario (batch of one) with a joint action ``(1, n_agents, *action)``; the
 shell splits observations by agent, hands every agent the one team reward, and ends all agents
 together (the scenarios are cooperative: receivers or platforms serving one tracker).
+
+``step`` takes a dict ``{agent: action}`` with an action for every live agent and no other key
+(PettingZoo's convention; there is no default action); each action passes the Gymnasium door's
+own check (:func:`~sensorgym.envs.shells.contract.check_action`), so a wrong shape, a NaN or an
+inf gets the same one-line ``ValueError``, prefixed with the agent's name.
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Mapping
 from types import ModuleType
 from typing import Any, ClassVar
 
@@ -91,14 +97,39 @@ class CoreParallelEnv(ParallelEnv):
         self._steps = 0
         return self._observations(), self._infos()
 
-    def step(self, actions: dict[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+    def step(self, actions: Mapping[str, Any]) -> tuple[dict, dict, dict, dict, dict]:
+        """Step every live agent together under ``actions``, a dict ``{agent: action}``.
+
+        Every live agent (:attr:`agents`) must act and no other key may appear: a missing or an
+        unknown agent raises ``ValueError`` naming it and the live agents; anything but a
+        mapping raises ``TypeError``. Each action is checked as the Gymnasium door checks its
+        action (:func:`~sensorgym.envs.shells.contract.check_action`: shape, NaN, inf), the
+        ``ValueError`` prefixed with the agent (``"actions['receiver_0']: action: …"``);
+        values outside the Box are clipped by the core. Stepping before :meth:`reset` or
+        after the episode ended raises ``RuntimeError``.
+        """
         if self._state is None or not self.agents:
             raise RuntimeError("step: call reset() first (the episode is over)")
-        missing = set(self.agents) - set(actions)
-        if missing:
-            raise ValueError(f"actions: no action for {sorted(missing)}")
+        if not isinstance(actions, Mapping):
+            raise TypeError(
+                f"actions: expected a dict {{agent: action}} for the agents {self.agents}, "
+                f"got {type(actions).__name__}"
+            )
+        live = set(self.agents)
+        missing = [agent for agent in self.agents if agent not in actions]
+        unknown = [key for key in actions if key not in live]
+        if missing or unknown:
+            problems = [f"no action for {missing}"] if missing else []
+            problems += [f"unknown agents {unknown}"] if unknown else []
+            raise ValueError(f"actions: {'; '.join(problems)} (live agents: {self.agents})")
         shape = self._action_space.shape
-        joint = np.stack([check_action(actions[agent], shape) for agent in self.possible_agents])
+        rows = []
+        for agent in self.possible_agents:  # every agent is live: all end together
+            try:
+                rows.append(check_action(actions[agent], shape))
+            except ValueError as exc:
+                raise ValueError(f"actions[{agent!r}]: {exc}") from None
+        joint = np.stack(rows)
         self._state, reward, terminated = self.core.step(self._state, joint[None], self._rng)
         self._steps += 1
         ended, timed_out = bool(terminated[0]), self._steps >= self.max_episode_steps

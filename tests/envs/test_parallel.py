@@ -1,4 +1,5 @@
-"""PettingZoo envs: API and seed tests, and equality with the single-agent envs on one core."""
+"""PettingZoo envs: API and seed tests, equality with the single-agent envs on one core, and
+one clear line for every bad joint action (issue 35)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,15 @@ import numpy as np
 import pytest
 from pettingzoo.test import parallel_api_test, parallel_seed_test
 
-import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.envs import bearings_maneuver, stereo_placement, stereo_pointing
+from sensorgym.envs import (
+    ENV_IDS,
+    PARALLEL_ENVS,
+    bearings_maneuver,
+    stereo_placement,
+    stereo_pointing,
+)
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM, ManeuverParams
+from sensorgym.envs.shells.contract import check_action
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
@@ -113,3 +120,81 @@ def test_bad_joint_actions_are_refused():
         env.step({"platform_0": np.zeros(2), "platform_1": np.array([np.nan, 0.0])})
     with pytest.raises(ValueError, match="max_episode_steps"):
         bearings_maneuver.parallel_env(max_episode_steps=0)
+
+
+# --- issue 35 item 5: bad joint actions get one clear line at every env's PettingZoo door -------
+
+
+def _live(env_id: str):
+    env = PARALLEL_ENVS[env_id]()
+    env.reset(seed=0)
+    return env, {agent: env.action_space(agent).sample() for agent in env.agents}
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("actions", [None, [], (0.0, 0.0), np.zeros(3), "receiver_0"])
+def test_a_joint_action_that_is_no_dict_is_refused(env_id, actions):
+    env, _ = _live(env_id)
+    if isinstance(actions, list):  # a list of per-agent actions, in agent order
+        actions = [env.action_space(agent).sample() for agent in env.agents]
+    with pytest.raises(TypeError) as caught:
+        env.step(actions)
+    message = str(caught.value)
+    assert "\n" not in message and "dict {agent: action}" in message, message
+    assert str(env.agents) in message, message
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_an_unknown_agent_is_named_with_the_live_agents(env_id):
+    env, actions = _live(env_id)
+    with pytest.raises(ValueError) as caught:
+        env.step({**actions, "intruder_7": actions[env.agents[0]]})
+    message = str(caught.value)
+    assert "unknown agents ['intruder_7']" in message and str(env.agents) in message, message
+    # a typo: the real agent is missing and the key unknown, both named in one line
+    first = env.agents[0]
+    typo = {(k + "x" if k == first else k): a for k, a in actions.items()}
+    with pytest.raises(ValueError) as caught:
+        env.step(typo)
+    message = str(caught.value)
+    assert (
+        f"no action for [{first!r}]" in message and f"unknown agents [{first + 'x'!r}]" in message
+    )
+    assert "\n" not in message
+    env.step(actions)  # nothing was stepped by the refused calls: the env still works
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_live_agent_must_act(env_id):
+    env, actions = _live(env_id)
+    missing = env.agents[-1]
+    del actions[missing]
+    with pytest.raises(ValueError, match=rf"^actions: no action for \[{missing!r}\] \(live agents"):
+        env.step(actions)
+    with pytest.raises(ValueError, match="no action for"):
+        env.step({})
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_a_bad_agent_action_gets_the_gymnasium_doors_error(env_id):
+    """Wrong shape, NaN, inf, text: the PettingZoo door runs the Gymnasium door's own check,
+    the same message prefixed with the agent."""
+    env, actions = _live(env_id)
+    agent = env.agents[-1]
+    shape = env.action_space(agent).shape
+    for bad in (np.zeros(shape[0] + 1), np.full(shape, np.nan), np.full(shape, np.inf), "left"):
+        with pytest.raises(ValueError) as want:
+            check_action(bad, shape)
+        with pytest.raises(ValueError) as caught:
+            env.step({**actions, agent: bad})
+        assert str(caught.value) == f"actions[{agent!r}]: {want.value}"
+    # the NaN message is the very one gym.make's env gives for its joint action
+    single = gym.make(env_id)
+    single.reset(seed=0)
+    with pytest.raises(ValueError) as gym_door:
+        single.step(np.full(single.action_space.shape, np.nan))
+    with pytest.raises(ValueError) as caught:
+        env.step({**actions, agent: np.full(shape, np.nan)})
+    assert str(caught.value).endswith(str(gym_door.value))
+    obs, *_ = env.step(actions)
+    assert set(obs) == set(env.possible_agents)
