@@ -23,6 +23,10 @@ from sensorgym.envs import (
     ScanningParams,
 )
 from sensorgym.envs.worlds.platform import PlatformWorldParams
+from sensorgym.trackers.angles.baselines import LineFitPredictor
+from sensorgym.trackers.angles.prediction import ABCPredictor
+from sensorgym.trackers.stereo.algorithmic_detection import AlgorithmicParams
+from sensorgym.trackers.stereo.period_tracking import AlternativeParams, ProposedParams
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
@@ -186,3 +190,33 @@ def test_the_message_keeps_its_style():
         ScanningParams(raster_lines=0)
     with pytest.raises(TypeError, match=r"^sector_width: must be a pair of real numbers"):
         ScanningParams(sector_width=(0.1, True))
+
+
+#: the trackers' params with integer fields (counts, windows, beams), checked like the envs'
+TRACKER_PARAMS = (
+    AlternativeParams,
+    ProposedParams,
+    AlgorithmicParams,
+    ABCPredictor,
+    LineFitPredictor,
+)
+
+
+@pytest.mark.parametrize(
+    "params_type, field",
+    [
+        (p, f.name)
+        for p in TRACKER_PARAMS
+        for f in dataclasses.fields(p)
+        if int in _kinds(typing.get_type_hints(p)[f.name])
+    ],
+)
+def test_tracker_params_refuse_a_bool_for_an_integer_field(params_type, field):
+    for bad in (True, np.bool_(True), 2.0):
+        _refused_naming(field, lambda bad=bad: params_type(**{field: bad}))
+
+
+def test_every_tracker_params_has_an_integer_field():
+    for p in TRACKER_PARAMS:
+        hints = typing.get_type_hints(p)
+        assert any(int in _kinds(hints[f.name]) for f in dataclasses.fields(p)), p

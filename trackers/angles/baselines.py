@@ -29,7 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.angles.prediction import measurement_arrays, push_window
 from sensorgym.trackers.geometry import unit_from_zup_angles, wrap_angle, zup_angles_from_unit
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 
@@ -72,6 +72,7 @@ class LineFitPredictor:
     """N: the window holds the last N + 1 samples (≥ 2)."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         if self.window < 2:
             raise ValueError(f"window: N must be ≥ 2, got {self.window}")
 

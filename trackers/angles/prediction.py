@@ -60,7 +60,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.geometry import unit_from_zup_angles, wrap_angle, zup_angles_from_unit
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -180,6 +180,7 @@ class ABCPredictor:
     """Smooth δ_Z with the same filter (theory §13.17; not stated by the paper)."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         if self.window < 2 or self.window % 2:
             raise ValueError(f"window: N must be an even integer ≥ 2, got {self.window}")
         if not self.memory >= 1.0:

@@ -54,7 +54,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.stereo import association as assoc
 from sensorgym.trackers.stereo.conjugation import solve_pair
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -93,6 +93,7 @@ class AlgorithmicParams:
     """Index added per missed period if given, else :attr:`alpha`."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         if not (self.sigma_e > 0 and self.sigma_position > 0 and self.period > 0):
             raise ValueError("sigma_e, sigma_position and period must be positive")
         if not (self.max_speed >= 0 and self.max_delay >= 0 and self.gate > 0):

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.stereo import association as assoc
 from sensorgym.trackers.stereo.conjugation import solve_pair, solve_proposed
-from sensorgym.trackers.validation import finite_array
+from sensorgym.trackers.validation import check_fields, finite_array
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -61,6 +61,7 @@ class AlternativeParams:
     """δ in m if given, else :attr:`delta`."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         if not (self.position_sigma > 0.0 and self.max_speed >= 0.0 and self.max_delay >= 0.0):
             raise ValueError("position_sigma > 0, max_speed >= 0, max_delay >= 0 required")
         if not 0.0 < self.gate_probability < 1.0:
@@ -112,6 +113,7 @@ class ProposedParams:
     """δ in m if given, else :attr:`delta`."""
 
     def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
         if not (self.position_sigma > 0.0 and self.velocity_sigma >= 0.0 and self.period > 0.0):
             raise ValueError("position_sigma > 0, velocity_sigma >= 0, period > 0 required")
         if not 0.0 < self.gate_probability < 1.0:
