@@ -28,6 +28,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+from sensorgym.cli import args as types
 from sensorgym.cli.console import make_console, print_written
 from sensorgym.cli.params import add_param_argument, params_from
 
@@ -42,6 +43,9 @@ UNSAFE_PICKLE_HELP = (
 #: the held-out evaluation seed (never a training scenario seed)
 DEFAULT_SEED = 10_000
 
+#: scenarios stepped at once unless ``--n-envs`` says (fewer when ``--episodes`` is smaller)
+DEFAULT_N_ENVS = 16
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
@@ -50,10 +54,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="env id; repeatable (default: every registered sensorgym/ env)",
     )
-    parser.add_argument("--episodes", type=int, default=64, help="episodes per policy")
-    parser.add_argument("--n-envs", type=int, default=16, help="scenarios stepped at once")
     parser.add_argument(
-        "--seed", type=int, default=DEFAULT_SEED, help=f"default {DEFAULT_SEED} (held out)"
+        "--episodes", type=types.positive_int, default=64, help="episodes per policy"
+    )
+    parser.add_argument(
+        "--n-envs",
+        type=types.positive_int,
+        default=None,
+        help=f"scenarios stepped at once (default {DEFAULT_N_ENVS}, at most --episodes)",
+    )
+    parser.add_argument(
+        "--seed", type=types.seed, default=DEFAULT_SEED, help=f"default {DEFAULT_SEED} (held out)"
     )
     parser.add_argument(
         "--model",
@@ -73,12 +84,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from sensorgym.train.benchmark import paired_to_best_rule, registered_envs
-    from sensorgym.train.models import RunFolderError, check_run_folder
     from sensorgym.train.score_chart import plot_scores
 
-    if args.n_envs < 1 or args.episodes < args.n_envs:
+    if args.n_envs is None:  # the default batch, never more scenarios than episodes
+        args.n_envs = min(DEFAULT_N_ENVS, args.episodes)
+    elif args.episodes < args.n_envs:
         raise SystemExit(
-            "--episodes must be >= --n-envs >= 1 (every scenario slot ends an episode)"
+            f"--episodes ({args.episodes}) must be >= --n-envs ({args.n_envs}): every "
+            "scenario slot ends an episode"
         )
     known = registered_envs()
     env_ids = args.env or known
@@ -87,14 +100,12 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--env: not a registered env: {unknown}; known: {known}")
     if args.param and not args.env:
         raise SystemExit("--param: name the env(s) it sets with --env")
-    args.params = {env_id: params_from(env_id, args.param) for env_id in env_ids}
+    args.params = {
+        env_id: params_from(env_id, args.param, scenarios=args.n_envs) for env_id in env_ids
+    }
     for path in args.model:
-        try:
-            trained_on = check_run_folder(path, args.unsafe_pickle)["env"]
-        except RunFolderError as exc:
-            raise SystemExit(f"--model: {exc}") from None
-        if trained_on not in env_ids:
-            raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
+        _check_model(path, env_ids, args)
+    types.output_dir(args.out)  # before any scoring: a bad --out fails now, not in minutes
     console = make_console()
     settings: dict[str, Any] = {"episodes": args.episodes, "n_envs": args.n_envs, "seed": args.seed}
     scores: dict[str, dict[str, dict[str, float]]] = {}
@@ -124,6 +135,31 @@ def run(args: argparse.Namespace) -> int:
             written.append(plot_scores(scores, args.out / "benchmark.png"))
     print_written(console, written)
     return 0
+
+
+def _check_model(path: Path, env_ids: list[str], args: argparse.Namespace) -> None:
+    """``SystemExit`` with one line unless the run folder ``path`` loads for one of
+    ``env_ids`` at the ``--param`` settings: its config, its weights and the model they build
+    (:func:`~sensorgym.train.models.load_model`) are checked before any scoring."""
+    from sensorgym.train.models import (
+        RunFolderError,
+        check_model_params,
+        check_run_folder,
+        load_model,
+    )
+
+    try:
+        config = check_run_folder(path, args.unsafe_pickle)
+    except RunFolderError as exc:
+        raise SystemExit(f"--model: {exc}") from None
+    trained_on = config["env"]
+    if trained_on not in env_ids:
+        raise SystemExit(f"--model {path}: trained on {trained_on}, not on {env_ids}")
+    try:
+        check_model_params(config, args.params[trained_on])
+        load_model(path, unsafe_pickle=args.unsafe_pickle)
+    except RunFolderError as exc:
+        raise SystemExit(f"--model {path}: {exc}") from None
 
 
 def _benchmark(

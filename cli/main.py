@@ -9,8 +9,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from importlib.metadata import version
+
+from sensorgym.cli.args import OneLineParser
 
 #: subcommand name -> module implementing it
 COMMANDS: dict[str, str] = {
@@ -28,7 +31,7 @@ DEFAULT_JOB: list[str] = ["benchmark"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="sensorgym",
         description="Sensor-management environments and passive-location trackers.",
     )
@@ -43,11 +46,38 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``sensorgym ARGS``; with no arguments at all, the main job :data:`DEFAULT_JOB`."""
+    """Run ``sensorgym ARGS``; with no arguments at all, the main job :data:`DEFAULT_JOB`.
+
+    A mistake in the arguments, the environment or a model folder ends in one line and a
+    non-zero exit, never a traceback: the parser's errors (status 2), ``SENSORGYM_THREADS``
+    checked before the command runs, and a run folder refused anywhere in a command
+    (:class:`~sensorgym.train.models.RunFolderError`, status 1).
+    """
     if argv is None:
         argv = sys.argv[1:]
     args = build_parser().parse_args(argv or DEFAULT_JOB)
-    return int(args._run(args) or 0)
+    _check_environment()
+    try:
+        return int(args._run(args) or 0)
+    except Exception as exc:
+        # a RunFolderError exists only once its (heavy) module is loaded: never import it here
+        models = sys.modules.get("sensorgym.train.models")
+        if models is None or not isinstance(exc, models.RunFolderError):
+            raise
+        raise SystemExit(f"sensorgym {args.command}: {models.one_line(exc)}") from None
+
+
+def _check_environment() -> None:
+    """``SystemExit`` with one line when ``SENSORGYM_THREADS`` is set to something other than
+    a thread count (empty counts as unset, :func:`sensorgym.envs.shells.rows.threads`)."""
+    if not os.environ.get("SENSORGYM_THREADS", "").strip():
+        return  # unset: nothing to import
+    from sensorgym.envs.shells.rows import threads
+
+    try:
+        threads()
+    except ValueError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 if __name__ == "__main__":

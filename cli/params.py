@@ -19,12 +19,14 @@ def add_param_argument(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def params_from(env_id: str, pairs: list[str]) -> dict[str, Any]:
-    """The checked fields of ``--param`` for ``env_id``; a clear ``SystemExit`` otherwise."""
+def params_from(env_id: str, pairs: list[str], scenarios: int = 1) -> dict[str, Any]:
+    """The checked fields of ``--param`` for ``env_id``, ``scenarios`` of which must fit in
+    this machine's memory (:func:`~sensorgym.train.env_params.parse_params`); a clear
+    ``SystemExit`` otherwise."""
     from sensorgym.train.env_params import parse_params
 
     try:
-        return parse_params(env_id, pairs)
+        return parse_params(env_id, pairs, scenarios)
     except (KeyError, ValueError) as exc:
         raise SystemExit(str(exc.args[0]) if exc.args else str(exc)) from None
 

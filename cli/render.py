@@ -16,6 +16,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from sensorgym.cli import args as types
 from sensorgym.cli.benchmark import UNSAFE_PICKLE_HELP
 from sensorgym.cli.params import add_param_argument, params_from
 
@@ -33,9 +34,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "of a policy shipped for --env (e.g. ppo_seed0 or shipped:ppo_seed0)",
     )
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--every", type=int, default=1, help="keep every N-th frame in the GIF")
-    parser.add_argument("--fps", type=float, default=5.0)
+    parser.add_argument("--seed", type=types.seed, default=0)
+    parser.add_argument(
+        "--every", type=types.positive_int, default=1, help="keep every N-th frame in the GIF"
+    )
+    lo, hi = types.FPS_RANGE
+    parser.add_argument(
+        "--fps", type=types.fps, default=5.0, help=f"GIF frames per second ({lo:g} to {hi:g})"
+    )
     parser.add_argument("--out", type=Path, default=Path("results/render/episode.gif"))
     add_param_argument(parser)
 
@@ -58,8 +64,6 @@ def run(args: argparse.Namespace) -> int:
 
     if args.out.suffix.lower() not in (".gif", ".png"):
         raise SystemExit("--out must end in .gif or .png")
-    if args.every < 1 or args.fps <= 0:
-        raise SystemExit("--every must be >= 1 and --fps > 0")
     if args.env not in gym.registry:
         raise SystemExit(f"--env: {args.env!r} is not a registered id")
     params = params_from(args.env, args.param)
@@ -78,6 +82,7 @@ def run(args: argparse.Namespace) -> int:
             check_model_params(config, params)
         except RunFolderError as exc:
             raise SystemExit(f"--model {args.model}: {exc}") from None
+    types.output_file(args.out)  # before the episode: a bad --out fails now
     env = _Frames(gym.make(args.env, render_mode="rgb_array", **params), args.every)
     core_env = env.unwrapped
     if args.model is not None:
@@ -95,7 +100,10 @@ def run(args: argparse.Namespace) -> int:
             raise SystemExit(f"--rule: one of {sorted(rules)}, got {name!r}")
         policy = rules[name]
     # one slot of SB3's VecEnv API, so a model meets the wrappers it was trained through
-    venv = apply_wrappers(VecMonitor(DummyVecEnv([lambda: env])), wrappers)
+    try:
+        venv = apply_wrappers(VecMonitor(DummyVecEnv([lambda: env])), wrappers)
+    except ValueError as exc:  # a wrapper's values in the run's config.yaml
+        raise SystemExit(f"--model {args.model}: {exc}") from None
     venv.seed(args.seed)
     obs = venv.reset()
     total, steps, state, start = 0.0, 0, None, np.array([True])

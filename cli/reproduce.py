@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import pkgutil
+from pathlib import Path
 
 import sensorgym.reproduce
 
@@ -35,4 +36,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """Run the reproduction; its ``--out`` folder is created (and checked) first, so that a
+    bad one fails before the Monte Carlo runs, not after."""
+    from sensorgym.cli.args import output_dir
+
+    if isinstance(getattr(args, "out", None), Path):
+        output_dir(args.out)
     return int(args._reproduce(args) or 0)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sensorgym.cli import args as types
 from sensorgym.cli.console import make_console, print_written
 from sensorgym.cli.params import add_hyperparam_argument, hyperparams_from
 
@@ -26,10 +27,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
     parser.add_argument(
-        "--seeds", type=int, nargs="+", default=[0, 1, 2], help="training seeds (default 0 1 2)"
+        "--seeds",
+        type=types.seed,
+        nargs="+",
+        default=[0, 1, 2],
+        help="training seeds (default 0 1 2)",
     )
-    parser.add_argument("--timesteps", type=int, default=None, help="override the YAML's")
-    parser.add_argument("--n-envs", type=int, default=None, help="override the YAML's")
+    parser.add_argument(
+        "--timesteps", type=types.positive_int, default=None, help="override the YAML's"
+    )
+    parser.add_argument(
+        "--n-envs", type=types.positive_int, default=None, help="override the YAML's"
+    )
     parser.add_argument(
         "--space",
         action="append",
@@ -41,34 +50,44 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--samples",
-        type=int,
+        type=types.positive_int,
         default=1,
         help="configurations drawn at random from --space (each trained with every seed)",
     )
-    parser.add_argument("--search-seed", type=int, default=0, help="seed of the random search")
+    parser.add_argument(
+        "--search-seed", type=types.seed, default=0, help="seed of the random search"
+    )
     parser.add_argument(
         "--asha", action="store_true", help="stop lagging trials early (ASHA scheduler)"
     )
     add_hyperparam_argument(parser)
-    parser.add_argument("--eval-episodes", type=int, default=64, help="per trial")
+    parser.add_argument("--eval-episodes", type=types.positive_int, default=64, help="per trial")
     parser.add_argument(
         "--benchmark-episodes",
-        type=int,
+        type=types.non_negative_int,
         default=0,
         help="afterwards score the best configuration's runs beside the rules on N episodes "
         "each, as Ray tasks (default 0: no benchmark)",
     )
-    parser.add_argument("--benchmark-chunk", type=int, default=64, help="episodes per task")
+    parser.add_argument(
+        "--benchmark-chunk", type=types.positive_int, default=64, help="episodes per task"
+    )
     parser.add_argument(
         "--address",
         default=None,
         help="an existing Ray cluster ('auto' or HOST:PORT; default: start a local instance)",
     )
     parser.add_argument(
-        "--num-cpus", type=int, default=None, help="CPUs of the local instance (default: all)"
+        "--num-cpus",
+        type=types.positive_int,
+        default=None,
+        help="CPUs of the local instance (default: all)",
     )
     parser.add_argument(
-        "--cpus-per-trial", type=float, default=1.0, help="Ray CPUs per trial and task"
+        "--cpus-per-trial",
+        type=types.positive_float,
+        default=1.0,
+        help="Ray CPUs per trial and task",
     )
     parser.add_argument("--verbose", type=int, default=0, choices=[0, 1, 2], help="Ray's output")
     parser.add_argument("--out", type=Path, default=Path("results/sweep"))
@@ -100,11 +119,12 @@ def run(args: argparse.Namespace) -> int:
         space[name] = spec.partition("=")[2]
     fixed = hyperparams_from(args.algo, args.env, args.hyperparam)
     try:  # a searched name must be an entry the recipe can take, like a fixed one
-        check_overrides(args.algo, args.env, {**fixed, **dict.fromkeys(space, 0)})
+        check_overrides(
+            args.algo, args.env, {**fixed, **dict.fromkeys(space, 0)}, check_values=False
+        )
     except KeyError as exc:
         raise SystemExit(f"--space: {exc.args[0]}") from None
-    if args.samples < 1 or args.eval_episodes < 1 or args.benchmark_episodes < 0:
-        raise SystemExit("--samples and --eval-episodes must be >= 1, --benchmark-episodes >= 0")
+    types.output_dir(args.out)  # before Ray starts: a bad --out fails now
     settings = SweepSettings(
         env_id=args.env,
         algo=args.algo,

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from sensorgym.cli import args as types
 from sensorgym.cli.console import make_console, print_path
 from sensorgym.cli.params import (
     add_hyperparam_argument,
@@ -33,8 +34,12 @@ DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
     parser.add_argument("--algo", default="ppo", choices=["ppo", "sac", "ars"])
-    parser.add_argument("--timesteps", type=int, default=None, help="override the YAML's")
-    parser.add_argument("--n-envs", type=int, default=None, help="override the YAML's")
+    parser.add_argument(
+        "--timesteps", type=types.positive_int, default=None, help="override the YAML's"
+    )
+    parser.add_argument(
+        "--n-envs", type=types.positive_int, default=None, help="override the YAML's"
+    )
     parser.add_argument(
         "--agents",
         action="store_true",
@@ -42,12 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--torch-threads",
-        type=int,
+        type=types.positive_int,
         default=1,
         help="torch intra-op threads (default 1: never slower for these small policies)",
     )
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--eval-episodes", type=int, default=64)
+    parser.add_argument("--seed", type=types.seed, default=0)
+    parser.add_argument("--eval-episodes", type=types.positive_int, default=64)
     parser.add_argument("--out", type=Path, default=Path("results/train"))
     parser.add_argument(
         "--tensorboard",
@@ -60,7 +65,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--curve-points",
-        type=int,
+        type=types.non_negative_int,
         default=10,
         help="evaluations during learning for curve.json/curve.png (default 10; 0: none)",
     )
@@ -78,11 +83,16 @@ def run(args: argparse.Namespace) -> int:
     from sensorgym.train.trainer import VALIDATION_SEED, train
 
     try:
-        load_hyperparams(args.algo, args.env)
+        recipe = load_hyperparams(args.algo, args.env)
     except KeyError as exc:
         raise SystemExit(f"--env/--algo: {exc.args[0]}") from None
-    params = params_from(args.env, args.param)
     overrides = hyperparams_from(args.algo, args.env, args.hyperparam)
+    n_envs = args.n_envs or overrides.get("n_envs") or recipe["n_envs"]
+    params = params_from(args.env, args.param, scenarios=n_envs)
+    # before any training: a bad --out or --tensorboard fails now, not when the run is saved
+    types.output_dir(args.out)
+    if args.tensorboard is not None:
+        types.output_dir(args.tensorboard, "--tensorboard")
     result = train(
         args.env,
         args.algo,

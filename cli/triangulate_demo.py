@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sensorgym.cli import args as types
 from sensorgym.cli.console import make_console, print_path
 from sensorgym.envs.worlds.stereo_scene import pair_scene, perturb_directions
 from sensorgym.trackers.stereo.accuracy import (
@@ -74,8 +75,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--gammas", type=float, nargs="+", default=[30, 60, 90, 120, 150], help="angles γ, degrees"
     )
-    parser.add_argument("--runs", type=int, default=20_000, help="Monte Carlo draws per angle")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument(
+        "--runs", type=types.positive_int, default=20_000, help="Monte Carlo draws per angle"
+    )
+    parser.add_argument("--seed", type=types.seed, default=0)
     parser.add_argument(
         "--sigma-e", type=float, default=0.5, help="papers' conjugation error σ_e, m"
     )

@@ -12,6 +12,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from sensorgym.cli import args as types
+
 
 def add_common_arguments(
     parser: argparse.ArgumentParser,
@@ -22,10 +24,13 @@ def add_common_arguments(
     plots: bool = False,
     seed: int = 0,
 ) -> None:
-    """``--runs``, ``--seed`` (default ``seed``), ``--out`` (default ``results/NAME``) and, with
-    plots, ``--no-plots``."""
-    parser.add_argument("--runs", type=int, default=runs, help=f"{runs_help} (default {runs})")
-    parser.add_argument("--seed", type=int, default=seed, help=f"root seed (default {seed})")
+    """``--runs`` (an integer >= 1), ``--seed`` (default ``seed``; :func:`sensorgym.cli.args.seed`),
+    ``--out`` (default ``results/NAME``; ``sensorgym reproduce`` creates it before the run) and,
+    with plots, ``--no-plots``."""
+    parser.add_argument(
+        "--runs", type=types.positive_int, default=runs, help=f"{runs_help} (default {runs})"
+    )
+    parser.add_argument("--seed", type=types.seed, default=seed, help=f"root seed (default {seed})")
     parser.add_argument(
         "--out",
         type=Path,

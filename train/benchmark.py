@@ -82,6 +82,8 @@ def score(
     from sensorgym.agents.registry import RULES
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
     from sensorgym.train.models import (
+        CONFIG_FILE,
+        RunFolderError,
         check_model_params,
         load_model,
         read_config,
@@ -102,8 +104,15 @@ def score(
         check_model_params(config, params)
         agents = bool(config.get("agents", False))
         wrappers = wrappers_of(config)
-        env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers, **params)
-        policy = load_model(Path(spec.name), env, unsafe_pickle=unsafe_pickle)
+        try:
+            env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers, **params)
+        except ValueError as exc:  # a wrapper's values in the run's config.yaml
+            raise RunFolderError(f"{spec.name}: {CONFIG_FILE}, hyperparams: {exc}") from None
+        try:
+            policy = load_model(Path(spec.name), env, unsafe_pickle=unsafe_pickle)
+        except BaseException:
+            env.close()
+            raise
     else:
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
     try:

@@ -21,6 +21,8 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecFrameStack
 
+from sensorgym.train.messages import brief, one_line
+
 #: wrapper name → ``"sensorgym.<module>:<factory>"``, factory ``(venv: VecEnv, **kwargs) -> VecEnv``
 WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
@@ -90,11 +92,17 @@ class ObservedActionWrapper(VecEnvWrapper):
         return obs, rewards, dones, infos
 
 
+#: the most observations ``frame-stack`` may stack
+MAX_STACK = 1024
+
+
 def frame_stack(venv: VecEnv, n_stack: int = 4) -> VecEnv:
     """The last ``n_stack`` observations side by side (SB3's ``VecFrameStack``); the oldest
-    frames of a new episode are zeros."""
-    if not isinstance(n_stack, int) or n_stack < 1:
-        raise ValueError(f"frame-stack: n_stack must be an integer >= 1, got {n_stack!r}")
+    frames of a new episode are zeros. ``n_stack``: an integer in ``[1, MAX_STACK]``."""
+    if isinstance(n_stack, bool) or not isinstance(n_stack, int) or not 1 <= n_stack <= MAX_STACK:
+        raise ValueError(
+            f"frame-stack: n_stack must be an integer in [1, {MAX_STACK}], got {brief(n_stack)}"
+        )
     return VecFrameStack(venv, n_stack)
 
 
@@ -180,6 +188,35 @@ def base_env(env: VecEnv) -> VecEnv:
     return env
 
 
+#: the class whose keywords a factory that takes ``**kwargs`` passes them on to
+KEYWORDS_OF: dict[str, str] = {
+    "plan-features": "sensorgym.envs.stereo_pointing.wrappers:PlanFeatures",
+    "placement-target": "sensorgym.envs.stereo_placement.wrappers:PlanTargetAction",
+}
+
+
+def wrapper_keywords(name: str) -> list[str] | None:
+    """The keywords the wrapper registered as ``name`` takes (its factory's parameters after
+    the env, or those of the class :data:`KEYWORDS_OF` names), none starting with ``_``;
+    ``None`` when they cannot be told (a factory taking ``**kwargs`` with no class named)."""
+    import inspect
+
+    target: Any = wrapper_factory(name)
+    if name in KEYWORDS_OF:
+        module, _, attr = KEYWORDS_OF[name].partition(":")
+        target = getattr(import_module(module), attr)
+    parameters = list(inspect.signature(target).parameters.values())
+    if parameters and parameters[0].name == "self":
+        parameters = parameters[1:]
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in parameters):
+        return None
+    return [
+        p.name
+        for p in parameters[1:]  # the first is the env wrapped
+        if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and not p.name.startswith("_")
+    ]
+
+
 def wrapper_factory(name: str) -> Callable[..., VecEnv]:
     """The factory registered as ``name`` in :data:`WRAPPERS`; ``KeyError`` lists the names."""
     if name not in WRAPPERS:
@@ -189,18 +226,27 @@ def wrapper_factory(name: str) -> Callable[..., VecEnv]:
 
 
 def check_wrappers(specs: Any) -> list[dict[str, Any]]:
-    """``specs`` as a list of ``{name, ...kwargs}`` mappings with registered names, or
-    ``ValueError`` saying what is wrong (a config's ``wrappers`` entry is data from a file)."""
+    """``specs`` as a list of ``{name, ...kwargs}`` mappings with registered names and only
+    keywords their wrapper takes (:func:`wrapper_keywords`), or ``ValueError`` saying what is
+    wrong (a config's ``wrappers`` entry is data from a file; no value is echoed whole)."""
     if specs is None:
         return []
     if not isinstance(specs, Sequence) or isinstance(specs, str):
-        raise ValueError(f"wrappers: expected a list of {{name: ...}} mappings, got {specs!r}")
+        raise ValueError(f"wrappers: expected a list of {{name: ...}} mappings, got {brief(specs)}")
     checked = []
     for spec in specs:
         if not isinstance(spec, Mapping) or not isinstance(spec.get("name"), str):
-            raise ValueError(f"wrappers: every entry needs a 'name', got {spec!r}")
-        if spec["name"] not in WRAPPERS:
-            raise ValueError(f"wrappers: {spec['name']!r} is not one of {sorted(WRAPPERS)}")
+            raise ValueError(f"wrappers: every entry needs a 'name', got {brief(spec)}")
+        name = spec["name"]
+        if name not in WRAPPERS:
+            raise ValueError(f"wrappers: {brief(name)} is not one of {sorted(WRAPPERS)}")
+        accepted = wrapper_keywords(name)
+        unknown = [k for k in spec if k != "name" and (accepted is None or k not in accepted)]
+        if accepted is not None and unknown:
+            raise ValueError(
+                f"wrappers: {name!r} does not take {brief(unknown)} (its keywords: "
+                f"{', '.join(accepted) or 'none'})"
+            )
         checked.append(dict(spec))
     return checked
 
@@ -211,6 +257,9 @@ def apply_wrappers(venv: VecEnv, specs: Any) -> VecEnv:
         kwargs = {k: v for k, v in spec.items() if k != "name"}
         try:
             venv = wrapper_factory(spec["name"])(venv, **kwargs)
-        except TypeError as exc:
-            raise ValueError(f"wrappers: {spec['name']!r} does not take {kwargs}: {exc}") from None
+        except (TypeError, ValueError, KeyError, AttributeError) as exc:
+            # a value of the wrong kind: a wrapper's own checks or its first use of it
+            raise ValueError(
+                f"wrappers: {spec['name']!r} with {brief(kwargs)}: {one_line(exc)}"
+            ) from None
     return venv

@@ -42,13 +42,14 @@ _pool_pid: int | None = None
 
 def threads() -> int:
     """Threads a batch may be split over: ``SENSORGYM_THREADS``, else the CPUs this process
-    may run on (at most 8)."""
-    env = os.environ.get("SENSORGYM_THREADS")
-    if env is not None:
+    may run on (at most 8). An empty ``SENSORGYM_THREADS`` counts as unset; anything else but
+    an integer >= 1 raises ``ValueError`` naming the variable."""
+    env = os.environ.get("SENSORGYM_THREADS", "").strip()
+    if env:
         try:
             n = int(env)
         except ValueError:
-            raise ValueError(f"SENSORGYM_THREADS: expected an integer, got {env!r}") from None
+            raise ValueError(f"SENSORGYM_THREADS: expected an integer, got {env[:40]!r}") from None
         if n < 1:
             raise ValueError(f"SENSORGYM_THREADS: must be >= 1, got {n}")
         return n

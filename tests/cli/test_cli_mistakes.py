@@ -3,6 +3,9 @@ non-zero exit (issue 10, defect 6): never a traceback, never a silently dropped 
 
 from __future__ import annotations
 
+import contextlib
+import io
+
 import pytest
 import yaml
 
@@ -22,14 +25,22 @@ def _run_folder(tmp_path, config, model: bool = True):
     return run
 
 
-def _fails(argv: list[str], *words: str) -> None:
-    with pytest.raises(SystemExit) as exc:
+def _fails(argv: list[str], *words: str) -> str:
+    """The one line ``sensorgym ARGV`` fails with: its ``SystemExit`` message, or what the
+    argument parser printed (status 2); every one of ``words`` must be in it."""
+    stderr = io.StringIO()
+    with pytest.raises(SystemExit) as exc, contextlib.redirect_stderr(stderr):
         main(argv)
-    message = str(exc.value.code)
     assert exc.value.code not in (0, None)
-    assert "\n" not in message
+    if isinstance(exc.value.code, int):  # the parser's error, printed
+        assert exc.value.code == 2
+        message = stderr.getvalue().removesuffix("\n")
+    else:
+        message = str(exc.value.code)
+    assert message and "\n" not in message, message
     for word in words:
         assert word in message, message
+    return message
 
 
 def test_benchmark_refuses_a_model_of_another_env(tmp_path):

@@ -12,7 +12,10 @@ from __future__ import annotations
 import base64
 import json
 import os
+import time
 import zipfile
+from collections.abc import Callable
+from itertools import pairwise
 from pathlib import Path
 
 import numpy as np
@@ -204,7 +207,8 @@ def test_weights_that_do_not_fit_the_config_are_named(tmp_path):
     "hyperparams, words",
     [
         ({"policy": "os.system"}, ["policy 'os.system'"]),
-        ({"policy": "MlpPolicy", "no_such_argument": 1}, ["do not build a ppo model"]),
+        ({"policy": "MlpPolicy", "no_such_argument": 1}, ["no_such_argument", "keyword of ppo"]),
+        ({"policy": "MlpPolicy", "n_steps": "sixty"}, ["n_steps: expected int", "'sixty'"]),
         ("nonsense", ["expected a mapping"]),
     ],
 )
@@ -242,3 +246,165 @@ def test_an_older_run_folder_with_only_model_zip_loads_with_the_flag(tmp_path):
     )
     bench = ["--env", BEARINGS, "--episodes", "2", "--n-envs", "2", "--out", str(tmp_path / "b")]
     assert main(["benchmark", *bench, "--model", str(run), "--unsafe-pickle"]) == 0
+
+
+# --- hostile run folders cannot exhaust memory or end in a traceback (issue 35, item 3) ---
+
+SHIPPED = Path(__file__).parents[2] / "train" / "policies" / "sensorgym__BearingsManeuver-v0"
+
+
+def _shipped_copy(
+    tmp_path: Path,
+    hyperparams: dict | None = None,
+    tensors: Callable[[dict[str, torch.Tensor]], None] | None = None,
+) -> Path:
+    """A copy of a shipped run folder (valid weights) whose config has ``hyperparams`` set (a
+    ``None`` value removes the entry) and whose tensors ``tensors`` edits in place."""
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    source, run = SHIPPED / "ppo_seed0", tmp_path / "run"
+    run.mkdir()
+    config = yaml.safe_load((source / CONFIG_FILE).read_text())
+    for key, value in (hyperparams or {}).items():
+        if value is None:
+            config["hyperparams"].pop(key, None)
+        else:
+            config["hyperparams"][key] = value
+    (run / CONFIG_FILE).write_text(yaml.safe_dump(config))
+    state = load_file(source / WEIGHTS_FILE)
+    if tensors is not None:
+        tensors(state)
+    with safe_open(source / WEIGHTS_FILE, framework="pt") as f:
+        metadata = f.metadata()
+    save_file(state, run / WEIGHTS_FILE, metadata=metadata)
+    return run
+
+
+def _alias_bomb(levels: int) -> str:
+    """A config whose aliases nest ``levels`` deep, 9 to a level: 9**levels strings."""
+    names = "abcdefghij"
+    lines = [f"env: {BEARINGS}", "algo: ppo", "a: &a [x,x,x,x,x,x,x,x,x]"]
+    for prev, name in pairwise(names[:levels]):
+        lines.append(f"{name}: &{name} [{','.join(['*' + prev] * 9)}]")
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.parametrize("levels", [8, 9])
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_an_alias_bomb_is_refused_at_once_in_one_short_line(tmp_path, command, levels):
+    run = _shipped_copy(tmp_path)
+    text = _alias_bomb(levels)
+    assert len(text) < 450  # a few hundred bytes standing for up to 9**9 = 387,420,489 strings
+    (run / CONFIG_FILE).write_text(text)
+    start = time.perf_counter()
+    message = _exit_message(_commands(run, tmp_path)[command])
+    assert time.perf_counter() - start < 1.0
+    assert len(message) < 400, len(message)
+    assert str(run / CONFIG_FILE) in message and "aliases" in message
+
+
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        (f"env: {BEARINGS}\nalgo: ppo\nx: &a [1, *a]\n", ["recursive alias"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nx: {'[' * 3000}{']' * 3000}\n", ["nested too deeply"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nx: {'a' * 20_000}\n", ["longer than 10000"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nx: {'a' * 1_000_001}\n", ["larger than 1000000 bytes"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nseed: {'9' * 5000}\n", ["not valid YAML", "digits"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nseed: -1\n", ["seed -1"]),
+        (f"env: {BEARINGS}\nalgo: [ppo, {'x' * 500}]\n", ["algo ['ppo', 'xxx"]),
+        (f"env: {BEARINGS}\nalgo: ppo\nagents: maybe\n", ["agents 'maybe'"]),
+        (f"env: {'y' * 5000}\nalgo: ppo\n", ["env 'yyy", "is not a registered id"]),
+    ],
+)
+def test_configs_beyond_bounds_are_refused_in_one_short_line(tmp_path, text, words):
+    run = _shipped_copy(tmp_path)
+    (run / CONFIG_FILE).write_text(text)
+    message = _exit_message(_commands(run, tmp_path)["render"])
+    assert len(message) < 400, len(message)
+    for word in [str(run / CONFIG_FILE), *words]:
+        assert word in message, message
+
+
+def test_a_config_that_is_not_utf8_is_named(tmp_path):
+    run = _shipped_copy(tmp_path)
+    (run / CONFIG_FILE).write_bytes(f"env: {BEARINGS}\nalgo: ppo\nname: ".encode() + b"\xff\xfe\n")
+    for command in ("benchmark", "render"):
+        message = _exit_message(_commands(run, tmp_path)[command])
+        assert str(run / CONFIG_FILE) in message and "not UTF-8 text (byte 0xff" in message
+
+
+def _first_weight(state: dict[str, torch.Tensor]) -> str:
+    return next(k for k in state if k.endswith("weight"))
+
+
+@pytest.mark.parametrize("value", [float("nan"), float("inf"), float("-inf")])
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_weights_that_are_not_finite_are_refused(tmp_path, command, value):
+    def poison(state: dict[str, torch.Tensor]) -> None:
+        state[_first_weight(state)].view(-1)[3] = value
+
+    run = _shipped_copy(tmp_path, tensors=poison)
+    message = _exit_message(_commands(run, tmp_path)[command])
+    assert str(run / WEIGHTS_FILE) in message and "1 NaN or infinite values" in message
+
+
+def test_weights_of_another_dtype_are_refused_not_cast(tmp_path):
+    def to_int(state: dict[str, torch.Tensor]) -> None:
+        name = _first_weight(state)
+        state[name] = state[name].round().to(torch.int64)
+
+    run = _shipped_copy(tmp_path, tensors=to_int)
+    for command in ("benchmark", "render"):
+        message = _exit_message(_commands(run, tmp_path)[command])
+        assert "int64 values where the policy's are float32: refused, not cast" in message
+    with pytest.raises(RunFolderError, match="refused, not cast"):
+        load_model(run)
+
+
+@pytest.mark.parametrize(
+    "hyperparams, words",
+    [
+        # a private keyword of SB3's constructor (an AttributeError deep in SB3 before)
+        ({"_init_setup_model": False}, ["'_init_setup_model'", "keyword of ppo"]),
+        # a wrapper's keyword it does not take (a ValueError traceback from apply_wrappers)
+        (
+            {"wrappers": [{"name": "time-feature", "depth": 2}]},
+            ["'time-feature' does not take ['depth']", "max_episode_steps"],
+        ),
+        ({"wrappers": [{"name": "frame-stack", "n_stack": "x"}]}, ["n_stack must be"]),
+        # sizes that would allocate tens of GB to TB: refused before anything is allocated
+        ({"policy_kwargs": {"net_arch": ["1e10"]}}, ["net_arch[0]", "integer >= 1", "'1e10'"]),
+        ({"policy_kwargs": {"net_arch": [1e10]}}, ["net_arch[0]", "integer >= 1"]),
+        ({"policy_kwargs": {"net_arch": [10**10]}}, ["net_arch[0]", "larger than 65536"]),
+        ({"policy_kwargs": {"net_arch": [60_000] * 30}}, ["net_arch", "weights, more than"]),
+        ({"n_steps": "1e12"}, ["n_steps: expected int, got '1e12'"]),
+        ({"n_steps": 10**12}, ["n_steps: 1000000000000 would allocate", "TB"]),
+        ({"wrappers": [{"name": "frame-stack", "n_stack": 10**9}]}, ["n_stack", "1024"]),
+        ({"wrappers": [{"name": "frame-stack", "n_stack": 1e9}]}, ["n_stack", "1024"]),
+    ],
+)
+@pytest.mark.parametrize("command", ["benchmark", "render"])
+def test_hyperparams_that_would_fail_or_allocate_are_named(tmp_path, command, hyperparams, words):
+    run = _shipped_copy(tmp_path, hyperparams)
+    message = _exit_message(_commands(run, tmp_path)[command])
+    assert len(message) <= 1100
+    for word in [CONFIG_FILE, "hyperparams", *words]:
+        assert word in message, message
+
+
+def test_a_config_too_large_for_memory_in_its_params_is_refused(tmp_path):
+    run = _shipped_copy(tmp_path)
+    config = yaml.safe_load((run / CONFIG_FILE).read_text())
+    config["params"] = {"bank_members": 10**15}
+    with pytest.raises(RunFolderError, match=r"params: bank_members=10+: .* would need"):
+        build_model(config)
+
+
+def test_a_valid_shipped_copy_still_loads(tmp_path):
+    """The control: the folder the hostile ones are made from loads and acts."""
+    run = _shipped_copy(tmp_path)
+    model = load_model(run)
+    obs = np.zeros((1, *model.observation_space.shape), dtype=np.float32)
+    assert np.all(np.isfinite(model.predict(obs, deterministic=True)[0]))
