@@ -52,7 +52,9 @@ def random_moving_scene(
 
 
 def assert_same_tree(x, y) -> None:
-    """``x`` and ``y`` equal bit for bit (values and dtypes), through tuples, lists and dicts."""
+    """``x`` and ``y`` equal bit for bit (values and dtypes), through tuples, lists and dicts:
+    for two runs in this process, where the same instructions meet the same inputs (numbers
+    recorded on another machine are compared with :mod:`tests.arithmetic` instead)."""
     if isinstance(x, dict):
         assert x.keys() == y.keys()
         for key in x:
