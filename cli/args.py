@@ -16,6 +16,8 @@ import os
 from pathlib import Path
 from typing import NoReturn
 
+from sensorgym.train.messages import cut
+
 #: the largest seed a command takes: every seed a run derives (seed + k) stays a valid seed of
 #: NumPy's legacy ``np.random.seed`` (< 2**32), which SB3 calls
 MAX_SEED = 2**31 - 1
@@ -120,6 +122,6 @@ def _os_reason(exc: OSError) -> str:
     return exc.strerror or type(exc).__name__
 
 
-def _short(text: str, limit: int = 40) -> str:
-    """``text`` cut to ``limit`` characters (a value echoed in a message)."""
-    return text if len(text) <= limit else text[: limit - 1] + "…"
+def _short(text: str) -> str:
+    """``text`` cut to 40 characters (a value echoed in a message)."""
+    return cut(text, 40)
