@@ -2,7 +2,7 @@
 
 | module | role |
 |--------|------|
-| :mod:`.conjugation` | least-squares conjugation of direction vectors: ranges, velocity, acceleration and ``σ²(AᵀA)⁻¹`` |
+| :mod:`.conjugation` | least-squares conjugation of direction vectors: ranges, velocity, acceleration and ``σ²(AᵀA)⁻¹``; the exact angle-noise covariance of the n = 3 velocity fix |
 | :mod:`.conjugation_kernels` | compiled closed forms of the two- and three-receiver systems |
 | :mod:`.information` | position Fisher information, observability test, bound and log-ratio reward (unchecked, batched: what envs and rules call) |
 | :mod:`.accuracy` | closed-form range accuracies and the checked Fisher-information API |

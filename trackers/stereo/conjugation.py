@@ -34,7 +34,8 @@ there instead of producing NaN.
 
 Accuracy models. ``Q`` is the papers' model: i.i.d. error of variance ``σ_e²`` on every
 component of ``e_k``. Real direction errors are angular (zero along each line of sight,
-``σ_e ≈ r σ_ang`` across it); for them see :mod:`.stereo_accuracy`.
+``σ_e ≈ r σ_ang`` across it); for them see :mod:`.accuracy`, and for the n = 3 velocity-aware
+solution :func:`velocity_fix_covariance` (exact first order, theory §3.5).
 
 Fast paths. n = 2 order 0 and n = 3 order 1 (the systems of papers 000/003) are solved in
 closed form: the first by the 2×2 normal equations, the second by eliminating the velocity
@@ -54,7 +55,11 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.trackers.kernel_args import kernel_array
-from sensorgym.trackers.stereo.conjugation_kernels import pair_kernel, triple_velocity_kernel
+from sensorgym.trackers.stereo.conjugation_kernels import (
+    pair_kernel,
+    triple_velocity_kernel,
+    velocity_fix_covariance_kernel,
+)
 from sensorgym.trackers.validation import check_unit_norms, finite_array, unit_vectors
 
 FloatArray = NDArray[np.float64]
@@ -494,3 +499,146 @@ def solve_proposed(
         condition=full.condition,
         used_pinv=full.used_pinv,
     )
+
+
+# ---------------------------------------------------------------------------------------------
+# angle noise: exact first-order covariance of the n = 3 velocity-aware solution (theory §3.5)
+
+
+def _solve_triple(
+    a1: ArrayLike,
+    ak: ArrayLike,
+    P: ArrayLike | None,
+    b: ArrayLike,
+    dt: ArrayLike,
+    cond_max: float,
+    check_inputs: bool,
+    caller: str,
+) -> tuple[ConjugationSolution, tuple[int, ...]]:
+    """The solver's ``n = 3`` order-1 solve (its checks and messages), refusing other ``n``."""
+    sol = solve_conjugation(a1, ak, P, b, dt, order=1, cond_max=cond_max, check_inputs=check_inputs)
+    n = sol.ranges.shape[-1]
+    if n != 3:
+        raise ValueError(
+            f"ak: {caller} is the n = 3 closed form (ak of shape (..., 2, 3)), got n = {n}"
+        )
+    return sol, sol.residual.shape
+
+
+def velocity_fix_jacobian(
+    a1: ArrayLike,
+    ak: ArrayLike,
+    P: ArrayLike | None,
+    b: ArrayLike,
+    dt: ArrayLike,
+    *,
+    cond_max: float = DEFAULT_COND_MAX,
+    check_inputs: bool = True,
+) -> FloatArray:
+    """``(..., 6, 9)`` Jacobian of the ``n = 3`` velocity-aware solution ``(M̂_1, V̂)`` (frame 1)
+    with respect to the direction errors ``(n_1, n_2, n_3)`` in frame 1 (theory §3.5).
+
+    Arguments as :func:`solve_conjugation` (``n = 3``; raises as it does). ``n_k`` moves
+    ``a_1`` (``k = 1``) or ``c_k = P_k a_k``; a rotation ``P_k`` carries an own-frame error
+    ``δa_k`` to ``n_k = P_k δa_k``. Any direction-error covariance ``Σ`` (9×9) then gives
+    ``J Σ Jᵀ``. NaN where the solver takes the pseudo-inverse fallback (``used_pinv``: the
+    linearisation of a singular system does not exist).
+
+    The readable numpy reference of :func:`velocity_fix_covariance`'s compiled kernel: ``A X = B``
+    is square, so ``δA X + A δX = 0`` and, as ``(δA X)_k = r_1 n_1 − r_k n_k``,
+    ``δX = A⁻¹ δB`` with ``δB_k = r_k n_k − r_1 n_1``; ``M̂_1 = r̂_1 a_1`` adds ``r_1 n_1``.
+    """
+    sol, batch = _solve_triple(a1, ak, P, b, dt, cond_max, check_inputs, "velocity_fix_jacobian")
+    a1 = _broadcast(np.asarray(a1, dtype=np.float64), (*batch, 3))
+    ak = np.asarray(ak, dtype=np.float64)
+    c = ak if P is None else np.einsum("...ij,...j->...i", np.asarray(P, dtype=np.float64), ak)
+    dt = np.asarray(dt, dtype=np.float64)
+    A, _ = build_system(a1, c, np.zeros((2, 3)), dt, 1)
+    A = _broadcast(A, (*batch, 6, 6))
+    bad = sol.used_pinv
+    # A⁻¹ where A is regular (the identity stands in elsewhere; those rows become NaN)
+    Ainv = np.linalg.inv(np.where(bad[..., None, None], np.eye(6), A))
+    r1, r2, r3 = (sol.ranges[..., k, None, None] * _EYE for k in range(3))
+    # δB = D (n_1, n_2, n_3):  block 2 = r_2 n_2 − r_1 n_1 ,  block 3 = r_3 n_3 − r_1 n_1
+    zero = np.zeros_like(r1)
+    D = np.concatenate(
+        [
+            np.concatenate([-r1, r2, zero], axis=-1),
+            np.concatenate([-r1, zero, r3], axis=-1),
+        ],
+        axis=-2,
+    )
+    JX = Ainv @ D  # rows r_1, r_2, r_3, V
+    # δM̂_1 = a_1 δr̂_1 + r_1 n_1
+    JM = a1[..., :, None] * JX[..., :1, :]
+    JM[..., :, :3] += r1
+    J = np.concatenate([JM, JX[..., 3:, :]], axis=-2)
+    return np.where(bad[..., None, None], np.nan, J)
+
+
+def velocity_fix_covariance(
+    a1: ArrayLike,
+    ak: ArrayLike,
+    P: ArrayLike | None,
+    b: ArrayLike,
+    dt: ArrayLike,
+    sigma_ang: ArrayLike,
+    *,
+    position_sigma: float = 0.0,
+    cond_max: float = DEFAULT_COND_MAX,
+    check_inputs: bool = True,
+) -> FloatArray:
+    """Exact first-order covariance ``(..., 6, 6)`` of the ``n = 3`` velocity-aware solution
+    ``(M̂_1, V̂)`` (frame 1, metres and m/s) under angle noise (theory §3.5, "Angle noise").
+
+    Arguments ``a1 … dt``, ``cond_max`` and ``check_inputs`` as :func:`solve_conjugation` with
+    ``n = 3``, ``order = 1`` (the estimate itself is that solve's ``position`` and
+    ``velocity``); it raises as the solver does. ``sigma_ang`` scalar or ``(..., 3)``: the
+    isotropic angular standard deviation ``σ_k`` of each receiver's direction, radians
+    (``n_k ~ N(0, σ_k² (I − u_k u_kᵀ))``, independent, across the line of sight only);
+    ``position_sigma`` paper 000's shared apparent-position error ``σ_x`` (§4.1), which moves
+    ``M̂_1`` by itself and leaves ``V̂`` alone::
+
+        C = J diag(σ_k² (I − u_k u_kᵀ)) Jᵀ + σ_x² diag(I₃, 0)
+
+    with ``J`` of :func:`velocity_fix_jacobian`, in closed form per element
+    (:func:`~.conjugation_kernels.velocity_fix_element`). Unlike the papers'
+    ``σ_e² (AᵀA)⁻¹`` (``covariance``), it keeps receiver 1's error shared by both equation
+    blocks and each error across its own line of sight; the i.i.d. form with
+    ``σ_e² = mean((σ_k r_k)²)`` understates the velocity variance (theory §3.5). NaN where
+    the solver takes the pseudo-inverse fallback (``used_pinv``).
+    """
+    sol, batch = _solve_triple(a1, ak, P, b, dt, cond_max, check_inputs, "velocity_fix_covariance")
+    s = finite_array(sigma_ang, "sigma_ang")
+    if s.ndim and s.shape[-1] not in (1, 3):
+        raise ValueError(
+            f"sigma_ang: expected a scalar or shape (..., 3) (one σ per receiver), got {s.shape}"
+        )
+    if np.any(s < 0.0):
+        raise ValueError("sigma_ang: must be non-negative")
+    if not (np.isfinite(position_sigma) and position_sigma >= 0.0):
+        raise ValueError(f"position_sigma: must be finite and non-negative, got {position_sigma}")
+    s = s[..., None] if s.ndim == 0 else s
+    try:
+        sigma = _flat(s, batch, (3,))
+    except ValueError:
+        raise ValueError(
+            f"sigma_ang: shape {s.shape} does not broadcast to the batch {batch}"
+        ) from None
+    size = sigma.shape[0]
+    C = np.empty((size, 6, 6))
+    velocity_fix_covariance_kernel(
+        _flat(np.asarray(a1, dtype=np.float64), batch, (3,)),
+        _flat(np.asarray(ak, dtype=np.float64), batch, (2, 3)),
+        _flat(_EYE if P is None else np.asarray(P, dtype=np.float64), batch, (2, 3, 3)),
+        _flat(np.asarray(dt, dtype=np.float64), batch, (2,)),
+        _flat(sol.ranges, batch, (3,)),
+        sigma,
+        float(position_sigma) ** 2,
+        0,
+        size,
+        C,
+    )
+    C = C.reshape(*batch, 6, 6)
+    C[sol.used_pinv] = np.nan
+    return C

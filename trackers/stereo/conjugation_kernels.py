@@ -7,13 +7,16 @@ input checks fused into the same pass. :func:`velocity_kernel` solves order 1 fo
 through the normal equations with the ranges ``r_2 … r_n`` eliminated (``O(n)`` per solve):
 the receiver-placement env's step at more than three receivers; the generic solver
 :func:`~.conjugation.solve_conjugation` keeps its SVD path for those sizes (no squared
-condition number). Each kernel works on a half-open range ``[lo, hi)`` of a
-flat batch and releases the GIL (callers may run parts of a batch on their own threads). At
-batch 1e5 on one core of the 2-core reference machine they solve about 38 M two-receiver and
-13 M three-receiver velocity problems per second (``benchmarks/triangulation.py``).
+condition number). :func:`velocity_fix_covariance_kernel` gives the exact first-order covariance
+of the n = 3 velocity-aware solution under angle noise. Each kernel works on a half-open range
+``[lo, hi)`` of a flat batch and releases the GIL (callers may run parts of a batch on their
+own threads). At batch 1e5 on one core of the 2-core reference machine they solve about 38 M
+two-receiver and 13 M three-receiver velocity problems per second
+(``benchmarks/triangulation.py``).
 
 The system, its weighting and ``κ_F`` are defined in :mod:`.conjugation`, whose generic SVD solver
-is the reference both kernels are tested against. A kernel returns 0, or the
+is the reference the solving kernels are tested against (the covariance kernel's is
+:func:`~.conjugation.velocity_fix_jacobian`). A solving kernel returns 0, or the
 1-based index of the first argument (in call order) whose input check failed; the caller then
 re-runs the ordinary validators on that argument for the message. Degenerate geometry is not an
 input error: it gives ``κ_F = inf`` or NaN there and the caller re-solves those elements on the
@@ -489,3 +492,128 @@ def velocity_element(i: int, m: int, a1: Array, ak: Array, P: Array, b: Array, d
     J[i] = total
     position[i, 0], position[i, 1], position[i, 2] = r1 * a[0], r1 * a[1], r1 * a[2]
     return 0
+
+
+@njit(inline="always")
+def velocity_fix_element(a, c2, c3, d2, d3, r1, r2, r3, s1, s2, s3, position_var, C, i, work):
+    """Exact first-order covariance of the ``n = 3`` velocity-aware solution ``(M̂_1, V̂)``
+    under angle noise (theory §3.5, "Angle noise"), written to ``C[i]`` ``(6, 6)``; False (and
+    NaN) where ``M`` is singular to rounding (as :func:`triple_velocity_kernel`).
+
+    ``a``, ``c2``, ``c3`` are the unit directions in frame 1 (3-tuples), ``d2``, ``d3`` the
+    delays, ``r1 … r3`` the solved ranges, ``s1 … s3`` the angular standard deviations ``σ_k``
+    (rad), ``position_var`` paper 000's shared apparent-position variance ``σ_x²`` (it moves
+    ``M̂_1`` by itself and leaves ``V̂`` alone); ``work`` is a ``(9, 3)`` scratch.
+
+    A direction error ``n_k`` (``u_1 = a_1``, ``u_k = c_k``) enters block ``k`` of ``A X = B``
+    as ``δB_k = r_k n_k − r_1 n_1``. Through ``A⁻¹`` of :func:`triple_velocity_kernel` (``m`` the
+    first row of ``M⁻¹``, ``H = G M⁻¹``, ``g = Δt_3 − Δt_2``, ``Δ² = Δt_2² + Δt_3²``)::
+
+        δd = Σ_k β_k n_k ,   β = (−g r_1, Δt_3 r_2, −Δt_2 r_3)      (δ of Δt_3 B_2 − Δt_2 B_3)
+        δM̂_1 = r_1 n_1 + a_1 mᵀ δd                                   (M̂_1 = r̂_1 a_1)
+        δV̂ = (Σ_k γ_k n_k + H δd) / Δ² ,   γ = (−(Δt_2 + Δt_3) r_1, Δt_2 r_2, Δt_3 r_3)
+
+    so ``(δM̂_1, δV̂) = Σ_k T_k n_k`` with the ``6×3`` blocks ``T_k = [α_k I + β_k a_1 mᵀ ;
+    (γ_k I + β_k H)/Δ²]`` (``α = (r_1, 0, 0)``). With ``n_k ~ N(0, σ_k² (I − u_k u_kᵀ))``
+    independent::
+
+        C = Σ_k σ_k² (T_k T_kᵀ − w_k w_kᵀ) + σ_x² diag(I₃, 0) ,    w_k = T_k u_k
+
+    The numpy reference is :func:`~.conjugation.velocity_fix_jacobian` (``J Σ Jᵀ``).
+    """
+    g = d3 - d2
+    u1 = (g * a[0], g * a[1], g * a[2])
+    u2 = (-d3 * c2[0], -d3 * c2[1], -d3 * c2[2])
+    u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
+    x23 = _cross(u2, u3)
+    det = _dot(u1, x23)
+    scale = np.sqrt(_dot(u1, u1) * _dot(u2, u2) * _dot(u3, u3))
+    if not np.abs(det) > SINGULAR_VOLUME * scale:
+        for j in range(6):
+            for k in range(6):
+                C[i, j, k] = np.nan
+        return False
+    inv_det = 1.0 / det
+    x31 = _cross(u3, u1)
+    x12 = _cross(u1, u2)
+    # rows of M⁻¹ (Cramer), M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]
+    Mi = (
+        (x23[0] * inv_det, x23[1] * inv_det, x23[2] * inv_det),
+        (x31[0] * inv_det, x31[1] * inv_det, x31[2] * inv_det),
+        (x12[0] * inv_det, x12[1] * inv_det, x12[2] * inv_det),
+    )
+    m = Mi[0]
+    # H = G M⁻¹ in work[6:9], G columns (−(Δt_2 + Δt_3) a_1, Δt_2 c_2, Δt_3 c_3)
+    for j in range(3):
+        gj = (-(d2 + d3) * a[j], d2 * c2[j], d3 * c3[j])
+        for k in range(3):
+            work[6 + j, k] = gj[0] * Mi[0][k] + gj[1] * Mi[1][k] + gj[2] * Mi[2][k]
+    inv_delta2 = 1.0 / (d2 * d2 + d3 * d3)
+    for j in range(6):
+        for k in range(6):
+            C[i, j, k] = 0.0
+    for alpha, beta, gamma, s, u in (
+        (r1, -g * r1, -(d2 + d3) * r1, s1, a),
+        (0.0, d3 * r2, d2 * r2, s2, c2),
+        (0.0, -d2 * r3, d3 * r3, s3, c3),
+    ):
+        # T_k in work[0:6]: rows α e_j + β a_j m (position), (γ e_j + β H_j)/Δ² (velocity)
+        for j in range(3):
+            for k in range(3):
+                eye = 1.0 if j == k else 0.0
+                work[j, k] = alpha * eye + beta * a[j] * m[k]
+                work[3 + j, k] = (gamma * eye + beta * work[6 + j, k]) * inv_delta2
+        s2k = s * s
+        # C += σ_k² (T_k T_kᵀ − w_k w_kᵀ),  w_k = T_k u_k: the projector I − u_k u_kᵀ
+        for j in range(6):
+            wj = work[j, 0] * u[0] + work[j, 1] * u[1] + work[j, 2] * u[2]
+            for k in range(j + 1):
+                wk = work[k, 0] * u[0] + work[k, 1] * u[1] + work[k, 2] * u[2]
+                tt = work[j, 0] * work[k, 0] + work[j, 1] * work[k, 1] + work[j, 2] * work[k, 2]
+                C[i, j, k] += s2k * (tt - wj * wk)
+    for j in range(6):
+        if j < 3:
+            C[i, j, j] += position_var
+        for k in range(j):
+            C[i, k, j] = C[i, j, k]
+    return True
+
+
+@njit(**_JIT)
+def velocity_fix_covariance_kernel(
+    a1: Array,
+    ak: Array,
+    P: Array,
+    dt: Array,
+    ranges: Array,
+    sigma: Array,
+    position_var: float,
+    lo: int,
+    hi: int,
+    C: Array,
+) -> None:
+    """:func:`velocity_fix_element` for elements ``lo..hi−1``: inputs ``a1 (N, 3)``,
+    ``ak (N, 2, 3)``, ``P (N, 2, 3, 3)``, ``dt (N, 2)``, the solved ``ranges (N, 3)`` and
+    ``sigma (N, 3)`` (rad); output ``C (N, 6, 6)`` of ``(M̂_1, V̂)`` in frame 1. Inputs are
+    not checked (the caller has solved them with :func:`triple_velocity_kernel`)."""
+    work = np.empty((9, 3))
+    for i in range(lo, hi):
+        c2 = _rotate(P, i, 0, (ak[i, 0, 0], ak[i, 0, 1], ak[i, 0, 2]))
+        c3 = _rotate(P, i, 1, (ak[i, 1, 0], ak[i, 1, 1], ak[i, 1, 2]))
+        velocity_fix_element(
+            _vec(a1, i),
+            c2,
+            c3,
+            dt[i, 0],
+            dt[i, 1],
+            ranges[i, 0],
+            ranges[i, 1],
+            ranges[i, 2],
+            sigma[i, 0],
+            sigma[i, 1],
+            sigma[i, 2],
+            position_var,
+            C,
+            i,
+            work,
+        )
