@@ -19,12 +19,13 @@ assignment-level learner from above: this is the improvement step of policy iter
 perfect value function.
 
 **The instantaneous bound.** On every step of the rule's own episodes, the best mean drone
-reward any pointing could give at that instant on the true drones: each receiver sees one drone,
-or both when they lie within ``2 · fov`` of each other from it (aimed between them), with no
-slew limit and no tracking error (and, as a second number, with every receiver on one drone:
-what a receiver seeing two drones at once adds). Its sum against the rule's return splits what
-the rule loses into the first :data:`EARLY_STEPS` steps (the cue's hand-over and the first
-re-pairing) and the rest (slewing, two receivers per drone, lost drones).
+reward any pointing could give at that instant on the true drones
+(:func:`sensorgym.envs.stereo_pointing.bound.step_bound`, a proven upper bound; theory §11.3):
+each receiver sees any set of drones that lie within ``2 · fov`` of each other from it, with
+no slew limit and no tracking error (and, as a second number, with every receiver on at most
+one drone: what a receiver seeing two drones at once adds). Its sum against the rule's return
+splits what the rule loses into the first :data:`EARLY_STEPS` steps (the cue's hand-over and
+the first re-pairing) and the rest (slewing, two receivers per drone, lost drones).
 
 Each row also gives the shares of episodes that gain more than 1 and more than 5, the largest
 single episode's gain and the mean without it: a lost drone that another pairing would have
@@ -33,7 +34,6 @@ found is worth about +400 in one episode and can carry the mean alone.
 
 from __future__ import annotations
 
-import itertools
 import time
 from pathlib import Path
 from typing import Any
@@ -46,18 +46,8 @@ from sensorgym.agents.stereo_pointing_horizon import PlanHorizon, plan_aims
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing import simulation
-from sensorgym.envs.stereo_pointing.simulation import (
-    PointingParams,
-    PointingState,
-    lines_of_sight,
-    slew_actions,
-)
-from sensorgym.trackers.stereo.information import (
-    log_ratio_reward,
-    observable,
-    position_information,
-    position_sigma,
-)
+from sensorgym.envs.stereo_pointing.bound import bound_path
+from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingState, slew_actions
 
 RESULTS = Path(__file__).resolve().parent / "results" / "pointing_rollout.json"
 EPISODE_STEPS = 150
@@ -143,28 +133,6 @@ def deviations(rule: PlanHorizon, seed: int, batch: int) -> list[dict[str, Any]]
     return rows
 
 
-def instant_bound(params: PointingParams, state: PointingState, sharing: bool = True) -> np.ndarray:
-    """``(B,)`` the best mean drone reward of any pointing at this instant on the true drones
-    (see the module docstring); without ``sharing`` every receiver sees one drone."""
-    n, m = params.n_receivers, params.n_drones
-    # per receiver a non-empty set of drones it sees, as a bit mask (1 … 2^m − 1)
-    masks = range(1, 2**m) if sharing else [1 << j for j in range(m)]
-    combos = np.array(list(itertools.product(masks, repeat=n)))  # (C, n)
-    sees = (combos[..., None] >> np.arange(m)) & 1 == 1  # (C, n, m)
-    los, ranges = lines_of_sight(params, state.drone_position)  # (B, n, m, 3), (B, n, m)
-    # a receiver can hold a set of drones when every two of them lie within 2·fov
-    cos = np.einsum("bkic,bkjc->bkij", los, los)  # (B, n, m, m)
-    pair_ok = cos >= np.cos(2.0 * params.fov)
-    both = sees[:, :, :, None] & sees[:, :, None, :]  # (C, n, m, m)
-    feasible = np.all(~both[None] | pair_ok[:, None], axis=(2, 3, 4))  # (B, C)
-    u, r = np.moveaxis(los, 2, 1)[:, None], np.moveaxis(ranges, 2, 1)[:, None]
-    mask = np.broadcast_to(np.moveaxis(sees, 2, 1)[None], (u.shape[0], *sees.shape[:1], m, n))
-    info = position_information(u, r, params.sigma_ang, mask)  # (B, C, m, 3, 3)
-    sigma = position_sigma(info, observable(info, mask))
-    value = log_ratio_reward(sigma, params.sigma_ref, params.reward_clip).mean(axis=-1)
-    return np.where(feasible, value, -np.inf).max(axis=1)
-
-
 def bound_rows(rule: PlanHorizon, seed: int, batch: int) -> dict[str, Any]:
     """The rule's return against the instantaneous bound, on the first :data:`EARLY_STEPS`
     steps and after."""
@@ -172,14 +140,14 @@ def bound_rows(rule: PlanHorizon, seed: int, batch: int) -> dict[str, Any]:
     rng = np.random.default_rng(seed)
     state = simulation.reset(p, rng, batch)
     obs = simulation.observe(p, state)
-    real, bound = np.zeros((batch, EPISODE_STEPS)), np.zeros((batch, EPISODE_STEPS))
-    single = np.zeros(batch)
+    # the drones' path is the policy's no matter: the bound of every step is known at the start
+    bound = bound_path(p, state, EPISODE_STEPS)
+    single = bound_path(p, state, EPISODE_STEPS, max_drones_per_receiver=1).sum(axis=1)
+    real = np.zeros((batch, EPISODE_STEPS))
     never = np.ones((batch, p.n_drones), dtype=bool)
     for t in range(EPISODE_STEPS):
         state, real[:, t], _ = simulation.step(p, state, act(rule, obs, t), rng)
         obs = simulation.observe(p, state)
-        bound[:, t] = instant_bound(p, state)
-        single += instant_bound(p, state, sharing=False)
         never &= ~state.fixed
     e = EARLY_STEPS
     return {

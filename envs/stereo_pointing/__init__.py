@@ -1,9 +1,11 @@
 """``sensorgym/StereoPointing-v0``: point narrow-field receivers so that stereo fixes locate drones.
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.env` (Gymnasium, native
-vector and PettingZoo envs) and :mod:`.render`.
+vector and PettingZoo envs), :mod:`.bound` (a true upper bound on the reward, per step and per
+episode, on the truth) and :mod:`.render`.
 """
 
+from sensorgym.envs.stereo_pointing.bound import episode_bound, step_bound
 from sensorgym.envs.stereo_pointing.env import (
     StereoPointingEnv,
     StereoPointingParallelEnv,
@@ -18,5 +20,7 @@ __all__ = [
     "StereoPointingEnv",
     "StereoPointingParallelEnv",
     "StereoPointingVectorEnv",
+    "episode_bound",
     "parallel_env",
+    "step_bound",
 ]
