@@ -9,8 +9,9 @@ over ``plan-search`` (``benchmarks/pointing_rollout.py``). With fewer receivers 
 drone, pointing becomes a scheduling problem: which drones are fixed now, which wait, and when
 a receiver can hold two drones at once. This probe plays ``plan-search`` at several layouts
 (``n_receivers``, ``n_drones``) and sums, on the same episodes, the instantaneous bound of
-:func:`pointing_rollout.instant_bound` (the best mean drone reward any pointing could give at
-each instant on the true drones, with no slew limit and no tracking error). The gap between
+:func:`sensorgym.envs.stereo_pointing.bound.step_bound` (the best mean drone reward any
+pointing could give at each instant on the true drones, with no slew limit and no tracking
+error; theory §11.3.1). The gap between
 the two is an upper bound on what any policy could gain; it is not reachable (the bound knows
 the truth and ignores slewing and search), but where it is small no learner has room, and
 where it is large a learner might. It also counts the drones ``plan-search`` never fixes.
