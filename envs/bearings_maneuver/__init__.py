@@ -1,8 +1,9 @@
 """``sensorgym/BearingsManeuver-v0``: steer platforms so that bearings alone locate a target.
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.env` (Gymnasium, native
-vector and PettingZoo envs), :mod:`.render`, and :mod:`.book` (the textbook scenario,
-``sensorgym/BearingsManeuverBook-v0``).
+vector and PettingZoo envs), :mod:`.render`, :mod:`.book` (the textbook scenario,
+``sensorgym/BearingsManeuverBook-v0``) and :mod:`.bound` (the hindsight optimum: the
+per-episode bound on the return).
 """
 
 from sensorgym.envs.bearings_maneuver.book import (
