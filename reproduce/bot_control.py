@@ -1,6 +1,7 @@
 """``sensorgym reproduce bot-control``: the command line of the textbook observer-control problem.
 
-The experiment (policies, optimised open-loop ceiling, book PCRLB, report) is
+The experiment (policies, the fixed plan, the per-run hindsight-optimum ceiling, book PCRLB,
+report) is
 :mod:`sensorgym.reproduce.experiments.bot_control`.
 """
 
@@ -17,7 +18,8 @@ from sensorgym.reproduce.experiments.bot_control import (
 
 HELP = (
     "Textbook observer control (Ristic et al. ch. 6): PCRLB at 32 min of rules, the book's leg "
-    "change, an optimised open-loop ceiling and the trained policy."
+    "change, a fixed optimised plan and the trained policies, against each run's hindsight "
+    "optimum (the ceiling)."
 )
 
 

@@ -87,7 +87,7 @@ STANDOFF_MARGIN = 500.0
 #: name of the fixed plan's line in the table
 FIXED_PLAN = f"fixed plan on the nominal path, {STANDOFF_MARGIN:.0f} m margin"
 #: name of the ceiling's line
-CEILING = "hindsight optimum per run (ceiling)"
+CEILING = "hindsight optimum per run"
 
 
 def _noise_free_paths(turns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
