@@ -84,6 +84,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from sensorgym.train.benchmark import paired_to_best_rule, registered_envs
+    from sensorgym.train.bounds import PASSIVE_RULES, headroom
     from sensorgym.train.score_chart import plot_scores
 
     if args.n_envs is None:  # the default batch, never more scenarios than episodes
@@ -125,6 +126,10 @@ def run(args: argparse.Namespace) -> int:
             "best_rule": best,
             "paired": paired,
         }
+        room = headroom(results, PASSIVE_RULES.get(env_id), best)
+        if room:
+            doc["passive_rule"] = PASSIVE_RULES[env_id]
+            doc["headroom"] = room
         path.write_text(json.dumps(doc, indent=2) + "\n")
         written.append(path)
     if scores:
@@ -169,6 +174,7 @@ def _benchmark(
     from rich.table import Table
 
     from sensorgym.train.benchmark import NotApplicable, paired_to_best_rule, policies_for, score
+    from sensorgym.train.bounds import PASSIVE_RULES, bound_violations, headroom
     from sensorgym.train.models import RunFolderError, check_model_params, read_config, run_dir_of
 
     params = args.params[env_id]
@@ -205,6 +211,11 @@ def _benchmark(
                 console.print(f"{env_id}: rule left out: {exc}")
 
     best, paired = paired_to_best_rule(results)
+    room = headroom(results, PASSIVE_RULES.get(env_id), best)
+    for name, r in results.items():
+        over = bound_violations(r)
+        if over:  # a bound no policy can exceed was exceeded: the bound or the env is wrong
+            raise RuntimeError(f"{env_id}: {name} exceeds the episode bound on episodes {over}")
     table = Table(title=f"{env_id}: episode return ({args.episodes} episodes, seed {args.seed})")
     columns = (
         "policy",
@@ -216,6 +227,13 @@ def _benchmark(
         "paired IQM",
         "better/worse",
     )
+    if room:
+        columns += ("bound", "normalised", "closes")
+        table.caption = (
+            f"bound: the mean of each episode's true upper bound; normalised: per episode "
+            f"(R − R_{PASSIVE_RULES[env_id]})/(bound − R_{PASSIVE_RULES[env_id]}), mean ± 95 %; "
+            f"closes: the share of the headroom above {best} the policy closes"
+        )
     for column in columns:
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
@@ -223,7 +241,7 @@ def _benchmark(
         diff = "best rule" if name == best else "" if d is None else paired_cell(d)
         robust = iqm_cell(d) if d is not None and "iqm" in d else ""
         counts = f"{d['better']}/{d['worse']}" if d is not None and "better" in d else ""
-        table.add_row(
+        cells = [
             name,
             f"{r['mean']:.3f}",
             f"{r['ci95']:.3f}",
@@ -232,9 +250,22 @@ def _benchmark(
             diff,
             robust,
             counts,
-        )
+        ]
+        if room:
+            cells += headroom_cells(room.get(name))
+        table.add_row(*cells)
     console.print(table)
     return results
+
+
+def headroom_cells(h: dict[str, Any] | None) -> list[str]:
+    """The bound's mean, the normalised score ``mean ± 95 %`` and the share of the headroom
+    above the best rule closed, of one policy's :func:`~sensorgym.train.bounds.headroom`."""
+    if h is None:
+        return ["", "", ""]
+    norm = "" if h["normalised"] is None else f"{h['normalised']:.3f} ± {h['normalised_ci95']:.3f}"
+    closes = "" if h["closes"] is None else f"{100 * h['closes']:+.1f} %"
+    return [f"{h['bound']:.3f}", norm, closes]
 
 
 def iqm_cell(d: dict[str, Any]) -> str:

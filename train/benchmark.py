@@ -78,8 +78,11 @@ def score(
     over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
     with one seed meets the same scenarios. Parameter-sharing models act on the per-agent view
     of those scenarios. ``params``: params fields of the env (``--param``); a model trained
-    with other ones is refused (:class:`~.models.RunFolderError` saying which differ)."""
+    with other ones is refused (:class:`~.models.RunFolderError` saying which differ). For an
+    env with a proven bound (:data:`~.bounds.EPISODE_BOUNDS`) each episode's bound comes with
+    its return (``bounds``)."""
     from sensorgym.agents.registry import RULES
+    from sensorgym.train.bounds import episode_bound_of
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
     from sensorgym.train.models import (
         CONFIG_FILE,
@@ -116,7 +119,8 @@ def score(
     else:
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
     try:
-        return evaluate(policy, env, episodes, seed).as_dict()
+        bound = episode_bound_of(env_id, env_params(env))
+        return evaluate(policy, env, episodes, seed, bound).as_dict()
     finally:
         env.close()
 

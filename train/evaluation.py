@@ -39,10 +39,18 @@ class EpisodeStats:
     """Every episode's return, in a fixed order: round ``k`` of every slot, slot by slot
     (episode ``k·B + i`` is slot ``i``'s ``k``-th): two policies evaluated with one seed and
     batch pair up episode by episode on the same scenarios."""
+    bounds: tuple[float, ...] = field(default=(), repr=False)
+    """Every episode's upper bound on the return (the env's ``episode_bound`` of the state the
+    episode started in, :mod:`.bounds`), in the order of :attr:`returns`; empty for an env
+    without one."""
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["returns"] = list(self.returns)
+        if self.bounds:
+            d["bounds"] = list(self.bounds)
+        else:
+            del d["bounds"]
         return d
 
 
@@ -88,7 +96,13 @@ def agents_per_scenario(env: VecEnv) -> int:
     return int(getattr(env.unwrapped, "agents_per_scenario", 1))
 
 
-def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats:
+def evaluate(
+    policy: Any,
+    env: VecEnv,
+    episodes: int,
+    seed: int,
+    episode_bound: Callable[[Any], np.ndarray] | None = None,
+) -> EpisodeStats:
     """Score ``policy`` (anything with SB3's ``predict``) over ``episodes`` episodes of ``env``,
     deterministic actions.
 
@@ -100,6 +114,11 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
     by round, then slot (:attr:`EpisodeStats.returns`). On an env whose slots are agents
     (``make_sb3_env(..., agents=True)``) an episode is a scenario's, counted once: ``episodes``
     must then be a multiple of the number of scenarios.
+
+    ``episode_bound``: the env's bound on an episode's return from the simulator state it
+    starts in (one value per scenario, :mod:`.bounds`), read at the reset and after every step
+    that ended an episode (the state then holds the next one's start); each episode's bound is
+    kept beside its return (:attr:`EpisodeStats.bounds`).
     """
     if episodes < 1:
         raise ValueError(f"episodes: must be >= 1, got {episodes}")
@@ -112,6 +131,13 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
     target = np.array([(episodes + s) // scenarios for s in range(scenarios)]).repeat(n)
     env.seed(seed)
     obs = env.reset()
+    state_fn = simulator_state(env)
+
+    def bounds_now() -> np.ndarray:  # per slot: the bound of the episode its scenario starts
+        return np.repeat(np.asarray(episode_bound(state_fn()), dtype=np.float64), n)
+
+    bound = bounds_now() if episode_bound is not None else np.zeros(slots)
+    done_bounds: list[list[float]] = [[] for _ in range(slots)]
     start = np.ones(slots, dtype=bool)
     state = None
     running = np.zeros(slots)
@@ -127,6 +153,9 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
             if len(done_returns[i]) < target[i]:
                 done_returns[i].append(float(running[i]))
                 done_lengths[i].append(int(length[i]))
+                done_bounds[i].append(float(bound[i]))
+        if episode_bound is not None and np.any(done):
+            bound = np.where(done, bounds_now(), bound)
         running[done] = 0.0
         length[done] = 0
         start = np.asarray(done, dtype=bool)
@@ -140,6 +169,7 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
         raise RuntimeError("evaluate: the agents of a scenario disagree on its team return")
     r = r[:, 0]
     lengths = np.array([done_lengths[s * n][k] for k, s in order], dtype=np.float64)
+    bounds = [done_bounds[s * n][k] for k, s in order] if episode_bound is not None else []
     std = float(r.std(ddof=1)) if r.size > 1 else 0.0
     return EpisodeStats(
         mean=float(r.mean()),
@@ -148,4 +178,5 @@ def evaluate(policy: Any, env: VecEnv, episodes: int, seed: int) -> EpisodeStats
         episodes=int(r.size),
         mean_length=float(np.mean(lengths)),
         returns=tuple(float(x) for x in r),
+        bounds=tuple(bounds),
     )

@@ -1,0 +1,72 @@
+"""The benchmark's headroom: every episode's bound beside its return, the normalised score."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from sensorgym.cli.main import main
+from sensorgym.train.benchmark import PolicySpec, score
+from sensorgym.train.bounds import PASSIVE_RULES, bound_violations, headroom
+from sensorgym.train.shipped import shipped_policies
+
+POINTING = "sensorgym/StereoPointing-v0"
+
+
+def _result(returns, bounds) -> dict:
+    r = np.asarray(returns, dtype=np.float64)
+    return {"mean": float(r.mean()), "returns": list(r), "bounds": list(bounds)}
+
+
+def test_the_normalised_score_is_0_for_the_passive_rule_and_1_at_the_bound():
+    bounds = [10.0, 20.0, 30.0, 5.0]
+    results = {
+        "passive": _result([0.0, 0.0, 10.0, 5.0], bounds),  # no headroom on the last episode
+        "best": _result([5.0, 10.0, 20.0, 5.0], bounds),
+        "policy": _result([10.0, 20.0, 30.0, 5.0], bounds),
+    }
+    room = headroom(results, "passive", "best")
+    assert room["passive"]["normalised"] == 0.0
+    assert room["policy"]["normalised"] == pytest.approx(1.0)
+    assert room["best"]["normalised"] == pytest.approx(0.5)
+    assert room["policy"]["episodes_with_headroom"] == 3
+    assert room["policy"]["bound"] == pytest.approx(16.25)
+    # the best rule's mean is 10, the bound's 16.25, the policy's 16.25: all the headroom closed
+    assert room["policy"]["closes"] == pytest.approx(1.0)
+    assert room["best"]["closes"] is None
+    assert headroom(results, None, "best") == {}
+
+
+def test_a_return_above_its_bound_is_reported():
+    assert bound_violations(_result([1.0, 2.0], [1.0, 2.0])) == []
+    assert bound_violations(_result([1.0, 2.1], [1.0, 2.0])) == [1]
+    assert bound_violations({"returns": [1.0]}) == []  # an env without a bound
+
+
+@pytest.mark.parametrize("episodes", [8, 16])  # one round, and a second after the autoreset
+def test_no_policy_exceeds_the_pointing_bound_on_a_benchmark_episode(episodes):
+    specs = {name: PolicySpec("rule", name) for name in ("hold-still", "plan-search", "greedy-information")}  # fmt: skip
+    run, folder = next(iter(shipped_policies(POINTING).items()))
+    specs[f"shipped:{run}"] = PolicySpec("model", str(folder), shipped=True)
+    results = {name: score(POINTING, spec, episodes, 8, 10_000) for name, spec in specs.items()}
+    for name, r in results.items():
+        assert len(r["bounds"]) == episodes, name
+        assert bound_violations(r) == [], name
+        # the drones' paths are the scenario's alone: every policy meets the same bounds
+        assert r["bounds"] == results["hold-still"]["bounds"], name
+    room = headroom(results, PASSIVE_RULES[POINTING], "plan-search")
+    assert room["hold-still"]["normalised"] == 0.0
+    assert 0.0 < room["plan-search"]["normalised"] <= 1.0
+
+
+def test_the_benchmark_json_has_each_episodes_bound_and_the_headroom(tmp_path, capsys):
+    assert main(["benchmark", "--env", POINTING, "--episodes", "8", "--no-shipped",
+                 "--no-chart", "--out", str(tmp_path)]) == 0  # fmt: skip
+    doc = json.loads((tmp_path / "sensorgym__StereoPointing-v0.json").read_text())
+    assert doc["passive_rule"] == "hold-still"
+    assert set(doc["headroom"]) == set(doc["results"])
+    for name, r in doc["results"].items():
+        assert all(x <= b + 1e-6 * max(abs(b), 1.0) for x, b in zip(r["returns"], r["bounds"], strict=True)), name  # fmt: skip
+    assert "normalised" in capsys.readouterr().out
