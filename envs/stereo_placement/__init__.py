@@ -2,9 +2,11 @@
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.scan` (one scan period
 and its velocity-aware conjugation fix), :mod:`.env` (Gymnasium, native vector and PettingZoo
-envs) and :mod:`.render`.
+envs), :mod:`.bound` (a true upper bound on the reward, per step and per episode) and
+:mod:`.render`.
 """
 
+from sensorgym.envs.stereo_placement.bound import episode_bound, step_bound
 from sensorgym.envs.stereo_placement.env import (
     StereoPlacementEnv,
     StereoPlacementParallelEnv,
@@ -19,5 +21,7 @@ __all__ = [
     "StereoPlacementEnv",
     "StereoPlacementParallelEnv",
     "StereoPlacementVectorEnv",
+    "episode_bound",
     "parallel_env",
+    "step_bound",
 ]
