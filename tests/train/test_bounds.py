@@ -45,20 +45,29 @@ def test_a_return_above_its_bound_is_reported():
     assert bound_violations({"returns": [1.0]}) == []  # an env without a bound
 
 
-@pytest.mark.parametrize("episodes", [8, 16])  # one round, and a second after the autoreset
-def test_no_policy_exceeds_the_pointing_bound_on_a_benchmark_episode(episodes):
-    specs = {name: PolicySpec("rule", name) for name in ("hold-still", "plan-search", "greedy-information")}  # fmt: skip
-    run, folder = next(iter(shipped_policies(POINTING).items()))
+#: per env with a bound: a fieldable rule to score beside the passive one and a shipped policy
+RULE_OF = {POINTING: "plan-search", "sensorgym/StereoPlacement-v0": "lookahead-information"}
+
+
+@pytest.mark.parametrize(
+    ("env_id", "episodes"),
+    [(POINTING, 8), (POINTING, 16), ("sensorgym/StereoPlacement-v0", 16)],
+)  # one round, and a second after the autoreset
+def test_no_policy_exceeds_its_bound_on_a_benchmark_episode(env_id, episodes):
+    passive, rule = PASSIVE_RULES[env_id], RULE_OF[env_id]
+    specs = {name: PolicySpec("rule", name) for name in (passive, rule)}
+    run, folder = next(iter(shipped_policies(env_id).items()))
     specs[f"shipped:{run}"] = PolicySpec("model", str(folder), shipped=True)
-    results = {name: score(POINTING, spec, episodes, 8, 10_000) for name, spec in specs.items()}
+    results = {name: score(env_id, spec, episodes, 8, 10_000) for name, spec in specs.items()}
     for name, r in results.items():
         assert len(r["bounds"]) == episodes, name
         assert bound_violations(r) == [], name
-        # the drones' paths are the scenario's alone: every policy meets the same bounds
-        assert r["bounds"] == results["hold-still"]["bounds"], name
-    room = headroom(results, PASSIVE_RULES[POINTING], "plan-search")
-    assert room["hold-still"]["normalised"] == 0.0
-    assert 0.0 < room["plan-search"]["normalised"] <= 1.0
+        # nothing ends these episodes early, and the drones' paths are the scenario's alone:
+        # every policy meets the same bounds
+        assert r["bounds"] == results[passive]["bounds"], name
+    room = headroom(results, passive, rule)
+    assert room[passive]["normalised"] == 0.0
+    assert 0.0 < room[rule]["normalised"] <= 1.0
 
 
 def test_the_benchmark_json_has_each_episodes_bound_and_the_headroom(tmp_path, capsys):
