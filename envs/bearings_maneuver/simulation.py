@@ -606,11 +606,15 @@ def observe(params: ManeuverParams, state: ManeuverState) -> NDArray[np.float32]
 def info(params: ManeuverParams, state: ManeuverState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the nearest
     platform's range, the bound the reward measures, the estimate's position error, the
-    tracker clock (read off the state's derived fields)."""
+    position RMS bound ``√(P_xx + P_yy)`` (m, whatever ``params.metric`` the reward measures:
+    the bound a user quotes in metres, :mod:`sensorgym.train.tail`), the tracker clock (read
+    off the state's derived fields)."""
+    L = state.bound_factor[:, :2]
     return {
         "range": state.nearest_range,
         "bound": state.accuracy,
         "position_error": state.position_error,
+        "position_bound": np.sqrt(np.einsum("bij,bij->b", L, L)),
         "tracker_t": np.full(state.accuracy.shape[0], state.bank.t),
     }
 

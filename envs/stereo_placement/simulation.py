@@ -484,13 +484,21 @@ def observe_agents(params: PlacementParams, state: PlacementState) -> NDArray[np
 
 def info(params: PlacementParams, state: PlacementState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy), computed
-    with the state by the step kernel."""
+    with the state by the step kernel; for the tail measures (:mod:`sensorgym.train.tail`),
+    as in StereoPointing, the share of drones without a fix (the degenerate periods: the tracker
+    coasted) and the sum and count of the CRLB ``σ_pos`` (m) over the fixed ones with a finite
+    bound."""
+    fixed = ~state.fix.degenerate
+    counted = fixed & np.isfinite(state.bound)
     return {
         "position_error": state.position_error,
         "bound": state.bound,
         "condition": state.fix.condition,
         "degenerate": state.fix.degenerate.astype(np.float64),
         "min_los_angle": state.min_los_angle,
+        "unfixed_share": state.fix.degenerate.astype(np.float64),
+        "fixed_sigma_sum": np.where(counted, state.bound, 0.0),
+        "fixed_sigma_count": counted.astype(np.float64),
     }
 
 

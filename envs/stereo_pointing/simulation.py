@@ -580,12 +580,20 @@ def observe_agents(params: PointingParams, state: PointingState) -> NDArray[np.f
 
 def info(params: PointingParams, state: PointingState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the mean
-    position error of the tracks, the number of drones fixed and of receiver-drone views."""
+    position error of the tracks, the number of drones fixed and of receiver-drone views; for
+    the tail measures (:mod:`sensorgym.train.tail`) the share of drones without a fix and, over the
+    fixed drones with a finite bound, the sum and count of their CRLB ``σ_pos`` (m, the
+    reward's :attr:`PointingState.bound`)."""
     diag = _derived(params, state)[2]
+    sigma = state.bound
+    counted = state.fixed & np.isfinite(sigma)
     return {
         "position_error": diag[kernels.I_ERROR],
         "drones_fixed": diag[kernels.I_FIXED],
         "views": diag[kernels.I_VIEWS],
+        "unfixed_share": (~state.fixed).mean(axis=1),
+        "fixed_sigma_sum": np.where(counted, sigma, 0.0).sum(axis=1),
+        "fixed_sigma_count": counted.sum(axis=1).astype(np.float64),
     }
 
 

@@ -45,6 +45,7 @@ from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_drawn_rows, run_rows
 from sensorgym.envs.stereo_scanning import kernels
 from sensorgym.trackers.geometry_kernels import look_at_batch, relative_pose_batch
+from sensorgym.trackers.metrics import gospa
 from sensorgym.trackers.stereo.association import norm_quantile
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
 from sensorgym.trackers.validation import check_fields, count, finite_array
@@ -812,7 +813,11 @@ def observe_agents(params: ScanningParams, state: ScanningState) -> NDArray[np.f
 
 
 def info(params: ScanningParams, state: ScanningState) -> dict[str, FloatArray]:
-    """Diagnostics (ground truth included: for evaluation, never for the policy)."""
+    """Diagnostics (ground truth included: for evaluation, never for the policy); ``gospa``:
+    the GOSPA (m; ``c = truth_gate``, ``p = 2``, ``α = 2``, :func:`~sensorgym.trackers.metrics.gospa`)
+    at the period end ``t`` between the confirmed tracks, predicted to ``t``, and the true
+    positions of the drones in the scene through the period (entered by its start, not left
+    at its end): the tail measure of :mod:`sensorgym.train.tail`."""
     parts = state.parts
     return {
         "drones_present": parts[:, 0],
@@ -821,7 +826,26 @@ def info(params: ScanningParams, state: ScanningState) -> dict[str, FloatArray]:
         "drone_reward": parts[:, 3],
         "mean_sigma_pos": parts[:, 4],
         "confirmed_tracks": parts[:, 5],
+        "gospa": period_gospa(params, state),
     }
+
+
+def period_gospa(params: ScanningParams, state: ScanningState) -> FloatArray:
+    """``(B,)`` GOSPA (m) of each scenario at its period end (:func:`info`)."""
+    t = state.t
+    confirmed = state.track_status == kernels.CONFIRMED
+    present = (state.enter <= (t - params.period)[:, None] + 1e-9) & ~state.exited
+    x = state.track_x
+    with np.errstate(invalid="ignore", over="ignore"):  # empty rows: whatever they hold
+        predicted = x[..., :3] + x[..., 3:6] * (t[:, None] - state.track_t)[..., None]
+    k, m = confirmed.sum(axis=1), present.sum(axis=1)
+    # an empty side is all missed or all false: c^p/2 each (p = 2); the rest is assigned
+    out = np.sqrt(params.truth_gate**2 / 2.0 * (k + m))
+    for b in np.flatnonzero((k > 0) & (m > 0)):
+        out[b] = gospa(
+            predicted[b, confirmed[b]], state.drone_position[b, present[b]], params.truth_gate
+        )
+    return out
 
 
 def split_observation(params: ScanningParams, obs: FloatArray) -> dict[str, FloatArray]:
