@@ -13,7 +13,10 @@ many episodes the policy did better and worse than the best rule
 (:func:`sensorgym.train.benchmark.paired_difference`). The JSON also holds the standard deviation, every policy's
 per-episode ``returns`` and the paired differences (``paired``); the numbers go to
 ``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
-``OUT/benchmark.png``. ``--param NAME=VALUE`` scores the env at another size or setting
+``OUT/benchmark.png``. A second table per env shows the tail in physical units: the return's
+p10 and the median, p90 and CVaR₅ % of the env's accuracy measures in metres
+(:mod:`sensorgym.train.tail`); the per-env JSON holds every policy's per-episode values
+(``results[policy]["tails"]``) and those statistics (``tail``). ``--param NAME=VALUE`` scores the env at another size or setting
 (every rule; a trained policy only if it was trained with the same params).
 
 The default seed 10000 is held out: no training run draws its scenarios from it or is chosen
@@ -130,6 +133,9 @@ def run(args: argparse.Namespace) -> int:
         if room:
             doc["passive_rule"] = PASSIVE_RULES[env_id]
             doc["headroom"] = room
+        tails = tail_summaries(env_id, results)
+        if tails:
+            doc["tail"] = tails
         path.write_text(json.dumps(doc, indent=2) + "\n")
         written.append(path)
     if scores:
@@ -255,7 +261,61 @@ def _benchmark(
             cells += headroom_cells(room.get(name))
         table.add_row(*cells)
     console.print(table)
+    tails = tail_summaries(env_id, results)
+    if tails:
+        order = sorted(results, key=lambda name: -results[name]["mean"])
+        console.print(tail_table(env_id, tails, args.episodes, order))
     return results
+
+
+def tail_summaries(env_id: str, results: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """Per policy of ``results`` with per-episode ``tails``: the return's p10 and each tail
+    measure's median, p90 and CVaR₅ % (:func:`~sensorgym.train.tail.tail_summary`); empty for
+    an env without tail measures."""
+    from sensorgym.train.tail import measures_for, tail_summary
+
+    measures = measures_for(env_id)
+    return {name: tail_summary(r, measures) for name, r in results.items() if r.get("tails")}
+
+
+def tail_table(env_id: str, tails: dict[str, Any], episodes: int, order: list[str]) -> Any:
+    """The second table of an env: per policy (in ``order``, the main table's) the return's
+    p10 and each tail measure's median, p90 and CVaR₅ % (metres; a share in %)."""
+    from rich.table import Table
+
+    from sensorgym.train.tail import measures_for
+
+    measures = measures_for(env_id)
+    table = Table(title=f"{env_id}: the tail in physical units ({episodes} episodes)")
+    table.add_column("policy", justify="left", no_wrap=True)
+    table.add_column("return\np10", justify="right", no_wrap=True)
+    for m in measures:
+        unit = "%" if m.unit == "share" else m.unit
+        for head in (f"{m.name} ({unit})\nmedian", "\np90", "\nCVaR5"):
+            table.add_column(head, justify="right", no_wrap=True)
+    table.caption = "; ".join(f"{m.name}: {m.description}" for m in measures) + (
+        "; p90 and CVaR5 (the mean of the worst 5 % of the episodes) on the bad side"
+    )
+    for name in order:
+        t = tails.get(name)
+        if t is None:
+            continue
+        p10 = t["return_p10"]
+        cells = [name, "" if p10 is None else f"{p10:.3f}"]
+        for m in measures:
+            s = t["measures"].get(m.name, {})
+            cells += [_tail_cell(s.get(k), m.unit) for k in ("median", "p90", "cvar5")]
+        table.add_row(*cells)
+    return table
+
+
+def _tail_cell(value: float | None, unit: str) -> str:
+    """A tail statistic: a share in %, metres with three significant digits."""
+    if value is None:
+        return "–"
+    if unit == "share":
+        return f"{100 * value:.1f}"
+    return f"{value:.3g}" if abs(value) < 1000 else f"{value:.0f}"
 
 
 def headroom_cells(h: dict[str, Any] | None) -> list[str]:

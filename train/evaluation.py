@@ -7,7 +7,7 @@ seed, so that two policies evaluated with one seed meet the same scenarios.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -18,6 +18,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.train.sb3_vec_env import SB3VecEnv
+from sensorgym.train.tail import Measure, TailCollector, measures_for
 from sensorgym.train.wrappers import apply_wrappers
 
 
@@ -43,6 +44,10 @@ class EpisodeStats:
     """Every episode's upper bound on the return (the env's ``episode_bound`` of the state the
     episode started in, :mod:`.bounds`), in the order of :attr:`returns`; empty for an env
     without one."""
+    tails: dict[str, tuple[float, ...]] = field(default_factory=dict, repr=False)
+    """The env's tail measures (:mod:`.tail`), name → every episode's value (NaN where the
+    episode has none, e.g. no fix at all), in the order of :attr:`returns`; empty for an env
+    without them."""
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -51,6 +56,12 @@ class EpisodeStats:
             d["bounds"] = list(self.bounds)
         else:
             del d["bounds"]
+        if self.tails:  # JSON has no NaN: an episode without a value reads null
+            d["tails"] = {
+                k: [x if np.isfinite(x) else None for x in v] for k, v in self.tails.items()
+            }
+        else:
+            del d["tails"]
         return d
 
 
@@ -91,6 +102,13 @@ def simulator_state(env: VecEnv) -> Callable[[], Any]:
     return lambda: env.get_attr("simulator_state")[0]
 
 
+def env_id_of(env: VecEnv) -> str | None:
+    """The registered id of the vector env under an SB3 wrapper stack (``None`` if it has no
+    spec)."""
+    spec = env.get_attr("spec")[0]
+    return getattr(spec, "id", None)
+
+
 def agents_per_scenario(env: VecEnv) -> int:
     """Slots per scenario of an SB3 env from :func:`make_sb3_env` (1 unless ``agents=True``)."""
     return int(getattr(env.unwrapped, "agents_per_scenario", 1))
@@ -102,6 +120,7 @@ def evaluate(
     episodes: int,
     seed: int,
     episode_bound: Callable[[Any], np.ndarray] | None = None,
+    tails: Sequence[Measure] | None = None,
 ) -> EpisodeStats:
     """Score ``policy`` (anything with SB3's ``predict``) over ``episodes`` episodes of ``env``,
     deterministic actions.
@@ -119,6 +138,11 @@ def evaluate(
     starts in (one value per scenario, :mod:`.bounds`), read at the reset and after every step
     that ended an episode (the state then holds the next one's start); each episode's bound is
     kept beside its return (:attr:`EpisodeStats.bounds`).
+
+    ``tails``: the accuracy measures read per episode from the env's diagnostics
+    (:mod:`.tail`; the final ``info`` of an episode or its steps' ``info`` accumulated), kept
+    beside the returns (:attr:`EpisodeStats.tails`); ``None``: the env's own
+    (:data:`.tail.TAIL_MEASURES` of its id), ``()``: none.
     """
     if episodes < 1:
         raise ValueError(f"episodes: must be >= 1, got {episodes}")
@@ -132,6 +156,9 @@ def evaluate(
     env.seed(seed)
     obs = env.reset()
     state_fn = simulator_state(env)
+    measures = measures_for(env_id_of(env)) if tails is None else tuple(tails)
+    collector = TailCollector(measures, slots) if measures else None
+    done_tails: list[list[dict[str, float]]] = [[] for _ in range(slots)]
 
     def bounds_now() -> np.ndarray:  # per slot: the bound of the episode its scenario starts
         return np.repeat(np.asarray(episode_bound(state_fn()), dtype=np.float64), n)
@@ -146,14 +173,18 @@ def evaluate(
     done_lengths: list[list[int]] = [[] for _ in range(slots)]
     while any(len(done_returns[i]) < target[i] for i in range(slots)):
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
-        obs, reward, done, _ = env.step(action)
+        obs, reward, done, infos = env.step(action)
         running += np.asarray(reward, dtype=np.float64)
         length += 1
+        if collector is not None:
+            collector.step(infos, done)
         for i in np.flatnonzero(done):
+            values = collector.episode(i, infos[i].get("final_info", {})) if collector else {}
             if len(done_returns[i]) < target[i]:
                 done_returns[i].append(float(running[i]))
                 done_lengths[i].append(int(length[i]))
                 done_bounds[i].append(float(bound[i]))
+                done_tails[i].append(values)
         if episode_bound is not None and np.any(done):
             bound = np.where(done, bounds_now(), bound)
         running[done] = 0.0
@@ -170,6 +201,7 @@ def evaluate(
     r = r[:, 0]
     lengths = np.array([done_lengths[s * n][k] for k, s in order], dtype=np.float64)
     bounds = [done_bounds[s * n][k] for k, s in order] if episode_bound is not None else []
+    tail_values = {m.name: tuple(done_tails[s * n][k][m.name] for k, s in order) for m in measures}
     std = float(r.std(ddof=1)) if r.size > 1 else 0.0
     return EpisodeStats(
         mean=float(r.mean()),
@@ -179,4 +211,5 @@ def evaluate(
         mean_length=float(np.mean(lengths)),
         returns=tuple(float(x) for x in r),
         bounds=tuple(bounds),
+        tails=tail_values,
     )
