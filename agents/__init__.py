@@ -2,10 +2,10 @@
 
 | env | module | rules |
 |-----|--------|-------|
-| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | :class:`StraightCourse`, :class:`Paper002Maneuver`, :class:`GreedyManeuver`, :class:`OracleLookahead` (ceiling) |
+| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | :class:`StraightCourse`, :class:`Paper002Maneuver`, :class:`GreedyManeuver`, :class:`TruthLookahead` (truth-informed) |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | :class:`HoldStill`, :class:`TrackNearest`, :class:`OrthogonalPairs`, :class:`GreedyPointing` |
-| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement`, :class:`OracleGreedyPlacement` (ceiling) |
-| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | :class:`FullSweep`, :class:`CueFollowing`, :class:`OrthogonalSectors`, :class:`GreedyInformation`, :class:`OracleSectors` (ceiling) |
+| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement`, :class:`TruthGreedyPlacement` (truth-informed) |
+| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | :class:`FullSweep`, :class:`CueFollowing`, :class:`OrthogonalSectors`, :class:`GreedyInformation`, :class:`TruthSectors` (truth-informed) |
 
 :mod:`.registry` maps env ids to rule factories (what ``sensorgym benchmark`` scores);
 :mod:`.protocol` is the ``predict`` interface they share with trained models.
@@ -13,9 +13,9 @@
 
 from sensorgym.agents.bearings_maneuver import (
     GreedyManeuver,
-    OracleLookahead,
     Paper002Maneuver,
     StraightCourse,
+    TruthLookahead,
 )
 from sensorgym.agents.protocol import MemorylessRule, PolicyPredictor
 from sensorgym.agents.registry import RULES, rules_for
@@ -23,7 +23,7 @@ from sensorgym.agents.stereo_placement import (
     CirclePlacement,
     GreedyPlacement,
     HoldPosition,
-    OracleGreedyPlacement,
+    TruthGreedyPlacement,
 )
 from sensorgym.agents.stereo_pointing import (
     GreedyPointing,
@@ -35,8 +35,8 @@ from sensorgym.agents.stereo_scanning import (
     CueFollowing,
     FullSweep,
     GreedyInformation,
-    OracleSectors,
     OrthogonalSectors,
+    TruthSectors,
 )
 
 __all__ = [
@@ -51,14 +51,14 @@ __all__ = [
     "HoldPosition",
     "HoldStill",
     "MemorylessRule",
-    "OracleGreedyPlacement",
-    "OracleLookahead",
-    "OracleSectors",
     "OrthogonalPairs",
     "OrthogonalSectors",
     "Paper002Maneuver",
     "PolicyPredictor",
     "StraightCourse",
     "TrackNearest",
+    "TruthGreedyPlacement",
+    "TruthLookahead",
+    "TruthSectors",
     "rules_for",
 ]

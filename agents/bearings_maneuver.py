@@ -1,12 +1,12 @@
-"""Rules for ``sensorgym/BearingsManeuver-v0`` (theory §10.5 OC-5), and the oracle ceiling above them.
+"""Rules for ``sensorgym/BearingsManeuver-v0`` (theory §10.5 OC-5), and a truth-informed planner.
 
 Each rule reads only the observation (the tracker's view, see
 :func:`sensorgym.envs.bearings_maneuver.simulation.observe_agents`) and implements SB3's
 ``predict``, so ``stable_baselines3.common.evaluation.evaluate_policy`` scores it like a
-trained model. :class:`OracleLookahead` is not a rule one could field: it peeks at the
+trained model. :class:`TruthLookahead` is not a rule one could field: it peeks at the
 simulator (true target, true Cramér–Rao bound) and plans on the very bound the reward
-measures, which shows how much of the gap to the best manoeuvres comes from not knowing the
-target (the rules) and how much from planning.
+measures, which shows what knowing the truth buys a receding-horizon planner. It is not a
+bound on the return: a longer plan, or a policy that learnt the task, can beat it.
 
 Every rule works for any number of platforms ``K`` (``params.platforms``): it reads the joint
 view (every platform's view in turn, ``K · obs_dim``) and returns every platform's action in
@@ -15,7 +15,7 @@ turn (``2K``). The rules without a model of the shared information (:class:`Stra
 so the information rules choose jointly, by sequential greedy: platform 1 chooses first, then
 each platform chooses given the choices before it (:class:`GreedyManeuver`: its bearing's
 information ``hᵀ P h`` after the earlier platforms' bearings have updated ``P``;
-:class:`EstimateLookahead` and :class:`OracleLookahead`: its ``horizon``-step plan's bound with
+:class:`EstimateLookahead` and :class:`TruthLookahead`: its ``horizon``-step plan's bound with
 the other platforms flying their plans, straight on until chosen). This costs
 ``O(K · candidates)`` (greedy) or ``O(K · candidates · horizon + K² · horizon)`` (lookahead) per
 scenario, where a joint search would cost ``candidates^K``; for ``K = 1`` each is the
@@ -213,7 +213,7 @@ class GreedyManeuver(ManeuverRule):
 
 
 def _joint_plans(
-    rule: OracleLookahead | EstimateLookahead,
+    rule: TruthLookahead | EstimateLookahead,
     pos: FloatArray,
     heading: FloatArray,
     speed: FloatArray,
@@ -247,7 +247,7 @@ def _check_plan_settings(horizon: int, turns: int, speeds: tuple[float, ...]) ->
 
 
 @dataclass(frozen=True)
-class OracleLookahead(MemorylessRule):
+class TruthLookahead(MemorylessRule):
     """Hold each candidate action for ``horizon`` steps on the true, noise-free trajectory and
     take the first action of the plan with the smallest bound (receding horizon).
 
@@ -259,7 +259,7 @@ class OracleLookahead(MemorylessRule):
     """
 
     state_fn: Callable[[], ManeuverState]
-    """The simulator's current state (the oracle's privilege)."""
+    """The simulator's current state (the truth this planner is given)."""
     params: ManeuverParams = field(default_factory=ManeuverParams)
     """Env settings (kinematics, bearing noise, reward metric, ``min_range``)."""
     turns: int = 7
@@ -327,8 +327,8 @@ class OracleLookahead(MemorylessRule):
 
 @dataclass(frozen=True)
 class EstimateLookahead(ManeuverRule):
-    """The oracle's receding-horizon planner run on the tracker's estimate instead of the
-    truth (certainty equivalence): hold each candidate action for ``horizon`` steps while the
+    """:class:`TruthLookahead`'s receding-horizon planner run on the tracker's estimate instead
+    of the truth (certainty equivalence): hold each candidate action for ``horizon`` steps while the
     *estimated* target moves on at its estimated velocity, run the bound recursion from the
     estimate's covariance, and take the first action of the plan with the smallest bound.
 
@@ -361,8 +361,8 @@ class EstimateLookahead(ManeuverRule):
         return np.stack([turn.ravel(), speed.ravel()], -1)
 
     def choose(self, views: FloatArray) -> FloatArray:
-        """Every platform's action ``(N, K, 2)``: the oracle's compiled plans from the
-        estimate, in platform 1's frame."""
+        """Every platform's action ``(N, K, 2)``: :class:`TruthLookahead`'s compiled plans from
+        the estimate, in platform 1's frame."""
         p, w = self.params, self.params.world
         n, K = views.shape[:2]
         views = np.asarray(views, dtype=np.float64)

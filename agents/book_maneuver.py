@@ -3,10 +3,12 @@
 :class:`OpenLoop` flies a fixed sequence of turn commands, one per step, whatever the bearings
 say; :func:`book_leg_change` is the book's own manoeuvre (Ristic, Arulampalam & Gordon, ch. 6):
 course 140° → 20° at 30°/min during minutes 13–16. On the book's fixed scenario it is the
-baseline a reader asks a trained policy to beat. The numerically optimised sequence (a ceiling:
-it was optimised on the true target) is made by ``sensorgym reproduce bot-control``; its result
-for the default seed is :data:`BOOK_OPTIMISED_TURNS`, flown by :func:`optimised_open_loop` (the
-``oracle-open-loop`` ceiling, and the teacher of the trained policies).
+baseline a reader asks a trained policy to beat. The numerically optimised sequence is made by
+``sensorgym reproduce bot-control`` on the book's *nominal* target path (prior knowledge only,
+no simulator truth), with a 500 m margin beyond the stand-off; its result for the default seed is
+:data:`BOOK_OPTIMISED_TURNS`, flown by :func:`optimised_open_loop` (the ``book-optimised-plan``
+rule — a fieldable rule like the leg change, scored as one — and the teacher of the trained
+policies).
 """
 
 from __future__ import annotations
@@ -26,7 +28,8 @@ LEG_CHANGE_TURN = -1.0
 #: the open-loop turn commands (× 30°/min, + = to starboard) that minimise the book's PCRLB at
 #: 32 min on the true, noise-free target path with 1.5 km kept at every bearing (stand-off +
 #: margin): ``bot_control.optimise_open_loop(restarts=8, seed=10000)`` (48.5 m; the book's
-#: leg change: 95 m). Planned on the truth: a ceiling, not a fieldable rule.
+#: leg change: 95 m). Planned on the book's nominal target (prior knowledge, not the simulator's
+#: truth): a fieldable rule, not a bound.
 BOOK_OPTIMISED_TURNS = (
     -0.9999999999997984,
     -0.690024302996851,
@@ -115,6 +118,7 @@ def book_leg_change(steps: int = 32, platforms: int = 1) -> OpenLoop:
 
 
 def optimised_open_loop(platforms: int = 1) -> OpenLoop:
-    """The optimised open-loop manoeuvre :data:`BOOK_OPTIMISED_TURNS` (a ceiling: planned on
-    the true target of the book's fixed scenario; flown by each of ``platforms`` platforms)."""
+    """The optimised open-loop manoeuvre :data:`BOOK_OPTIMISED_TURNS` (a fieldable rule: planned
+    on the book's nominal target path with a 500 m stand-off margin, before any bearing; flown by
+    each of ``platforms`` platforms)."""
     return OpenLoop(BOOK_OPTIMISED_TURNS, platforms)

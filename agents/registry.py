@@ -2,7 +2,8 @@
 
 ``RULES[env_id][name](params, state_fn)`` builds the rule from the env's parameters (rules that
 plan with the env's kinematics need them) and a function returning the simulator's current
-state (only oracles use it: they are ceilings, not fieldable policies; pass
+state (only the truth-informed rules, named ``truth-…``, use it: they show what knowing the
+truth buys a planner; they are neither fieldable policies nor bounds on the return; pass
 ``lambda: env.simulator_state``). Every rule implements
 :class:`~sensorgym.agents.protocol.PolicyPredictor`.
 """
@@ -31,7 +32,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
-        "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
+        "truth-lookahead": lambda params, state_fn: maneuver.TruthLookahead(state_fn, params),
     },
     # the textbook scenario: the same rules (they read the book's limits from params), and the
     # book's own manoeuvre
@@ -41,8 +42,8 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
-        "oracle-lookahead": lambda params, state_fn: maneuver.OracleLookahead(state_fn, params),
-        "oracle-open-loop": lambda params, _: book.optimised_open_loop(params.platforms),
+        "truth-lookahead": lambda params, state_fn: maneuver.TruthLookahead(state_fn, params),
+        "book-optimised-plan": lambda params, _: book.optimised_open_loop(params.platforms),
     },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),
@@ -66,14 +67,14 @@ RULES: dict[str, dict[str, RuleFactory]] = {
             cue_steps=1,
             search=pointing_search.EpipolarSearch(),
         ),
-        "oracle-plan": lambda params, state_fn: pointing.OraclePlan(state_fn, params),
+        "truth-plan": lambda params, state_fn: pointing.TruthPlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {
         "hold-position": lambda params, _: placement.HoldPosition(params),
         "circle-placement": lambda params, _: placement.CirclePlacement(params),
         "greedy-information": lambda params, _: placement.GreedyPlacement(params),
         "lookahead-information": lambda params, _: placement.GreedyPlacement(params, horizon=3),
-        "oracle-lookahead": lambda params, state_fn: placement.OracleGreedyPlacement(
+        "truth-lookahead": lambda params, state_fn: placement.TruthGreedyPlacement(
             params, horizon=3, state_fn=state_fn
         ),
     },
@@ -86,7 +87,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "cue-entry-search": lambda params, _: scanning.CueFollowing(params, search="entry"),
         "orthogonal-sectors": lambda params, _: scanning.OrthogonalSectors(params),
         "greedy-information": lambda params, _: scanning.GreedyInformation(params),
-        "oracle-sectors": lambda params, state_fn: scanning.OracleSectors(state_fn, params),
+        "truth-sectors": lambda params, state_fn: scanning.TruthSectors(state_fn, params),
     },
 }
 

@@ -245,10 +245,11 @@ class GreedyPlacement(MemorylessRule):
 
 
 @dataclass(frozen=True)
-class OracleGreedyPlacement(GreedyPlacement):
+class TruthGreedyPlacement(GreedyPlacement):
     """:class:`GreedyPlacement` planned on the TRUE drone position and velocity (read from the
-    simulator): a ceiling, not a fieldable rule; the teacher a trained policy imitates before
-    RL (it sees only the observation)."""
+    simulator): a truth-informed planner, not a fieldable rule — what knowing the truth buys
+    this search, not a bound on the return; the teacher a trained policy imitates before RL
+    (it sees only the observation)."""
 
     state_fn: Any = None
     """Returns the simulator's current state (:class:`PlacementState`)."""

@@ -21,7 +21,7 @@ once from nothing) and re-assigns one receiver at a time while the rule's own ob
 keeping the better of the two ends, the same objective through
 :func:`~sensorgym.trackers.stereo.kernels.assignment_marginals_batch`; ``"greedy"`` takes that
 polynomial path at any size, ``"exhaustive"`` the full search (refused above 4096). The
-planners (``plan-estimate``, ``plan-horizon``, ``oracle-plan``) score each assignment over the
+planners (``plan-estimate``, ``plan-horizon``, ``truth-plan``) score each assignment over the
 whole plan, about 30 µs per assignment and scenario, so their ``"auto"`` is exhaustive only up
 to :data:`PLAN_ASSIGNMENTS` (the registered 4 × 2's 16 assignments): at 4 × 4 and 6 × 3 the
 full search took 7.7 and 24 ms per scenario, the polynomial one 0.05–0.08 ms
@@ -349,7 +349,8 @@ class GreedyPointing(_AssignAndSlew):
         return cand[np.argmax(objective, axis=-1)]
 
 
-#: episode length of the registered env (``max_episode_steps``): the oracle plans to its end
+#: episode length of the registered env (``max_episode_steps``): :class:`TruthPlan` plans to its
+#: end
 EPISODE_STEPS = 150
 
 
@@ -357,10 +358,11 @@ EPISODE_STEPS = 150
 PLAN_ASSIGNMENTS = 32
 
 
-class OraclePlan(MemorylessRule):
-    """Plan on the truth (reads ``simulator_state``; a ceiling, not a fieldable rule): at every
-    step, for every assignment of receivers to drones held from now to the episode's end, sum
-    the env's reward over the remaining steps of the true straight-line flights — each receiver
+class TruthPlan(MemorylessRule):
+    """Plan on the truth (reads ``simulator_state``; a truth-informed planner, neither a
+    fieldable rule nor a bound on the return — ``plan-search`` beats it): at every step, for
+    every assignment of receivers to drones held from now to the episode's end, sum the env's
+    reward over the remaining steps of the true straight-line flights — each receiver
     counted once its gimbal, slewing at full rate, has reached its drone — and take the best
     (``solver``: all assignments, or the polynomial search from :func:`information_seed` at
     the true positions with the tracker's covariance).
@@ -599,10 +601,10 @@ def plan_objective(params: PointingParams, geometry: PlanGeometry) -> SeparableO
 
 @dataclass(frozen=True)
 class PlanEstimate(_AssignAndSlew):
-    """The oracle's planner on the tracker's estimate (a fieldable rule): hold the assignment
-    whose planned return over the next ``horizon`` steps (:func:`plan_values`, the drones
-    flying straight from their predicted positions with their estimated velocities) is best,
-    re-planned every step. The observation carries no clock, so the horizon recedes."""
+    """:class:`TruthPlan`'s planner on the tracker's estimate (a fieldable rule): hold the
+    assignment whose planned return over the next ``horizon`` steps (:func:`plan_values`, the
+    drones flying straight from their predicted positions with their estimated velocities) is
+    best, re-planned every step. The observation carries no clock, so the horizon recedes."""
 
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (receiver layout, noise, slew limit, reward, observation layout)."""

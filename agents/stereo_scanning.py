@@ -2,8 +2,9 @@
 
 Each rule reads only the observation (the tracker's table of confirmed tracks and the last
 sectors, :func:`sensorgym.envs.stereo_scanning.simulation.observe`) plus the env's params
-(receiver layout, raster, noise per width), and implements SB3's ``predict``; the oracle also
-reads the simulator's true drones (a ceiling, not a fieldable policy).
+(receiver layout, raster, noise per width), and implements SB3's ``predict``;
+:class:`TruthSectors` also reads the simulator's true drones (a truth-informed rule, not a
+fieldable policy, and not a bound on the return).
 
 * :class:`FullSweep` — the papers' fixed sweep: every receiver scans its whole field of regard.
 * :class:`CueFollowing` — sectors centred on the predicted tracks, just wide enough for them
@@ -16,7 +17,8 @@ reads the simulator's true drones (a ceiling, not a fieldable policy).
 * :class:`GreedyInformation` — per period, the common width (from a grid) and centres that
   maximise the expected reward ``Σ_tracks [covered ? ln(σ_ref/σ̂_pos(w)) : −R]`` with
   ``σ̂_pos = κ w r̄ √(σ[r̂_1]²/σ_e² + 2)`` (the env's covariance with the range-only closed form).
-* :class:`OracleSectors` — the greedy choice on the true drones of the scene (ceiling).
+* :class:`TruthSectors` — the greedy choice on the true drones of the scene (truth-informed:
+  what knowing the drones buys the greedy choice).
 """
 
 from __future__ import annotations
@@ -318,8 +320,9 @@ class GreedyInformation(_Periodic):
         )
 
 
-class OracleSectors(MemorylessRule):
-    """The greedy choice on the true drones present (reads ``simulator_state``): a ceiling."""
+class TruthSectors(MemorylessRule):
+    """The greedy choice on the true drones present (reads ``simulator_state``): a
+    truth-informed rule, not fieldable and not a bound on the return."""
 
     def __init__(self, state_fn: Callable[[], Any], params: ScanningParams, n_widths: int = 8):
         self.state_fn = state_fn
@@ -348,8 +351,8 @@ __all__ = [
     "CueFollowing",
     "FullSweep",
     "GreedyInformation",
-    "OracleSectors",
     "OrthogonalSectors",
+    "TruthSectors",
     "entry_points",
     "entry_sectors",
     "greedy_sectors",

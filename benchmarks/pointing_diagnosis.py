@@ -2,7 +2,7 @@
 
 ``python benchmarks/pointing_diagnosis.py [--seed 500] [--episodes 128]`` plays the same
 seeded scenarios with ``plan-horizon``, ``plan-acquire`` (the fix this diagnosis led to),
-``oracle-plan`` and each of the ``m^n`` constant
+``truth-plan`` and each of the ``m^n`` constant
 assignments (receiver ``k`` held on drone ``c_k`` for the whole episode, slewed onto the
 tracker's prediction by the env's slew controller), and writes
 ``benchmarks/results/pointing_diagnosis.json``:
@@ -37,7 +37,7 @@ import numpy as np
 
 from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
-    OraclePlan,
+    TruthPlan,
     _assignments,
     _view,
     plan_values,
@@ -160,12 +160,12 @@ def main() -> None:
 
     holder: dict[str, Any] = {}
 
-    def oracle_rule(obs: np.ndarray, t: int, state: Any) -> np.ndarray:
+    def truth_rule(obs: np.ndarray, t: int, state: Any) -> np.ndarray:
         holder["state"] = state
-        return oracle.assign(obs)
+        return truth_plan.assign(obs)
 
-    oracle = OraclePlan(lambda: holder["state"], params)
-    runs["oracle-plan"] = play(params, oracle_rule, args.seed, B)
+    truth_plan = TruthPlan(lambda: holder["state"], params)
+    runs["truth-plan"] = play(params, truth_rule, args.seed, B)
     for c in cands:
         runs["constant " + "".join(map(str, c))] = play(params, constant(c), args.seed, B)
 
@@ -191,7 +191,7 @@ def main() -> None:
     est0 = plan_values(
         params, v0.azimuth, v0.elevation, v0.position, v0.velocity, np.full(B, float(T)), 3
     )
-    true0 = OraclePlan(lambda: s0, params).values(s0)
+    true0 = TruthPlan(lambda: s0, params).values(s0)
 
     def paired(a: np.ndarray) -> dict[str, float]:
         return {
@@ -239,7 +239,7 @@ def main() -> None:
         },
         "best_constant_in_hindsight": paired(best),
         "best_constant_minus_plan_horizon": paired(diff),
-        "oracle_plan_minus_plan_horizon": paired(returns["oracle-plan"] - ph),
+        "truth_plan_minus_plan_horizon": paired(returns["truth-plan"] - ph),
         "plan_acquire_minus_plan_horizon": paired(returns["plan-acquire"] - ph),
         "share_of_episodes_best_constant_above_plan_horizon": float((diff > 0).mean()),
         "best_constant_counts": {

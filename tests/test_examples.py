@@ -31,7 +31,7 @@ def test_write_your_own_rule():
     ours = scores["turn-across-the-bearing (ours)"]
     assert {"straight-course", "greedy-information"} < set(scores)
     # keeping the bearing abeam makes range observable: better than holding course
-    assert scores["straight-course"] < ours < scores["oracle-lookahead"]
+    assert scores["straight-course"] < ours < scores["truth-lookahead"]
 
 
 def test_train_and_compare(tmp_path):

@@ -149,8 +149,11 @@ def pool(parts: list[dict[str, float]]) -> dict[str, float]:
     }
 
 
-#: a rule whose name starts so plans on the truth: a ceiling, not a rival (agents.registry)
-ORACLE_PREFIX = "oracle-"
+#: a rule whose name starts so plans on the simulator's truth (agents.registry): it shows what
+#: knowing the truth buys a planner; not fieldable, so never the best rule, and no bound either
+TRUTH_PREFIX = "truth-"
+#: the old name of :data:`TRUTH_PREFIX`, kept while ``train/score_chart.py`` still imports it
+ORACLE_PREFIX = TRUTH_PREFIX
 
 
 def is_rule(name: str) -> bool:
@@ -160,9 +163,10 @@ def is_rule(name: str) -> bool:
 
 def best_rule(results: dict[str, dict[str, Any]]) -> str | None:
     """The rule with the highest mean return among ``results``' rows that are fieldable rules
-    (no oracle: those see the truth); ``None`` when there is none."""
+    (no truth-informed rule, ``truth-…``: those see the simulator's truth); ``None`` when
+    there is none."""
     rules = {
-        k: r["mean"] for k, r in results.items() if is_rule(k) and not k.startswith(ORACLE_PREFIX)
+        k: r["mean"] for k, r in results.items() if is_rule(k) and not k.startswith(TRUTH_PREFIX)
     }
     return max(rules, key=rules.__getitem__) if rules else None
 

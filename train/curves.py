@@ -68,7 +68,7 @@ def curve_window(
 ) -> tuple[tuple[float, float], dict[str, float], dict[str, float]]:
     """The y-range of a learning curve, the rules drawn in it and those left out: the range
     holds the curve's 95 % band, the best fieldable rule (the one a trained policy must beat,
-    :func:`~sensorgym.train.benchmark.best_rule`) and the highest line (an oracle's ceiling),
+    :func:`~sensorgym.train.benchmark.best_rule`) and the highest line,
     widened by ``WINDOW_MARGIN`` of their span on each side (by 1 where the span is zero); a
     rule outside it is left out. Non-finite values (a diverged evaluation) take no part in the
     range and such rules are left out (the note names them); with nothing finite the range is

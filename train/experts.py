@@ -51,12 +51,12 @@ from sensorgym.train.wrappers import base_env, base_observation
 
 #: expert name → ``"sensorgym.<module>:<factory>"``, factory ``(env: VecEnv) -> predictor``
 EXPERTS: dict[str, str] = {
-    "pointing-oracle-plan": "sensorgym.envs.stereo_pointing.wrappers:oracle_plan_expert",
+    "pointing-truth-plan": "sensorgym.envs.stereo_pointing.wrappers:truth_plan_expert",
     "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
     "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
     "plan-choice-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_choice_expert",
     "plan-horizon-choice": "sensorgym.envs.stereo_pointing.wrappers:PlanHorizonExpert",
-    "placement-oracle-target": "sensorgym.envs.stereo_placement.wrappers:oracle_target",
+    "placement-truth-target": "sensorgym.envs.stereo_placement.wrappers:truth_target",
     "scan-entry-search": "sensorgym.envs.stereo_scanning.wrappers:entry_search_expert",
 }
 

@@ -442,8 +442,8 @@ def _late_plan_accuracy(c, Lo, path, track, too_close, ox, oy, C, u, Lc):
 
 @njit(**_JIT)
 def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close, out):
-    """The oracle's plans for one platform (:meth:`sensorgym.agents.bearings_maneuver.
-    OracleLookahead.plan_bounds`) for scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``,
+    """The truth-informed lookahead's plans for one platform (:meth:`sensorgym.agents.bearings_maneuver.
+    TruthLookahead.plan_bounds`) for scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``,
     ``heading``, ``speed`` ``(B, K)`` holds each command ``command (C, 2)`` (rad/s, m/s; clipped
     as the step does) for ``horizon`` steps while the target follows its mean path ``F x`` from
     ``target (B, 4)`` and the bound's square root ``L (B, 4, 4)`` runs the env's recursion
@@ -486,7 +486,7 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
 def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close,
                       choice):  # fmt: skip
     """Receding-horizon plans of ``K`` platforms by sequential (coordinate-wise) choice, for
-    scenarios ``lo ≤ b < hi`` (:class:`sensorgym.agents.bearings_maneuver.OracleLookahead` on
+    scenarios ``lo ≤ b < hi`` (:class:`sensorgym.agents.bearings_maneuver.TruthLookahead` on
     the truth, :class:`~sensorgym.agents.bearings_maneuver.EstimateLookahead` on the estimate):
     every platform of ``pos (B, K, 2)``, ``heading``, ``speed`` ``(B, K)`` starts on the plan
     "hold course and speed"; then platforms 1, 2, …, K in turn take the command of

@@ -23,7 +23,7 @@ One step (``params.world.dt`` seconds):
 
    with ``m`` the position RMS bound ``√(P_xx + P_yy)`` or the relative range bound ``σ_r/r``
    (:func:`accuracy_of`; :func:`advance_bound` is the recursion in numpy form: the step kernel
-   and the oracle's plans run the same compiled primitives).
+   and the lookahead planners run the same compiled primitives).
    Rewards telescope: the return of an episode is ``ln(m_0/m_T)``, the log-factor by which
    the platform's manoeuvres shrank the bound. The bound does not depend on the noise draw,
    so the reward has no measurement noise in it, only the consequences of the actions.
@@ -347,8 +347,9 @@ def accuracy_of(
     """The accuracy ``m(P)`` the reward measures (``params.metric``) of the bound ``P = L Lᵀ``
     (square root ``L`` ``(..., 4, 4)``) on ``target`` ``(..., 4)``: the position RMS bound, or the
     relative range bound taken from ``origin`` ``(..., 2)`` (platform 1), by the compiled
-    primitive the step kernel and the oracle's plans call. Read off ``L`` as sums of squares, it is never negative; it is kept inside
-    ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so that log-ratio rewards are always finite."""
+    primitive the step kernel and the lookahead planners call. Read off ``L`` as sums of
+    squares, it is never negative; it is kept inside ``[ACCURACY_FLOOR, 1/ACCURACY_FLOOR]`` so
+    that log-ratio rewards are always finite."""
     L = np.asarray(L, dtype=np.float64)
     target = np.asarray(target, dtype=np.float64)
     origin = np.asarray(origin, dtype=np.float64)
@@ -382,7 +383,7 @@ def advance_bound(
     """One step of the posterior-CRLB recursion on the square root ``L`` ``(..., 4, 4)``:
     predict over ``world.dt`` (``P̄ = F P Fᵀ + Q``), then fuse the bearings of the platforms at
     ``positions`` ``(..., K, 2)`` on the true ``target`` ``(..., 4)`` at the new time: the numpy
-    form of the recursion the step kernel and the oracle's plans run (same compiled
+    form of the recursion the step kernel and the lookahead planners run (same compiled
     primitives, :func:`.kernels.step_kernel`, :func:`.kernels.plan_kernel`)."""
     w = params.world
     L = predict_bound_factor(L, w.dt, w.q_tilde)

@@ -73,8 +73,8 @@ class CoreParallelEnv(ParallelEnv):
 
     @property
     def simulator_state(self) -> Any:
-        """The simulation's current state, a batch of one (ground truth included: for oracles,
-        rendering and diagnostics, never for a policy one could field)."""
+        """The simulation's current state, a batch of one (ground truth included: for
+        truth-informed rules, bounds, rendering and diagnostics, never for a policy one could field)."""
         if self._state is None:
             raise RuntimeError("simulator_state: call reset() first")
         return self._state

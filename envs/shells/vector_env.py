@@ -96,7 +96,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
     @property
     def simulator_state(self) -> Any:
         """The simulation's current state, batch ``num_envs`` (ground truth included: for
-        oracles and diagnostics, never for a policy one could field)."""
+        truth-informed rules, bounds and diagnostics, never for a policy one could field)."""
         if self._state is None:
             raise RuntimeError("simulator_state: call reset() first")
         return self._state

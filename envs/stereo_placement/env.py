@@ -97,11 +97,11 @@ class StereoPlacementEnv(CoreEnv):
     * v0, issue 13 (in place; scenarios, observations and rewards unchanged, golden episodes
       unchanged): ``greedy-information`` maximises the env's own reward predicted one period
       ahead instead of ``ln det`` of the information; ``lookahead-information`` (its sum over
-      3 periods) and ``oracle-lookahead`` (the same on the true drone: a ceiling) are
+      3 periods) and ``truth-lookahead`` (the same on the true drone: truth-informed) are
       registered. Trained policies act through
       :class:`~sensorgym.envs.stereo_placement.wrappers.PlanTargetAction` (a correction of
       the tracker's one-period prediction that the greedy search plans on) with 8 stacked
-      observations, imitating the oracle target before PPO.
+      observations, imitating the truth-informed target before PPO.
     * v0, issue 15 (in place; the registered 3-receiver env, its rules and golden episodes
       unchanged): ``n_receivers`` sets the number of receiver vehicles (``--param
       n_receivers=16``), the delays then spread evenly over ``[0, 0.6]`` s unless given; the

@@ -5,11 +5,11 @@ ahead — as a correction to the tracker's own prediction — and drives the rec
 :class:`~sensorgym.agents.stereo_placement.GreedyPlacement`'s one-period search towards it.
 The tracker's single-period fix is noisy (median position error some 10 m, velocity error some
 15 m/s, heavy tails), and the greedy rule plans on it as is; the same search on the true drone
-(:class:`~sensorgym.agents.stereo_placement.OracleGreedyPlacement`) scores some 8 more per
+(:class:`~sensorgym.agents.stereo_placement.TruthGreedyPlacement`) scores some 8 more per
 episode. A policy that sees a stack of recent observations can learn where the drone really
 is. The zero action is exactly the greedy rule; the scenarios and rewards are the env's.
 
-:func:`oracle_target` is the teacher for imitation pre-training: the action that moves the
+:func:`truth_target` is the teacher for imitation pre-training: the action that moves the
 target onto the true drone's position one period ahead (it reads the simulator; the student
 sees only the observation).
 """
@@ -70,7 +70,7 @@ def plan_target(venv: VecEnv, **kwargs: Any) -> VecEnv:
     return PlanTargetAction(venv, **kwargs)
 
 
-class OracleTarget:
+class TruthTarget:
     """The teacher of :class:`PlanTargetAction`: the action whose target is the true drone one
     period ahead, ``a |a| = (p + τ v − (p̂ + τ v̂)) / s`` (clipped to ``[−1, 1]``), the truth
     ``p``, ``v`` and the tracker's estimate read from the simulator."""
@@ -94,9 +94,9 @@ class OracleTarget:
         return (np.sign(x) * np.sqrt(np.abs(x))).astype(np.float32), None
 
 
-def oracle_target(env: VecEnv) -> OracleTarget:
-    """The ``placement-oracle-target`` expert factory (``sensorgym.train.experts.EXPERTS``):
-    :class:`OracleTarget` for the :class:`PlanTargetAction` in ``env``'s wrapper stack."""
+def truth_target(env: VecEnv) -> TruthTarget:
+    """The ``placement-truth-target`` expert factory (``sensorgym.train.experts.EXPERTS``):
+    :class:`TruthTarget` for the :class:`PlanTargetAction` in ``env``'s wrapper stack."""
     from sensorgym.train.evaluation import simulator_state
 
     inner = env
@@ -104,4 +104,4 @@ def oracle_target(env: VecEnv) -> OracleTarget:
         if not hasattr(inner, "venv"):
             raise ValueError("env: no PlanTargetAction in its wrapper stack")
         inner = inner.venv
-    return OracleTarget(simulator_state(env), inner.params, inner.scale)
+    return TruthTarget(simulator_state(env), inner.params, inner.scale)

@@ -106,7 +106,7 @@ class StereoPointingEnv(CoreEnv):
       (``V = velocity_scale``) and ``ln(σ̂_v,j · 1 s / σ_ref)`` (the CV filter's velocity and
       its RMS error), so ``obs_dim`` is ``3n + 3nm + 8m`` (was ``+ 4m``; 52, was 44). Rules:
       ``hold-cue`` added (the cue assignment held), ``plan-estimate`` (the best held
-      assignment over a 100-step plan on the tracker's estimate) and ``oracle-plan`` (a ceiling:
+      assignment over a 100-step plan on the tracker's estimate) and ``truth-plan`` (truth-informed:
       the same planner on the truth); the assignment rules' hysteresis counts a receiver aimed at a drone's
       prediction, not only one that saw it, and is larger (orthogonal pairs 0.3, greedy 3.0,
       were 0.05), which ends the step-0 near-tie that sent every receiver to the other drone;

@@ -564,13 +564,13 @@ def greedy_expert(env: VecEnv) -> AssignmentExpert:
     return _rule_expert(env, "greedy-information")
 
 
-def oracle_plan_expert(env: VecEnv) -> AssignmentExpert:
-    """The ``oracle-plan`` ceiling as an assignment teacher: it plans on the simulator's truth
-    (:func:`sensorgym.train.evaluation.simulator_state`); the student only sees the
-    observation."""
-    from sensorgym.agents.stereo_pointing import OraclePlan
+def truth_plan_expert(env: VecEnv) -> AssignmentExpert:
+    """The truth-informed ``truth-plan`` rule as an assignment teacher: it plans on the
+    simulator's truth (:func:`sensorgym.train.evaluation.simulator_state`); the student only
+    sees the observation."""
+    from sensorgym.agents.stereo_pointing import TruthPlan
     from sensorgym.train.evaluation import simulator_state
 
     wrapper = find_assignment(env)
-    oracle = OraclePlan(simulator_state(env), wrapper.params)
-    return AssignmentExpert(env, oracle.assign)
+    planner = TruthPlan(simulator_state(env), wrapper.params)
+    return AssignmentExpert(env, planner.assign)

@@ -174,7 +174,7 @@ class StereoScanningEnv(CoreEnv):
       ghost triple that gathered other objects' fixes (median ``χ²/dof`` 36 against 1.13 for a
       true drone's fit) is dropped. At 16 × 10 the rules' returns rise sharply (seed 500, 64
       episodes: greedy-information 8.93 → 35.66, cue-following 8.26 → 34.44, cue-no-search
-      −15.12 → 34.82, oracle-sectors 44.81 → 48.43): the ghosts had taken the true
+      −15.12 → 34.82, truth-sectors 44.81 → 48.43): the ghosts had taken the true
       candidates' fixes (cue-following tracks 90 % of the present drones instead of 77 %).
       These 16 × 10 scores are ``sensorgym benchmark --env sensorgym/StereoScanning-v0
       --param n_receivers=16 --param n_drones=10 --episodes 64 --seed 500 --no-shipped``
@@ -184,7 +184,7 @@ class StereoScanningEnv(CoreEnv):
       (``scipy.stats.chi2.isf`` at the new field ``fit_false_alarm``, 1e-6) instead of the
       Wilson–Hilferty approximation (default unchanged; at 16 × 10, same command,
       ``chi2_exact.json``: greedy-information 35.66, cue-following 34.44, cue-no-search
-      34.82, cue-entry-search 33.63 → 33.90, oracle-sectors 48.43 → 48.47). Then negative
+      34.82, cue-entry-search 33.63 → 33.90, truth-sectors 48.43 → 48.47). Then negative
       information (new field ``ghost_misses``, 2): a triple whose prediction lies inside the
       sectors of two of receivers 4 … n, by more than its uncertainty and its motion during
       their sweeps, with no fix in its gate there, is dropped at once — detection is certain
@@ -193,7 +193,7 @@ class StereoScanningEnv(CoreEnv):
       ghosts, and most of those are now dropped after a few receivers instead of a search of
       all thirteen and a joint fit (the step's time: ``benchmarks/results/scaling.json``).
       Same command, ``negative_information.json``:
-      every rule's mean return is unchanged or higher (oracle-sectors 48.47 → 50.53, paired
+      every rule's mean return is unchanged or higher (truth-sectors 48.47 → 50.53, paired
       +2.06 ± 0.37; cue-entry-search 33.90 → 36.82, +2.92 ± 2.19; greedy-information,
       cue-following and cue-no-search +0.003; full-sweep and orthogonal-sectors identical).
       Later in issue 15 (episodes bit-identical): the raster's pixel-visit iteration takes its

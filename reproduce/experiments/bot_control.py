@@ -18,9 +18,10 @@ trajectories the policy flew. Policies:
 * perpendicular to the bearing (the registered ``paper002`` rule: along the bearing for two
   steps, then the target abeam);
 * greedy information (the registered ``greedy-information`` rule, on the tracker's estimate);
-* the registered ``lookahead-estimate`` rule (the oracle's planner on the tracker's estimate);
-* the registered lookahead on the truth (a truth-informed planner: what knowing the truth buys
-  a receding-horizon planner; not a ceiling);
+* the registered ``lookahead-estimate`` rule (``truth-lookahead``'s planner on the tracker's
+  estimate);
+* the registered lookahead on the truth (``truth-lookahead``, a truth-informed planner: what
+  knowing the truth buys a receding-horizon planner; no bound);
 * a fixed plan optimised on the book's nominal target path (prior knowledge only, the same
   plan for every run: a rule): ``scipy.optimize.minimize`` (SLSQP) over the 32 heading-rate
   commands in ``[−1, 1]`` (× 30°/min), minimising ln of the book's PCRLB at 32 min on the
@@ -394,8 +395,8 @@ def _book_env(runs: int, seed: int, config: dict[str, Any] | None = None) -> Any
 
 
 def _truth_lookahead(rules: dict[str, Any]) -> str:
-    """The registered lookahead rule that plans on the truth (named ``oracle-…`` or
-    ``truth-…``)."""
+    """The registered lookahead rule that plans on the truth (``truth-lookahead``; named
+    ``oracle-…`` before the rename, which is still accepted)."""
     names = [n for n in rules if "lookahead" in n and n.split("-")[0] in ("oracle", "truth")]
     if len(names) != 1:
         raise KeyError(f"expected one truth-informed lookahead rule, got {names}")

@@ -46,7 +46,7 @@ def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
     assert (tmp_path / "sweep.png").read_bytes()[:4] == b"\x89PNG"
     # the benchmark fan-out: every rule and both seeds' runs, chunks on seeds 10000 and 10001
     benchmark = doc["benchmark"]
-    assert {"paper002", "oracle-lookahead", "model:ppo_seed0", "model:ppo_seed1"} <= set(benchmark)
+    assert {"paper002", "truth-lookahead", "model:ppo_seed0", "model:ppo_seed1"} <= set(benchmark)
     chunks = [
         score(ENV, PolicySpec("rule", "straight-course"), 4, 4, seed) for seed in (10_000, 10_001)
     ]

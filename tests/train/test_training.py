@@ -131,11 +131,11 @@ def test_benchmark_command_scores_every_rule(tmp_path, capsys):
         "paper002",
         "greedy-information",
         "lookahead-estimate",
-        "oracle-lookahead",
+        "truth-lookahead",
         # the shipped policies, scored by default
         *(f"shipped:{run}" for run in shipped_policies(ENV_ID)),
     }
-    assert results["oracle-lookahead"]["mean"] > results["greedy-information"]["mean"]
+    assert results["truth-lookahead"]["mean"] > results["greedy-information"]["mean"]
     assert results["greedy-information"]["mean"] > results["straight-course"]["mean"]
     assert "greedy-information" in capsys.readouterr().out
 

@@ -193,19 +193,19 @@ def test_coming_too_close_terminates_with_the_penalty():
     np.testing.assert_allclose(reward, np.log(state.accuracy / new.accuracy) - 5.0, rtol=1e-12)
 
 
-# --- oracle ceiling ------------------------------------------------------------------------------
+# --- truth-informed lookahead --------------------------------------------------------------------
 
 
-def test_one_step_oracle_picks_the_action_with_the_smallest_next_bound():
-    """With horizon 1 the oracle's plan is exactly the env's next reward: stepping the core with
+def test_one_step_truth_lookahead_picks_the_action_with_the_smallest_next_bound():
+    """With horizon 1 the truth lookahead's plan is exactly the env's next reward: stepping the core with
     every candidate, its choice has the smallest next bound."""
-    from sensorgym.agents.bearings_maneuver import OracleLookahead
+    from sensorgym.agents.bearings_maneuver import TruthLookahead
 
     params = ManeuverParams()
     state = core.reset(params, np.random.default_rng(12), 3)
-    oracle = OracleLookahead(lambda: state, params, horizon=1, safety=0.0)
-    action, _ = oracle.predict(core.observe_agents(params, state)[:, 0])
-    cand = oracle.candidates()
+    truth = TruthLookahead(lambda: state, params, horizon=1, safety=0.0)
+    action, _ = truth.predict(core.observe_agents(params, state)[:, 0])
+    cand = truth.candidates()
     bounds = np.stack(
         [
             core.step(params, state, np.tile(c, (3, 1)), np.random.default_rng(0))[0].accuracy
@@ -213,21 +213,21 @@ def test_one_step_oracle_picks_the_action_with_the_smallest_next_bound():
         ],
         axis=1,
     )
-    np.testing.assert_allclose(oracle.plan_bounds(state), bounds, rtol=1e-9)
+    np.testing.assert_allclose(truth.plan_bounds(state), bounds, rtol=1e-9)
     np.testing.assert_array_equal(action, cand[bounds.argmin(axis=1)].astype(np.float32))
 
 
-def test_oracle_lookahead_is_a_ceiling_above_the_rules():
-    from sensorgym.agents.bearings_maneuver import OracleLookahead
+def test_truth_lookahead_scores_above_the_rules():
+    from sensorgym.agents.bearings_maneuver import TruthLookahead
     from sensorgym.train.evaluation import evaluate, make_sb3_env, simulator_state
 
     env = make_sb3_env(ENV_ID, 8, seed=0)
-    oracle = evaluate(OracleLookahead(simulator_state(env)), env, 16, seed=0)
+    truth = evaluate(TruthLookahead(simulator_state(env)), env, 16, seed=0)
     greedy = evaluate(GreedyManeuver(), env, 16, seed=0)
-    assert oracle.mean > greedy.mean + 1.0
+    assert truth.mean > greedy.mean + 1.0
     with pytest.raises(ValueError, match="batch"):
-        OracleLookahead(simulator_state(env)).predict(np.zeros((3, core.OBS_DIM), np.float32))
+        TruthLookahead(simulator_state(env)).predict(np.zeros((3, core.OBS_DIM), np.float32))
     with pytest.raises(ValueError, match="platforms"):  # a state of another size
-        OracleLookahead(simulator_state(env), ManeuverParams(platforms=2)).predict(
+        TruthLookahead(simulator_state(env), ManeuverParams(platforms=2)).predict(
             np.zeros((8, 2 * ManeuverParams(platforms=2).obs_dim), np.float32)
         )

@@ -1,7 +1,7 @@
 """BearingsManeuver-v0 across scales (issue 10, defects 2 and 7): the bound is carried in
 square-root covariance form, so rewards are finite for bearing noise from 1e-8 to 1 rad and
 steps up to 1e5 s, equal the former information-form rewards on well-scaled defaults, and the
-oracle plans on the very same recursion; every params field is checked by name."""
+truth plans on the very same recursion; every params field is checked by name."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
-from sensorgym.agents.bearings_maneuver import OracleLookahead
+from sensorgym.agents.bearings_maneuver import TruthLookahead
 from sensorgym.envs.bearings_maneuver import simulation as core
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.worlds.platform import PlatformWorldParams
@@ -137,17 +137,17 @@ def test_square_root_bound_equals_the_former_information_form_on_defaults(params
         np.testing.assert_allclose(reward + params.close_penalty * term, old_reward, atol=1e-8)
 
 
-def test_oracle_plans_on_the_env_recursion_at_extreme_scales():
-    """Horizon 1: the oracle's plan bounds are the env's next bounds for every candidate, also
+def test_truth_lookahead_plans_on_the_env_recursion_at_extreme_scales():
+    """Horizon 1: the truth lookahead's plan bounds are the env's next bounds for every candidate, also
     where the information form failed (σ = 1e-8 rad, 1e5-s steps)."""
     for params in (_params(1e-8), _params(dt=1e5)):
         state = core.reset(params, np.random.default_rng(31), 4)
-        oracle = OracleLookahead(lambda s=state: s, params, horizon=1, safety=0.0)
-        plans = oracle.plan_bounds(state)
+        truth = TruthLookahead(lambda s=state: s, params, horizon=1, safety=0.0)
+        plans = truth.plan_bounds(state)
         nxt = np.stack(
             [
                 core.step(params, state, np.tile(c, (4, 1)), np.random.default_rng(0))[0].accuracy
-                for c in oracle.candidates()
+                for c in truth.candidates()
             ],
             axis=1,
         )

@@ -8,7 +8,7 @@ from pettingzoo.test import parallel_api_test
 
 from sensorgym.agents.bearings_maneuver import (
     GreedyManeuver,
-    OracleLookahead,
+    TruthLookahead,
     platform_views,
     relative_headings,
 )
@@ -114,12 +114,12 @@ def test_greedy_is_sequential_greedy_on_the_shared_estimate(K):
     assert np.mean(np.concatenate(agree)) >= 0.98
 
 
-def brute_force_joint_plans(oracle: OracleLookahead, s: ManeuverState) -> np.ndarray:
+def brute_force_joint_plans(truth: TruthLookahead, s: ManeuverState) -> np.ndarray:
     """The sequential plans in numpy: each platform in turn tries every candidate held for the
     horizon, the others flying their plans (chosen, or straight on), every bearing fused by
     the env's recursion (:func:`advance_bound`); ``(B, K)`` command indices."""
-    p, w = oracle.params, oracle.params.world
-    cand = oracle.candidates()
+    p, w = truth.params, truth.params.world
+    cand = truth.candidates()
     command = cand * [w.max_turn_rate, w.max_speed_change]
     B, K = s.heading.shape
     C = len(cand)
@@ -137,12 +137,12 @@ def brute_force_joint_plans(oracle: OracleLookahead, s: ManeuverState) -> np.nda
         target = np.repeat(s.target[:, None], C, axis=1)
         L = np.repeat(s.bound_factor[:, None], C, axis=1)
         close = np.zeros((B, C), dtype=bool)
-        for _ in range(oracle.horizon):
+        for _ in range(truth.horizon):
             pos, heading, speed = fly(pos, heading, speed, cmd, w)
             target = target @ F.T
             L = advance_bound(p, L, target, pos)
             d = target[..., :2] - pos[:, :, k]
-            close |= np.hypot(d[..., 0], d[..., 1]) < oracle.safety * p.min_range
+            close |= np.hypot(d[..., 0], d[..., 1]) < truth.safety * p.min_range
         bound = np.where(close, np.inf, accuracy_of(p, L, target, pos[:, :, 0]))
         choice[:, k] = np.argmin(bound, axis=1)
     return choice
@@ -153,9 +153,9 @@ def test_joint_plans_equal_a_brute_force_sequential_search():
     agree = []
     for seed in (0, 1):
         for state in _states(params, seed, batch=24):
-            oracle = OracleLookahead(lambda s=state: s, params, horizon=4)
-            action, _ = oracle.predict(core.observe(params, state))
-            expected = oracle.candidates()[brute_force_joint_plans(oracle, state)]
+            truth = TruthLookahead(lambda s=state: s, params, horizon=4)
+            action, _ = truth.predict(core.observe(params, state))
+            expected = truth.candidates()[brute_force_joint_plans(truth, state)]
             expected = expected.reshape(action.shape[0], -1).astype(np.float32)
             agree.append(np.all(action == expected, axis=1))
     assert np.mean(np.concatenate(agree)) >= 0.95
@@ -164,9 +164,9 @@ def test_joint_plans_equal_a_brute_force_sequential_search():
 def test_one_platform_joint_plan_is_the_single_platform_plan():
     params = ManeuverParams()
     for state in _states(params, 2):
-        oracle = OracleLookahead(lambda s=state: s, params)
-        action, _ = oracle.predict(core.observe(params, state))
-        chosen = oracle.candidates()[np.argmin(oracle.plan_bounds(state), axis=1)]
+        truth = TruthLookahead(lambda s=state: s, params)
+        action, _ = truth.predict(core.observe(params, state))
+        chosen = truth.candidates()[np.argmin(truth.plan_bounds(state), axis=1)]
         np.testing.assert_array_equal(action, chosen.astype(np.float32))
 
 

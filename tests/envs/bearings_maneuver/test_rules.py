@@ -7,7 +7,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from sensorgym.agents.bearings_maneuver import EstimateLookahead, GreedyManeuver, OracleLookahead
+from sensorgym.agents.bearings_maneuver import EstimateLookahead, GreedyManeuver, TruthLookahead
 from sensorgym.envs.bearings_maneuver import simulation as core
 from sensorgym.envs.bearings_maneuver.simulation import (
     ManeuverParams,
@@ -19,11 +19,11 @@ from sensorgym.envs.worlds.platform import PlatformWorldParams, fly
 from sensorgym.trackers.bearings.models import cv_transition
 
 
-def brute_force_plan_bounds(oracle: OracleLookahead, s: ManeuverState) -> np.ndarray:
+def brute_force_plan_bounds(truth: TruthLookahead, s: ManeuverState) -> np.ndarray:
     """Every candidate held for the horizon with the numpy world (:func:`fly`, ``F x``) and the
     env's bound recursion (:func:`advance_bound`, :func:`accuracy_of`); ``(B, C)``."""
-    p, w = oracle.params, oracle.params.world
-    cand = oracle.candidates()
+    p, w = truth.params, truth.params.world
+    cand = truth.candidates()
     C = cand.shape[0]
     command = np.broadcast_to(cand * [w.max_turn_rate, w.max_speed_change], (s.batch_size, C, 2))
     pos = np.repeat(s.platform_position[:, :1], C, axis=1)
@@ -33,12 +33,12 @@ def brute_force_plan_bounds(oracle: OracleLookahead, s: ManeuverState) -> np.nda
     L = np.repeat(s.bound_factor[:, None], C, axis=1)
     F = cv_transition(w.dt)
     too_close = np.zeros((s.batch_size, C), dtype=bool)
-    for _ in range(oracle.horizon):
+    for _ in range(truth.horizon):
         pos, heading, speed = fly(pos, heading, speed, command, w)
         target = target @ F.T
         L = advance_bound(p, L, np.broadcast_to(target, (*pos.shape[:-1], 4)), pos[..., None, :])
         d = target[..., :2] - pos
-        too_close |= np.hypot(d[..., 0], d[..., 1]) < oracle.safety * p.min_range
+        too_close |= np.hypot(d[..., 0], d[..., 1]) < truth.safety * p.min_range
     return np.where(too_close, np.inf, accuracy_of(p, L, target, pos))
 
 
@@ -62,17 +62,17 @@ def _states(params: ManeuverParams, seed: int, batch: int = 64):
     ],
 )
 @pytest.mark.parametrize("horizon", [1, 5])
-def test_oracle_plans_equal_the_numpy_recursion(params, horizon):
+def test_truth_lookahead_plans_equal_the_numpy_recursion(params, horizon):
     for seed in (0, 1):
         for state in _states(params, seed):
-            oracle = OracleLookahead(lambda s=state: s, params, horizon=horizon)
-            bounds = oracle.plan_bounds(state)
-            expected = brute_force_plan_bounds(oracle, state)
+            truth = TruthLookahead(lambda s=state: s, params, horizon=horizon)
+            bounds = truth.plan_bounds(state)
+            expected = brute_force_plan_bounds(truth, state)
             np.testing.assert_array_equal(np.isinf(bounds), np.isinf(expected))
             live = np.isfinite(expected)
             np.testing.assert_allclose(bounds[live], expected[live], rtol=1e-12)
-            action, _ = oracle.predict(core.observe_agents(params, state)[:, 0])
-            chosen = oracle.candidates()[np.argmin(expected, axis=1)].astype(np.float32)
+            action, _ = truth.predict(core.observe_agents(params, state)[:, 0])
+            chosen = truth.candidates()[np.argmin(expected, axis=1)].astype(np.float32)
             np.testing.assert_array_equal(action, chosen)
 
 
@@ -149,14 +149,14 @@ def estimated_world(rule: EstimateLookahead, obs: np.ndarray) -> SimpleNamespace
     [ManeuverParams(), ManeuverParams(initial_range=(1_000.0, 4_000.0), min_range=600.0)],
 )
 @pytest.mark.parametrize("horizon", [2, 8])
-def test_estimate_lookahead_plans_the_oracle_recursion_on_the_estimate(params, horizon):
+def test_estimate_lookahead_plans_the_truth_recursion_on_the_estimate(params, horizon):
     rule = EstimateLookahead(params, horizon=horizon)
-    # the same recursion as the oracle's, on the estimated world instead of the true one
-    oracle = OracleLookahead(lambda: None, params, horizon=horizon, safety=rule.safety)
+    # the same recursion as the truth lookahead's, on the estimated world instead of the true one
+    truth = TruthLookahead(lambda: None, params, horizon=horizon, safety=rule.safety)
     for seed in (0, 1):
         for state in _states(params, seed):
             obs = core.observe(params, state).astype(np.float64)
-            expected = brute_force_plan_bounds(oracle, estimated_world(rule, obs))
+            expected = brute_force_plan_bounds(truth, estimated_world(rule, obs))
             chosen = rule.candidates()[np.argmin(expected, axis=1)].astype(np.float32)
             action, _ = rule.predict(obs.astype(np.float32))
             # ties between near-equal plans may resolve either way at rounding level

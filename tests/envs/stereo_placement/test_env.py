@@ -54,7 +54,7 @@ def test_registration_sets_the_time_limit_and_the_vector_entry_point():
         "circle-placement",
         "greedy-information",
         "lookahead-information",
-        "oracle-lookahead",
+        "truth-lookahead",
     }
 
 

@@ -189,7 +189,7 @@ def test_every_rule_decides_at_sixteen_receivers_and_spreads_them_out():
             s, reward, _ = core.step(params, s, action, rng)
             total += reward.mean()
         totals[name] = total
-    for name in ("circle-placement", "greedy-information", "oracle-lookahead"):
+    for name in ("circle-placement", "greedy-information", "truth-lookahead"):
         assert totals[name] > totals["hold-position"] + 5.0, totals
 
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.stereo_placement import GreedyPlacement
-from sensorgym.envs.stereo_placement.wrappers import PlanTargetAction, oracle_target
+from sensorgym.envs.stereo_placement.wrappers import PlanTargetAction, truth_target
 from sensorgym.train.evaluation import env_params, make_sb3_env
 
 ENV_ID = "sensorgym/StereoPlacement-v0"
@@ -32,10 +32,10 @@ def test_zero_target_correction_is_the_greedy_rule():
     np.testing.assert_array_equal(zeros, greedy)
 
 
-def test_oracle_target_teacher_beats_the_greedy_rule():
+def test_truth_target_teacher_beats_the_greedy_rule():
     """Planning on the true drone instead of the noisy single-period fix pays (same seeds)."""
     wrapped = PlanTargetAction(make_sb3_env(ENV_ID, 16, seed=4))
-    teacher = oracle_target(wrapped)
+    teacher = truth_target(wrapped)
     taught = _returns(wrapped, lambda obs: teacher.predict(obs)[0])
     wrapped = PlanTargetAction(make_sb3_env(ENV_ID, 16, seed=4))  # the same scenarios
     greedy = _returns(wrapped, lambda obs: np.zeros((16, 3), np.float32))
@@ -51,4 +51,4 @@ def test_bad_arguments_are_named():
     with pytest.raises(ValueError, match="actions"):
         wrapped.step(np.full((2, 3), np.nan, np.float32))
     with pytest.raises(ValueError, match="PlanTargetAction"):
-        oracle_target(env)
+        truth_target(env)

@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import HoldCue, OraclePlan, OrthogonalPairs, PlanEstimate
+from sensorgym.agents.stereo_pointing import HoldCue, OrthogonalPairs, PlanEstimate, TruthPlan
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
 from sensorgym.envs.stereo_pointing.wrappers import (
     AssignmentAction,
     hold_cue_expert,
-    oracle_plan_expert,
     orthogonal_pairs_expert,
+    truth_plan_expert,
 )
 from sensorgym.train.evaluation import evaluate, make_sb3_env, simulator_state
 
@@ -92,26 +92,26 @@ def test_slew_controller_turns_at_full_rate_and_stops_on_the_track():
         assignment_actions(params, obs, np.full((8, 4), 2))
 
 
-def test_the_oracle_plan_is_a_ceiling_of_the_hold_cue_rule():
+def test_the_truth_plan_scores_at_least_the_hold_cue_rule():
     """On the truth, planning the held assignment scores at least the cue pairing (seeded)."""
     env = make_sb3_env(ENV_ID, 8, 0)
     params = PointingParams()
-    oracle = OraclePlan(simulator_state(env), params)
-    assert _returns(oracle, env, 21, 16) >= _returns(HoldCue(params), env, 21, 16)
+    truth_plan = TruthPlan(simulator_state(env), params)
+    assert _returns(truth_plan, env, 21, 16) >= _returns(HoldCue(params), env, 21, 16)
     wrapped = AssignmentAction(make_sb3_env(ENV_ID, 8, 0))
-    expert = oracle_plan_expert(wrapped)
+    expert = truth_plan_expert(wrapped)
     obs = wrapped.reset()
     assert expert.predict(obs)[0].shape == (8, 4)
 
 
-def test_the_estimate_planner_on_an_exact_cue_plans_as_the_oracle():
+def test_the_estimate_planner_on_an_exact_cue_plans_as_the_truth_plan():
     """With a near-exact cue the tracker's estimate is the truth: at the start, planning over
-    the whole episode on the estimate picks the oracle's assignment (the same planner)."""
+    the whole episode on the estimate picks ``TruthPlan``'s assignment (the same planner)."""
     params = PointingParams(cue_sigma=(1e-6, 1e-6))
     env = make_sb3_env(ENV_ID, 16, 0, cue_sigma=(1e-6, 1e-6))
     env.seed(4)
     obs = env.reset()
-    oracle = OraclePlan(simulator_state(env), params, stride=1)
+    truth_plan = TruthPlan(simulator_state(env), params, stride=1)
     planner = PlanEstimate(params, horizon=150, stride=1)
-    agree = (oracle.assign(obs) == planner.assign(obs)).all(axis=1).mean()
+    agree = (truth_plan.assign(obs) == planner.assign(obs)).all(axis=1).mean()
     assert agree >= 0.9

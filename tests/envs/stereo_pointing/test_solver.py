@@ -29,9 +29,9 @@ from sensorgym.agents.assignment_solver import (
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_pointing import (
     GreedyPointing,
-    OraclePlan,
     OrthogonalPairs,
     PlanEstimate,
+    TruthPlan,
     _keep_bonus,
     _one_step,
     _view,
@@ -241,14 +241,14 @@ def _rule_objective(rule, params: PointingParams, obs: np.ndarray, venv) -> np.n
 
 
 @pytest.mark.parametrize(("n", "m"), SMALL)
-@pytest.mark.parametrize("name", ["orthogonal-pairs", "greedy-information", "plan-estimate", "oracle-plan"])  # fmt: skip
+@pytest.mark.parametrize("name", ["orthogonal-pairs", "greedy-information", "plan-estimate", "truth-plan"])  # fmt: skip
 def test_polynomial_rules_stop_at_a_local_optimum_never_above_the_exhaustive_one(name, n, m):
     params = PointingParams(n_receivers=n, n_drones=m)
     venv, obs = _states(params, seed=10 * n + m)
     rules = {}
     for solver in ("exhaustive", "greedy"):  # the registered rule with either solver
         rule = rules_for(ENV_ID, params, lambda: venv.simulator_state)[name]
-        if isinstance(rule, OraclePlan):
+        if isinstance(rule, TruthPlan):
             rule.solver = solver
             rules[solver] = rule
         else:

@@ -189,7 +189,7 @@ def test_every_rule_decides_finitely_at_16_receivers_and_10_drones():
             assert a.shape == (B, 48) and np.all(np.isfinite(a)), name
             actions[name] = a
         start[:] = False
-        obs, reward, _, infos = env.step(actions["oracle-sectors"])
+        obs, reward, _, infos = env.step(actions["truth-sectors"])
         assert np.all(np.isfinite(reward))
         confirmed += sum(info["confirmed_tracks"] for info in infos)
     assert confirmed > 0  # the tracker runs at this size
