@@ -6,7 +6,7 @@ registered for it in :mod:`sensorgym.agents.registry`, every policy shipped with
 seed over the same scenarios, in the same order (:func:`sensorgym.train.evaluation.evaluate` on
 the native vector env). One table per env shows mean return, the 95 % confidence half-width and
 interval, the mean episode length and each policy's paired difference to the best fieldable
-rule (oracles, which see the truth, excluded): the mean and 95 % interval of the per-episode
+rule (truth-informed rules, which see the truth, excluded): the mean and 95 % interval of the per-episode
 difference on the same scenarios; beside it the difference's interquartile mean with a bootstrap
 95 % interval (what a typical episode gains, robust to a few episodes hundreds apart) and how
 many episodes the policy did better and worse than the best rule

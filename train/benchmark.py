@@ -125,9 +125,11 @@ def score(
         env.close()
 
 
-def pool(parts: list[dict[str, float]]) -> dict[str, float]:
+def pool(parts: list[dict[str, Any]]) -> dict[str, Any]:
     """The statistics of the episodes of several :func:`score` results taken together (exact
-    pooled mean and sample standard deviation; normal 95 % half-width of the mean)."""
+    pooled mean and sample standard deviation; normal 95 % half-width of the mean); the
+    per-episode ``returns``, and the ``bounds`` and ``tails`` where every part has them,
+    concatenated in the parts' order."""
     if not parts:
         raise ValueError("parts: expected at least one result")
     n = np.array([p["episodes"] for p in parts], dtype=np.float64)
@@ -139,7 +141,7 @@ def pool(parts: list[dict[str, float]]) -> dict[str, float]:
     ss = float(((n - 1) * std**2 + n * (mean - grand) ** 2).sum())
     sd = float(np.sqrt(ss / (total - 1))) if total > 1 else 0.0
     length = float((n * np.array([p["mean_length"] for p in parts])).sum() / total)
-    return {
+    pooled: dict[str, Any] = {
         "mean": grand,
         "std": sd,
         "ci95": float(1.96 * sd / np.sqrt(total)),
@@ -147,13 +149,17 @@ def pool(parts: list[dict[str, float]]) -> dict[str, float]:
         "mean_length": length,
         "returns": [x for p in parts for x in p.get("returns", [])],
     }
+    if all("bounds" in p for p in parts):
+        pooled["bounds"] = [x for p in parts for x in p["bounds"]]
+    names = set.intersection(*(set(p.get("tails", {})) for p in parts))
+    if names:
+        pooled["tails"] = {k: [x for p in parts for x in p["tails"][k]] for k in sorted(names)}
+    return pooled
 
 
 #: a rule whose name starts so plans on the simulator's truth (agents.registry): it shows what
 #: knowing the truth buys a planner; not fieldable, so never the best rule, and no bound either
 TRUTH_PREFIX = "truth-"
-#: the old name of :data:`TRUTH_PREFIX`, kept while ``train/score_chart.py`` still imports it
-ORACLE_PREFIX = TRUTH_PREFIX
 
 
 def is_rule(name: str) -> bool:

@@ -97,7 +97,7 @@ def env_params(env: VecEnv) -> Any:
 
 def simulator_state(env: VecEnv) -> Callable[[], Any]:
     """A function returning the current simulator state under ``env`` (the vector env's
-    public ``simulator_state``), for oracle rules, which plan on the truth; the vector env is
+    public ``simulator_state``), for truth-informed rules, which plan on the truth; the vector env is
     the one :func:`make_sb3_env` builds, whose batch matches the observations."""
     return lambda: env.get_attr("simulator_state")[0]
 

@@ -3,9 +3,10 @@ best rule, each axis scaled to the policies that matter.
 
 One rule that holds still can score −700 where the best policies score +60 (StereoPointing): on
 a common scale the comparison the chart exists for vanishes. Each panel's axis therefore holds
-the *core* rows — the best fieldable rule, every trained policy, every oracle ceiling — and zero,
-and takes in the other rows only while the axis stays within ``SPAN_GROWTH`` times the core's
-span; a bar beyond it is cut at the axis and its value written on it.
+the *core* rows — the best fieldable rule, every trained policy, every truth-informed rule —,
+zero and the episodes' bound where the rows carry one, and takes in the other rows only while
+the axis stays within ``SPAN_GROWTH`` times the core's span; a bar beyond it is cut at the axis
+and its value written on it.
 """
 
 from __future__ import annotations
@@ -15,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from sensorgym.train.benchmark import ORACLE_PREFIX, is_rule, paired_to_best_rule
+from sensorgym.train.benchmark import TRUTH_PREFIX, is_rule, paired_to_best_rule
 
 #: how far the other rows may widen a panel's axis: at most this times the core rows' span
 SPAN_GROWTH = 2.0
 #: the axis margin beyond the outermost interval drawn, a fraction of the span
 MARGIN = 0.06
-TRAINED_COLOR, RULE_COLOR = "#e8833a", "#4878a8"
+TRAINED_COLOR, RULE_COLOR, BOUND_COLOR = "#e8833a", "#4878a8", "#3a8a3a"
 
 
 def bar_window(intervals: dict[str, tuple[float, float]], core: set[str]) -> tuple[float, float]:
@@ -50,19 +51,47 @@ def bar_window(intervals: dict[str, tuple[float, float]], core: set[str]) -> tup
 
 def core_rows(rows: dict[str, Any], best: str | None) -> set[str]:
     """The rows a panel must show whole: the best fieldable rule, every trained policy (a name
-    with ``:``), every oracle."""
-    core = {k for k in rows if not is_rule(k) or k.startswith(ORACLE_PREFIX)}
+    with ``:``), every truth-informed rule."""
+    core = {k for k in rows if not is_rule(k) or k.startswith(TRUTH_PREFIX)}
     return core | ({best} if best is not None else set())
 
 
-def _bars(ax: Any, names: list[str], mean: list[float], ci: list[float], core: set[str]) -> None:
+def _bars(
+    ax: Any,
+    names: list[str],
+    mean: list[float],
+    ci: list[float],
+    core: set[str],
+    bounds: list[float] | None = None,
+) -> None:
     """One panel: a bar per row from zero to its mean with its 95 % interval, the axis from
     :func:`bar_window`, each bar cut at the axis labelled with its value (on a white ground:
-    the visible stub of a cut bar may be narrower than the text)."""
+    the visible stub of a cut bar may be narrower than the text). ``bounds``: each row's mean
+    episode bound (:mod:`.bounds`), drawn as the panel's ceiling: one dashed line where every
+    row met the same episodes' bounds, else a mark on each row."""
     colors = [RULE_COLOR if is_rule(n) else TRAINED_COLOR for n in names]
     ax.barh(names, mean, xerr=ci, color=colors, capsize=3, height=0.6)
     intervals = {n: (m - c, m + c) for n, m, c in zip(names, mean, ci, strict=True)}
+    if bounds is not None:  # the ceiling is always in view
+        intervals["bound"] = (min(bounds), max(bounds))
+        core = core | {"bound"}
     lo, hi = bar_window(intervals, core)
+    if bounds is not None:
+        if np.ptp(bounds) <= 1e-9 * max(abs(bounds[0]), 1.0):
+            ax.axvline(bounds[0], color=BOUND_COLOR, linestyle="--", linewidth=1.2)
+            ax.annotate(
+                f"bound {bounds[0]:.4g}",
+                (bounds[0], 1.0),
+                xycoords=("data", "axes fraction"),
+                xytext=(-3, -3),
+                textcoords="offset points",
+                ha="right",
+                va="top",
+                fontsize=7,
+                color=BOUND_COLOR,
+            )
+        else:
+            ax.plot(bounds, names, "|", color=BOUND_COLOR, markersize=12, label="episode bound")
     ax.set_xlim(lo, hi)
     for y, m in enumerate(mean):
         if np.isfinite(m) and not lo <= m <= hi:
@@ -88,7 +117,8 @@ def plot_scores(
 ) -> Path:
     """A PNG at ``path``: per env a row of panels, each on its own scale (:func:`bar_window`):
     a horizontal bar per policy with its mean ``title`` and 95 % interval (trained policies in
-    orange, rules in blue), and, where the rows carry per-episode ``returns``, beside it each
+    orange, rules in blue; the mean of the episodes' true bounds, where the rows carry them, as
+    the panel's ceiling), and, where the rows carry per-episode ``returns``, beside it each
     policy's paired difference to the best fieldable rule (per episode, on the same scenarios;
     mean and 95 % interval), the comparison a trained policy must win."""
     import matplotlib
@@ -115,7 +145,9 @@ def plot_scores(
         best, diffs = paired[env_id]
         core = core_rows(scores[env_id], best)
         ax = axes[k, 0]
-        _bars(ax, names, [r["mean"] for _, r in rows], [r["ci95"] for _, r in rows], core)
+        bounds = [float(np.mean(r["bounds"])) for _, r in rows if r.get("bounds")]
+        _bars(ax, names, [r["mean"] for _, r in rows], [r["ci95"] for _, r in rows], core,
+              bounds if len(bounds) == len(rows) else None)  # fmt: skip
         ax.set_title(env_id, fontsize=10, loc="left")
         if columns == 2:
             ax = axes[k, 1]

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from sensorgym.train.benchmark import TRUTH_PREFIX
 from sensorgym.train.score_chart import MARGIN, SPAN_GROWTH, bar_window, core_rows, plot_scores
 
 
@@ -38,10 +39,11 @@ def test_the_window_ignores_non_finite_values_and_never_collapses():
     assert (lo, hi) == pytest.approx((-MARGIN * 3.0, 3.0 + MARGIN * 3.0))
 
 
-def test_the_core_is_the_best_rule_the_trained_policies_and_the_oracles():
-    rows = {"a": {}, "best": {}, "oracle-x": {}, "shipped:p": {}, "model:q": {}}
-    assert core_rows(rows, "best") == {"best", "oracle-x", "shipped:p", "model:q"}
-    assert core_rows(rows, None) == {"oracle-x", "shipped:p", "model:q"}
+def test_the_core_is_the_best_rule_the_trained_policies_and_the_truth_informed():
+    truth = f"{TRUTH_PREFIX}x"
+    rows = {"a": {}, "best": {}, truth: {}, "shipped:p": {}, "model:q": {}}
+    assert core_rows(rows, "best") == {"best", truth, "shipped:p", "model:q"}
+    assert core_rows(rows, None) == {truth, "shipped:p", "model:q"}
 
 
 def _row(returns: list[float]) -> dict:
@@ -65,3 +67,25 @@ def test_the_chart_has_a_paired_panel_where_the_returns_allow(tmp_path):
         assert two.size[0] > 1.3 * one.size[0]  # two panels side by side, then one
     with pytest.raises(ValueError, match="no env"):
         plot_scores({"env/A-v0": {}}, tmp_path / "c.png")
+
+
+def test_the_bound_is_drawn_as_the_ceiling_and_kept_in_view():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sensorgym.train.score_chart import _bars
+
+    fig, ax = plt.subplots()
+    names = ["hold", "best", "shipped:a"]
+    _bars(ax, names, [-700.0, 60.0, 62.0], [5.0, 3.0, 3.0], {"best", "shipped:a"}, [90.0] * 3)
+    ceiling = [line for line in ax.lines if list(line.get_xdata()) == [90.0, 90.0]]
+    assert len(ceiling) == 1 and ceiling[0].get_linestyle() == "--"
+    assert ax.get_xlim()[1] > 90.0  # the bound widens the axis to stay in view
+    plt.close(fig)
+    fig, ax = plt.subplots()  # bounds that differ between rows: a mark on each row
+    _bars(ax, names, [-700.0, 60.0, 62.0], [5.0, 3.0, 3.0], {"best"}, [90.0, 91.0, 92.0])
+    marks = [line for line in ax.lines if line.get_label() == "episode bound"]
+    assert len(marks) == 1 and list(marks[0].get_xdata()) == [90.0, 91.0, 92.0]
+    plt.close(fig)

@@ -52,6 +52,7 @@ def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
     ]
     pooled = pool(chunks)
     assert benchmark["straight-course"]["returns"] == pooled.pop("returns")
+    assert benchmark["straight-course"]["tails"] == pooled.pop("tails")  # the tail in metres
     assert {k: benchmark["straight-course"][k] for k in pooled} == pytest.approx(pooled)
     assert all(r["episodes"] == 8 for r in benchmark.values())
     assert (tmp_path / "benchmark.png").is_file()
@@ -104,3 +105,17 @@ def test_sweep_refuses_names_the_recipe_cannot_take_before_starting_ray(tmp_path
     with pytest.raises(SystemExit, match=r"--hyperparam: .*not a mapping"):
         main(["sweep", "--hyperparam", "n_steps.size=3", "--out", str(tmp_path)])
     assert not any(tmp_path.iterdir())  # nothing was started or written
+
+
+def test_pooling_keeps_each_episodes_bound_and_tail_in_order():
+    parts = [
+        {"mean": 1.0, "std": 0.0, "episodes": 2, "mean_length": 3.0, "returns": [1.0, 1.0],
+         "bounds": [2.0, 3.0], "tails": {"final_error": [10.0, 20.0], "other": [1.0, 2.0]}},
+        {"mean": 2.0, "std": 0.0, "episodes": 1, "mean_length": 3.0, "returns": [2.0],
+         "bounds": [4.0], "tails": {"final_error": [30.0]}},
+    ]  # fmt: skip
+    pooled = pool(parts)
+    assert pooled["returns"] == [1.0, 1.0, 2.0] and pooled["bounds"] == [2.0, 3.0, 4.0]
+    assert pooled["tails"] == {"final_error": [10.0, 20.0, 30.0]}  # only what every part has
+    del parts[1]["bounds"]
+    assert "bounds" not in pool(parts)
