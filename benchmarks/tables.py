@@ -241,7 +241,73 @@ def results_env(env: str) -> str:
         lines.append(
             f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |"
         )
-    return "\n".join(lines)
+    order = [n for n, _ in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"])]
+    return "\n".join(lines + _headroom_lines(doc, order) + _tail_lines(doc, order))
+
+
+def _headroom_lines(doc: dict, order: list[str]) -> list[str]:
+    """The headroom table of a score file that has one (:mod:`sensorgym.train.bounds`)."""
+    room = doc.get("headroom")
+    if not room:
+        return []
+    passive, best = doc["passive_rule"], doc.get("best_rule")
+    lines = [
+        "",
+        f"Headroom: each episode's true upper bound on the return (a number of the scenario no "
+        f"policy can exceed); normalised is, per episode, (R − R₀)/(bound − R₀) averaged, R₀ "
+        f"the return of `{passive}` (0) on the same episode, the bound 1; closes is the share "
+        f"of the headroom above `{best}` that a policy's mean closes:",
+        "",
+        "| policy | mean bound | normalised | ± 95 % | closes |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    for name in order:
+        h = room.get(name)
+        if h is None:
+            continue
+        norm = "" if h["normalised"] is None else f"{h['normalised']:.3f}"
+        ci = "" if h["normalised_ci95"] is None else f"{h['normalised_ci95']:.3f}"
+        closes = "" if h["closes"] is None else f"{100 * h['closes']:+.1f} %"
+        lines.append(f"| `{name}` | {h['bound']:.3f} | {norm} | {ci} | {closes} |")
+    return lines
+
+
+def _tail_lines(doc: dict, order: list[str]) -> list[str]:
+    """The tail table of a score file that has one (:mod:`sensorgym.train.tail`): the return's
+    10th percentile and each measure's median, 90th percentile (the bad side) and worst-5 %
+    mean."""
+    tail = doc.get("tail")
+    if not tail:
+        return []
+    first = next(iter(tail.values()))["measures"]
+    measures = list(first)
+    label = {m: f"{m} ({first[m]['unit']})" if first[m]["unit"] == "m" else m for m in measures}
+    header = "| policy | return p10 | " + " | ".join(
+        f"{label[m]} median | {label[m]} p90 | {label[m]} worst 5 %" for m in measures
+    )
+    lines = [
+        "",
+        "The tail, in the units a user of the sensor quotes (theory §11.7): the return's 10th "
+        "percentile and, per accuracy measure, its median, 90th percentile and the mean of "
+        "the worst 5 % of episodes:",
+        "",
+        header + " |",
+        "| --- |" + " ---: |" * (1 + 3 * len(measures)),
+    ]
+
+    def cell(x: float | None) -> str:
+        return "" if x is None else f"{x:.3g}"
+
+    for name in order:
+        t = tail.get(name)
+        if t is None:
+            continue
+        cells = [cell(t["return_p10"])]
+        for m in measures:
+            q = t["measures"].get(m, {})
+            cells += [cell(q.get("median")), cell(q.get("p90")), cell(q.get("cvar5"))]
+        lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
+    return lines
 
 
 SCORE_ENVS = (
