@@ -5,62 +5,53 @@ The probes run as ``python research/nees/NAME.py``, so this module is imported b
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import platform
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import chi2
 
 import sensorgym.envs  # noqa: F401  (registers the envs)
-from sensorgym.agents.registry import rules_for
 
 RESULTS = Path(__file__).parent / "results"
 FloatArray = NDArray[np.float64]
 
 
+def _benchmark() -> Any:
+    """``benchmarks/nees.py`` as a module: the probes share its policies and NEES summaries."""
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "nees.py"
+    if str(path.parent) not in sys.path:  # it imports its sibling scripts by their plain names
+        sys.path.append(str(path.parent))
+    spec = importlib.util.spec_from_file_location("nees_benchmark", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_NEES = _benchmark()
+
+
 def policy(env_id: str, name: str, env: Any, seed: int) -> Callable[[Any, int], Any]:
-    """``act(obs, step) -> actions`` as in ``benchmarks/nees.py``: seeded uniform random
-    actions (``seed + 1``), or a registered rule of :mod:`sensorgym.agents` with its SB3-style
-    state kept here (``episode_start`` at step 0)."""
-    if name == "random":
-        rng = np.random.default_rng(seed + 1)
-        return lambda obs, k: rng.uniform(-1.0, 1.0, env.action_space.shape).astype(np.float32)
-    rule = rules_for(env_id, env.params, lambda: env.simulator_state)[name]
-    memory: list[Any] = [None]
-
-    def act(obs: Any, k: int) -> Any:
-        action, memory[0] = rule.predict(
-            obs, memory[0], episode_start=np.full(env.num_envs, k == 0)
-        )
-        return action
-
-    return act
+    """``act(obs, step) -> actions`` exactly as ``benchmarks/nees.py`` plays: seeded uniform
+    random actions (``seed + 1``), or a registered rule of :mod:`sensorgym.agents`."""
+    return _NEES._policy(env_id, name, env, seed)
 
 
 def summary(nees: FloatArray, d: int) -> dict[str, Any]:
-    """Mean NEES of ``N`` samples of dimension ``d``; its 95 % band (the mean of ``N`` draws of
-    ``χ²_d`` lies in ``χ²_{Nd}`` quantiles ``/N``); the fraction above the ``χ²_d`` 99 % quantile
-    (1 % expected)."""
+    """``benchmarks/nees.py``'s summary of ``N`` NEES samples of dimension ``d`` (mean, its 95 %
+    band, whether the mean lies inside, the fraction above the ``χ²_d`` 99 % quantile) and their
+    median."""
     nees = np.asarray(nees, dtype=np.float64)
-    n = int(nees.size)
-    if n == 0:
-        return {"n": 0, "d": d}
-    lo, hi = chi2.ppf([0.025, 0.975], n * d) / n
-    mean = float(nees.mean())
-    return {
-        "n": n,
-        "d": d,
-        "mean": mean,
-        "median": float(np.median(nees)),
-        "band": [float(lo), float(hi)],
-        "in_band": bool(lo <= mean <= hi),
-        "above_q99": float(np.mean(nees > chi2.ppf(0.99, d))),
-    }
+    out = _NEES.summary(nees, d)
+    if out["n"]:
+        out["median"] = float(np.median(nees))
+    return out
 
 
 def quadratic(e: FloatArray, P: FloatArray) -> FloatArray:
