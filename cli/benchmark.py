@@ -233,13 +233,6 @@ def _benchmark(
         "paired IQM",
         "better/worse",
     )
-    if room:
-        columns += ("bound", "normalised", "closes")
-        table.caption = (
-            f"bound: the mean of each episode's true upper bound; normalised: per episode "
-            f"(R − R_{PASSIVE_RULES[env_id]})/(bound − R_{PASSIVE_RULES[env_id]}), mean ± 95 %; "
-            f"closes: the share of the headroom above {best} the policy closes"
-        )
     for column in columns:
         table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
     for name, r in sorted(results.items(), key=lambda kv: -kv[1]["mean"]):
@@ -247,7 +240,7 @@ def _benchmark(
         diff = "best rule" if name == best else "" if d is None else paired_cell(d)
         robust = iqm_cell(d) if d is not None and "iqm" in d else ""
         counts = f"{d['better']}/{d['worse']}" if d is not None and "better" in d else ""
-        cells = [
+        table.add_row(
             name,
             f"{r['mean']:.3f}",
             f"{r['ci95']:.3f}",
@@ -256,16 +249,36 @@ def _benchmark(
             diff,
             robust,
             counts,
-        ]
-        if room:
-            cells += headroom_cells(room.get(name))
-        table.add_row(*cells)
+        )
     console.print(table)
+    order = sorted(results, key=lambda name: -results[name]["mean"])
+    if room:
+        console.print(headroom_table(env_id, room, PASSIVE_RULES[env_id], best, order))
     tails = tail_summaries(env_id, results)
     if tails:
-        order = sorted(results, key=lambda name: -results[name]["mean"])
         console.print(tail_table(env_id, tails, args.episodes, order))
     return results
+
+
+def headroom_table(
+    env_id: str, room: dict[str, Any], passive: str, best: str | None, order: list[str]
+) -> Any:
+    """Per policy, in ``order``: the mean of its episodes' true bounds, the normalised score
+    and the share of the headroom above ``best`` it closes (:func:`headroom_cells`)."""
+    from rich.table import Table
+
+    table = Table(title=f"{env_id}: headroom against each episode's true upper bound")
+    for column in ("policy", "mean bound", "normalised", "closes"):
+        table.add_column(column, justify="left" if column == "policy" else "right", no_wrap=True)
+    table.caption = (
+        f"normalised: per episode (R − R_{passive})/(bound − R_{passive}), mean ± 95 % "
+        f"(0: {passive}, 1: the bound); closes: the share of the headroom above {best} that "
+        "the policy's mean closes"
+    )
+    for name in order:
+        if name in room:
+            table.add_row(name, *headroom_cells(room[name]))
+    return table
 
 
 def tail_summaries(env_id: str, results: dict[str, dict[str, Any]]) -> dict[str, Any]:
