@@ -53,8 +53,8 @@ bound exceeds the best value found by more than ``TOLERANCE/4`` (relative) are s
 **Floating point.** ``L`` is scaled down by ``1 − DUAL_MARGIN`` (1e-6: far above the rounding of
 the 3×3 algebra, including ``tr Z^{1/2}`` taken as ``tr G⁻¹`` of the iterate whose square is
 ``Z``) and every square's bound up by 1e-12 relative. What the bound gives away against the
-per-step maximum is the convex hull (measured 0.003–0.05 per step on seeded scenarios against a
-multi-start local search) and the ``TOLERANCE`` (at most ``½ ln(1/(1 − TOLERANCE))`` ≈ 1e-3 per
+per-step maximum is the convex hull (a multi-start local search over the discs comes within
+0.15 of it: ``tests/envs/stereo_placement/test_bound.py``) and the ``TOLERANCE`` (at most ``½ ln(1/(1 − TOLERANCE))`` ≈ 1e-3 per
 step).
 
 **The episode bound.** Nothing a policy does moves the drone, so ``Σ_t B_t`` from an episode's
