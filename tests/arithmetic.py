@@ -22,10 +22,11 @@ from typing import Any
 
 import numpy as np
 
-#: Golden episodes (40 seeded steps of every door): actions nudged by a relative ε move the
-#: recorded arrays by at most ~3e3·ε of their scale and flip no episode end up to ε = 1e-6
-#: (measured 2026-12-03 with ε = 1e-12, 1e-9, 1e-6); a CPU's last-bit change is ε ~ 1e-15,
-#: so 1e-6 of the array's scale has a wide margin and still catches any change of behaviour.
+#: Golden episodes (40 seeded steps of every door): a CPU's last-bit change is a relative
+#: nudge ε ~ 1e-15; ``benchmarks/arithmetic.py`` nudges every action by far larger ε and
+#: records how far the arrays move and that no episode end flips
+#: (``benchmarks/results/arithmetic.json``, ``golden``): 1e-6 of the array's scale leaves a
+#: wide margin and still catches any change of behaviour.
 EPISODE_TOL = 1e-6
 
 #: Reproduction reports: a number printed with d decimals may differ by one unit of its last
@@ -33,9 +34,10 @@ EPISODE_TOL = 1e-6
 REPORT_RTOL = 1e-6
 
 #: Shipped policies, per episode: torch's float32 matmuls round differently across BLAS paths
-#: and CPUs (a last-bit change in an action); the bearings envs carry it to at most 3.4e-4 of
-#: an episode's return (measured under ``MKL_CBWR=COMPATIBLE``), so 5 % separates that drift
-#: from a path flip.
+#: and CPUs (a last-bit change in an action), and the bearings envs carry it into the return
+#: (``benchmarks/results/arithmetic.json``, ``blas_path``: the drift of the policies whose
+#: episode ends all held under ``MKL_CBWR=COMPATIBLE``); 5 % separates that drift from a
+#: path flip.
 EPISODE_RETURN_RTOL = 0.05
 
 #: Shipped policies, after a path flip: the z of a two-sided 99.9 % interval.
@@ -88,7 +90,7 @@ def assert_rescored(again: Mapping[str, Any], committed: Mapping[str, Any]) -> N
     """A policy re-scored on the committed scenarios agrees with its committed result.
 
     Without a path flip — every episode's return within :data:`EPISODE_RETURN_RTOL` (of
-    ``max(|return|, 1)``) — the statistics agree to 1e-3 (measured: 1e-6). A flip (an episode end
+    ``max(|return|, 1)``) — the statistics agree to 1e-3. A flip (an episode end
     decided by a last-bit change) re-draws the scenarios every later reset meets, as one
     generator serves the resets of all slots; after it the re-scored episodes are a fresh
     sample of the same policy, and only the mean can be held: to the two-sample 99.9 %
