@@ -40,11 +40,12 @@ class StereoScanningEnv(CoreEnv):
     The agent sees the world only through the tracker of paper 000 (theory §5.3, compiled in
     :mod:`sensorgym.envs.stereo_scanning.kernels`): every triple of fixes of receivers 1–3 (one
     per receiver, pairs pre-gated) is solved by the velocity-aware conjugation (``n = 3`` closed
-    form, theory §3.5) for position, velocity and ``Q = σ_e² (AᵀA)⁻¹``; with ``n > 3`` each
+    form, theory §3.5) for position, velocity and their exact first-order covariance under
+    the angle noise (the triple's ``σ_pos``, ``σ_vel``: theory §3.5, §11.6); with ``n > 3`` each
     receiver 4 … n then adds the fix whose line of sight passes nearest the triple's predicted
     position (gated by its covariance) and the candidate is re-solved by least squares over all
-    its receivers (the normal equations of theory §3.3 with the ranges eliminated, ``Q`` of
-    the same form) — ``O(F³ + C n F)`` per period for ``F`` fixes per receiver and ``C``
+    its receivers (the normal equations of theory §3.3 with the ranges eliminated, the
+    papers' ``σ_e² (AᵀA)⁻¹``) — ``O(F³ + C n F)`` per period for ``F`` fixes per receiver and ``C``
     gated triples, never a product over the receivers; implausible candidates (non-positive range, speed above
     ``max_speed``, ``κ_F > cond_max``) are dropped; confirmed tracks take the candidate with the
     smallest ``ΔJ = ‖M − (M̂ + V̂ Δ)‖`` within the gate ``δ`` whose velocity agrees with the
