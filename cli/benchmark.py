@@ -12,7 +12,8 @@ difference on the same scenarios; beside it the difference's interquartile mean 
 many episodes the policy did better and worse than the best rule
 (:func:`sensorgym.train.benchmark.paired_difference`). The JSON also holds the standard deviation, every policy's
 per-episode ``returns`` and the paired differences (``paired``); the numbers go to
-``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all), the chart to
+``OUT/<env>.json`` (one per env) and ``OUT/benchmark.json`` (all; rescoring some envs with
+``--env`` keeps the others' scores of a file written with the same settings), the chart to
 ``OUT/benchmark.png``. A second table per env shows the tail in physical units: the return's
 p10 and the median, p90 and CVaR₅ % of the env's accuracy measures in metres
 (:mod:`sensorgym.train.tail`); the per-env JSON holds every policy's per-episode values
@@ -140,12 +141,29 @@ def run(args: argparse.Namespace) -> int:
         written.append(path)
     if scores:
         summary = args.out / "benchmark.json"
+        scores = {**_kept_scores(summary, settings, args), **scores}
         summary.write_text(json.dumps({"settings": settings, "scores": scores}, indent=2) + "\n")
         written.append(summary)
         if not args.no_chart:
             written.append(plot_scores(scores, args.out / "benchmark.png"))
     print_written(console, written)
     return 0
+
+
+def _kept_scores(summary: Path, settings: dict[str, Any], args: argparse.Namespace) -> dict:
+    """The other envs' scores of an ``OUT/benchmark.json`` that rescoring some envs (``--env``,
+    default params) keeps: those of a file written with the same episodes, batch and seed, so
+    that the summary and the chart still show every env; none otherwise."""
+    if not args.env or any(args.params[e] for e in args.env) or not summary.is_file():
+        return {}
+    try:
+        old = json.loads(summary.read_text())
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(old, dict) or old.get("settings") != settings:
+        return {}
+    kept = old.get("scores")
+    return {k: v for k, v in kept.items() if k not in args.env} if isinstance(kept, dict) else {}
 
 
 def _check_model(path: Path, env_ids: list[str], args: argparse.Namespace) -> None:
