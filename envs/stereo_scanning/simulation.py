@@ -480,8 +480,8 @@ class ScanningState:
     """(B, n, F) which drone each fix is of (−1: false detection; ground truth)."""
     tracks: FloatArray = field(repr=False)
     """(B, T, 19) the tracker's table, per row: position (m) at its time and velocity (m/s),
-    world frame (0–5); time of the latest member, s (6); ``σ_pos`` (m) and ``σ_vel`` (m/s) from
-    ``σ_e² (AᵀA)⁻¹`` (7, 8); cumulative index ``I = Σ ΔJ``, m (9); the alternative's line-fit
+    world frame (0–5); time of the latest member, s (6); ``σ_pos`` (m) and ``σ_vel`` (m/s), the
+    square roots of the traces of its covariance (7, 8; a triple's exact, theory §3.5); cumulative index ``I = Σ ΔJ``, m (9); the alternative's line-fit
     sums ``(S0, Σt, Σt², ΣM, ΣtM)``, t from the latest member (10–18). Views: ``track_*``."""
     track_int: IntArray = field(repr=False)
     """(B, T, 4) per row: periods with a member, consecutive misses, status (0 empty,
