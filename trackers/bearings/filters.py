@@ -1,4 +1,4 @@
-"""Recursive bearings-only filters: Cartesian EKF and CKF, and the range-parameterised bank.
+"""Recursive bearings-only filters: Cartesian EKF, EKF2 and CKF; the range-parameterised bank.
 
 Pure predict/update functions over frozen Gaussian values, batched over any leading axes.
 Target state and conventions: :mod:`sensorgym.trackers.bearings.models`.
@@ -8,6 +8,10 @@ Target state and conventions: :mod:`sensorgym.trackers.bearings.models`.
       ν = wrap(z − β(x⁻)),  S = H P⁻ Hᵀ + σ²,  K = P⁻ Hᵀ S⁻¹,
       x⁺ = x⁻ + K ν,        P⁺ = (I − K H) P⁻ (I − K H)ᵀ + K σ² Kᵀ
 
+* :func:`ekf2_update` — Gaussian second-order EKF update (Bar-Shalom, Li & Kirubarajan 2001,
+  §10.3; theory §7.9): the bearing's curvature ``B = ∂²β/∂p²`` on the position block ``P_pp``
+  adds ``½ tr(B P_pp)`` to the predicted bearing and ``½ tr(B P_pp B P_pp)`` to the noise of
+  the Joseph form above. The BearingsManeuver envs' bank member update (theory §11.6).
 * :func:`ckf_update` — cubature Kalman filter update (Arasaratnam & Haykin 2009): 2n points
   ``x ± √n L eᵢ``, ``L Lᵀ = P⁻``; angle differences wrapped about ``β(x⁻)``.
 * Range-parameterised bank (Peach 1995; Ristic, Arulampalam & Gordon 2004, §6.3.3):
@@ -45,7 +49,7 @@ from sensorgym.trackers.kernel_args import kernel_array
 from sensorgym.trackers.validation import finite_array
 
 FloatArray = NDArray[np.float64]
-Component = Literal["ekf", "ckf"]
+Component = Literal["ekf", "ekf2", "ckf"]
 
 
 def _sym(A: FloatArray) -> FloatArray:
@@ -215,6 +219,42 @@ def _ekf_terms(
     return BearingsGaussian(x, P, state.t), nu, S
 
 
+def _ekf2_terms(
+    state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
+) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
+    """The second-order EKF update of every element in numpy: the readable reference of the
+    compiled :func:`.kernels.ekf2_bearing_update` (the envs' bank member update); returns the
+    updated state, ``ν`` and ``S``. As the EKF, ``S`` is never taken below ``σ²``."""
+    x, P = state.x, state.P
+    d = x[..., :2] - p  # (Δx, Δy)
+    dx, dy = d[..., 0], d[..., 1]
+    r2 = dx * dx + dy * dy
+    # Gaussian second-order filter (Bar-Shalom, Li & Kirubarajan 2001, §10.3; theory §7.9):
+    #   H = (Δy, −Δx, 0, 0)/r²,  B = ∂²β/∂p² = [[−2ΔxΔy, Δx² − Δy²], [Δx² − Δy², 2ΔxΔy]]/r⁴,
+    #   ẑ = β(x⁻) + ½ tr(B P_pp),  R = σ² + ½ tr(B P_pp B P_pp),  ν = wrap(z − ẑ),
+    #   S = H P Hᵀ + R,  K = P Hᵀ S⁻¹,  x⁺ = x⁻ + K ν,
+    #   P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ  (Joseph form; = P − K S Kᵀ)
+    H = np.zeros(x.shape)
+    H[..., 0], H[..., 1] = dy / r2, -dx / r2
+    off = dx * dx - dy * dy
+    B = (
+        np.stack([np.stack([-2.0 * dx * dy, off], -1), np.stack([off, 2.0 * dx * dy], -1)], -2)
+        / (r2 * r2)[..., None, None]
+    )
+    M = B @ P[..., :2, :2]
+    zhat = bearing(x[..., :2], p) + 0.5 * np.trace(M, axis1=-2, axis2=-1)
+    # tr(B P B P) ≥ 0 (B, P symmetric, P ⪰ 0); rounding below zero counts as zero
+    R = sigma**2 + np.maximum(0.5 * np.einsum("...ij,...ji->...", M, M), 0.0)
+    PH = np.einsum("...ij,...j->...i", P, H)
+    S = np.maximum(np.einsum("...i,...i->...", H, PH), 0.0) + R
+    K = PH / S[..., None]
+    nu = wrap_angle(z - zhat)
+    x = x + K * nu[..., None]
+    A = np.eye(STATE_DIM) - K[..., :, None] * H[..., None, :]
+    P = A @ P @ np.swapaxes(A, -1, -2) + R[..., None, None] * K[..., :, None] * K[..., None, :]
+    return BearingsGaussian(x, _sym(P), state.t), nu, S
+
+
 def _ckf_terms(
     state: BearingsGaussian, z: FloatArray, p: FloatArray, sigma: float
 ) -> tuple[BearingsGaussian, FloatArray, FloatArray]:
@@ -265,6 +305,17 @@ def ekf_update(
     return _ekf_terms(state, z, p, sigma)[0]
 
 
+def ekf2_update(
+    state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
+) -> BearingsGaussian:
+    """Second-order EKF update with bearing ``z`` (rad) taken from ``platform_position`` (see
+    module doc): the EKF plus the bearing's curvature in the prediction and in ``S``. Numpy,
+    the reference of the compiled member update of the envs' bank
+    (:func:`.kernels.ekf2_bearing_update`)."""
+    z, p = _checked(state, z, platform_position, sigma)
+    return _ekf2_terms(state, z, p, sigma)[0]
+
+
 def ckf_update(
     state: BearingsGaussian, z: ArrayLike, platform_position: ArrayLike, sigma: float
 ) -> BearingsGaussian:
@@ -279,7 +330,13 @@ def ckf_update(
     return _ckf_terms(state, z, p, sigma)[0]
 
 
-_TERMS = {"ekf": _ekf_terms, "ckf": _ckf_terms}
+_TERMS = {"ekf": _ekf_terms, "ekf2": _ekf2_terms, "ckf": _ckf_terms}
+_UPDATES = {"ekf": ekf_update, "ekf2": ekf2_update, "ckf": ckf_update}
+
+
+def _check_component(component: str) -> None:
+    if component not in _TERMS:
+        raise ValueError(f"component: one of {sorted(_TERMS)}, got {component!r}")
 
 
 @dataclass(frozen=True)
@@ -449,7 +506,12 @@ def range_bank_update(
     sigma: float,
     component: Component = "ekf",
 ) -> RangeBankState:
-    """Update every member with bearing ``z``; ``log wᵢ += log N(νᵢ; 0, Sᵢ)``, renormalised."""
+    """Update every member with bearing ``z``; ``log wᵢ += log N(νᵢ; 0, Sᵢ)``, renormalised.
+
+    ``component``: the member update, ``"ekf"`` (compiled: :func:`.kernels.ekf_bank_update`),
+    ``"ekf2"`` (the second-order EKF in numpy, :func:`ekf2_update`; the envs' bank runs its
+    compiled twin, :func:`.kernels.bank_update`) or ``"ckf"``."""
+    _check_component(component)
     lead = state.log_weights.shape[:-1]
     z = np.asarray(finite_array(z, "z"))
     z = np.broadcast_to(z, lead)[..., None]
@@ -458,12 +520,12 @@ def range_bank_update(
     )[..., None, :]
     z, p = _checked(state.members, z, p, sigma)
     if component == "ekf":
-        # compiled: kernels.bank_update (EKF update of every member, then the weights)
+        # compiled: kernels.ekf_bank_update (EKF update of every member, then the weights)
         N = state.log_weights.shape[-1]
         lw = np.array(state.log_weights, dtype=np.float64)
         x = np.array(state.members.x, dtype=np.float64)
         P = np.array(state.members.P, dtype=np.float64)
-        kernels.bank_update_batch(
+        kernels.ekf_bank_update_batch(
             lw.reshape(-1, N),
             x.reshape(-1, N, STATE_DIM),
             P.reshape(-1, N, STATE_DIM, STATE_DIM),
@@ -493,7 +555,9 @@ def run_filter(
     :func:`bearing_prior` / :func:`range_bank_prior`), so updates start at ``k = 1`` and the
     output at ``k = 0`` is the prior; ``z`` ``(B, K)``, ``platform_positions`` ``(B, K, 2)``.
     A :class:`RangeBankState` prior runs the bank and returns its moment-matched output.
+    ``component`` is the (member) update: ``"ekf"``, ``"ekf2"`` or ``"ckf"``.
     """
+    _check_component(component)
     z, times, p = bearing_sequence(z, times, platform_positions)
     K = times.shape[0]
     state = prior
@@ -508,8 +572,7 @@ def run_filter(
             state = range_bank_update(state, z[..., k], p[..., k, :], sigma, component)
             est = state.estimate()
         else:
-            update = ekf_update if component == "ekf" else ckf_update
-            state = update(state, z[..., k], p[..., k, :], sigma)
+            state = _UPDATES[component](state, z[..., k], p[..., k, :], sigma)
             est = state
         xs.append(est.x)
         Ps.append(est.P)

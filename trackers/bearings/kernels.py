@@ -1,15 +1,18 @@
 """Compiled primitives of bearings-only tracking: one element (member, scenario) per call.
 
 The batched public functions of :mod:`.models` (``predict``), :mod:`.filters` (the EKF update and
-the range-parameterised bank) and :mod:`.crlb` (the square-root bound recursion and the bounds
+the range-parameterised EKF bank) and :mod:`.crlb` (the square-root bound recursion and the bounds
 read off it) loop these over their flattened batch, and the BearingsManeuver simulation fuses
 them into one step kernel (:mod:`sensorgym.envs.bearings_maneuver.kernels`): every formula is
-written here once. The checks of the inputs stay with the public functions; a kernel trusts
-its arguments (finite values, a target off the platform).
+written here once. The simulation's bank (:func:`bank_update`) gives its members the
+second-order EKF update (:func:`ekf2_bearing_update`, theory §11.6), whose readable numpy
+reference is :func:`sensorgym.trackers.bearings.filters.ekf2_update`; the filters' EKF bank
+loops :func:`ekf_bank_update`. The checks of the inputs stay with the public functions; a
+kernel trusts its arguments (finite values, a target off the platform).
 
 Conventions (:mod:`.models`): state ``x = (x, y, ẋ, ẏ)`` (m, m/s), bearings from North
 clockwise (rad), ``F(T) = [[I, T I], [0, I]]`` and CWNA ``Q(T)``. Arrays are written in place
-where the argument says ``out``. The per-member primitives of the hot loop (predict, EKF update,
+where the argument says ``out``. The per-member primitives of the hot loop (predict, EKF updates,
 moment match) read a member's entries into locals, compute, and write each entry once: numba
 cannot tell an output array from an input one, so indexed loops reload after every store
 (3–5× slower on 4×4 blocks); the arithmetic, and so every bit, is that of the loops.
@@ -98,7 +101,7 @@ def _sym(P, i, j, a, b):
     P[j, i] = s
 
 
-# --- EKF bearing update -----------------------------------------------------------------------
+# --- EKF bearing updates ----------------------------------------------------------------------
 
 
 # H = (Δy, −Δx, 0, 0)/r²,  ν = wrap(z − β(x⁻)),  S = max(H P Hᵀ, 0) + σ²,  K = P Hᵀ S⁻¹,
@@ -107,18 +110,52 @@ def _sym(P, i, j, a, b):
 def ekf_bearing_update(x, P, z, px, py, sigma):
     """In place on ``x (4,)`` and ``P (4, 4)``; returns ``(ν, S)``. Entries are read into
     locals first and written once (no reloads, no allocation)."""
-    p00, p01, p02, p03, p10, p11, p12, p13 = _rows01(P)
-    p20, p21, p22, p23, p30, p31, p32, p33 = _rows23(P)
     dx = x[0] - px
     dy = x[1] - py
     r2 = dx * dx + dy * dy
-    h0 = dy / r2
-    h1 = -dx / r2
     nu = wrap(z - bearing(x[0], x[1], px, py))
+    return nu, _gain_update(x, P, nu, dy / r2, -dx / r2, sigma * sigma)
+
+
+# The Gaussian second-order filter (Bar-Shalom, Li & Kirubarajan 2001, §10.3; theory §7.9): the
+# bearing's curvature on the position, B = ∂²β/∂p² = [[−2ΔxΔy, Δx² − Δy²], [Δx² − Δy², 2ΔxΔy]]/r⁴,
+# adds its mean to the prediction and its variance to the noise (P_pp: the position block of P⁻):
+#   ẑ = β(x⁻) + ½ tr(B P_pp),   R = σ² + max(½ tr(B P_pp B P_pp), 0),   ν = wrap(z − ẑ),
+#   S = max(H P Hᵀ, 0) + R,  K = P Hᵀ S⁻¹,  x⁺ = x⁻ + K ν,
+#   P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ  (Joseph form, = P − K S Kᵀ; symmetrised)
+# numpy reference: sensorgym.trackers.bearings.filters.ekf2_update
+@njit(**_JIT)
+def ekf2_bearing_update(x, P, z, px, py, sigma):
+    """In place on ``x (4,)`` and ``P (4, 4)``; returns ``(ν, S)`` (no allocation)."""
+    dx = x[0] - px
+    dy = x[1] - py
+    r2 = dx * dx + dy * dy
+    r4 = r2 * r2
+    b00 = -2.0 * dx * dy / r4
+    b01 = (dx * dx - dy * dy) / r4
+    b11 = 2.0 * dx * dy / r4
+    # M = B P_pp
+    p00, p01, p10, p11 = P[0, 0], P[0, 1], P[1, 0], P[1, 1]
+    m00, m01 = b00 * p00 + b01 * p10, b00 * p01 + b01 * p11
+    m10, m11 = b01 * p00 + b11 * p10, b01 * p01 + b11 * p11
+    zhat = bearing(x[0], x[1], px, py) + 0.5 * (m00 + m11)
+    noise = sigma * sigma + max(0.5 * (m00 * m00 + m01 * m10 + m10 * m01 + m11 * m11), 0.0)
+    nu = wrap(z - zhat)
+    return nu, _gain_update(x, P, nu, dy / r2, -dx / r2, noise)
+
+
+# the linear(ised) update of both, with H = (h0, h1, 0, 0) and measurement noise variance R:
+# S = max(H P Hᵀ, 0) + R,  K = P Hᵀ S⁻¹,  x⁺ = x⁻ + K ν,  P⁺ = (I − K H) P (I − K H)ᵀ + K R Kᵀ
+@njit(**_JIT)
+def _gain_update(x, P, nu, h0, h1, R):
+    """In place on ``x (4,)`` and ``P (4, 4)``; returns ``S``. Entries are read into locals
+    first and written once (no reloads, no allocation)."""
+    p00, p01, p02, p03, p10, p11, p12, p13 = _rows01(P)
+    p20, p21, p22, p23, p30, p31, p32, p33 = _rows23(P)
     # P Hᵀ
     pht0, pht1 = p00 * h0 + p01 * h1, p10 * h0 + p11 * h1
     pht2, pht3 = p20 * h0 + p21 * h1, p30 * h0 + p31 * h1
-    S = max(h0 * pht0 + h1 * pht1, 0.0) + sigma * sigma
+    S = max(h0 * pht0 + h1 * pht1, 0.0) + R
     k0, k1, k2, k3 = pht0 / S, pht1 / S, pht2 / S, pht3 / S
     x[0], x[1], x[2], x[3] = x[0] + k0 * nu, x[1] + k1 * nu, x[2] + k2 * nu, x[3] + k3 * nu
     # H P (row), and (A Hᵀ)ᵢ for A = (I − K H) P
@@ -128,25 +165,24 @@ def ekf_bearing_update(x, P, z, px, py, sigma):
     ah1 = (p10 - k1 * hp0) * h0 + (p11 - k1 * hp1) * h1
     ah2 = (p20 - k2 * hp0) * h0 + (p21 - k2 * hp1) * h1
     ah3 = (p30 - k3 * hp0) * h0 + (p31 - k3 * hp1) * h1
-    # P⁺ = A (I − K H)ᵀ + σ² K Kᵀ, Aᵢⱼ = Pᵢⱼ − kᵢ (H P)ⱼ, then symmetrised
-    s2 = sigma * sigma
-    P[0, 0] = _joseph(p00, k0, hp0, ah0, k0, s2)
-    P[1, 1] = _joseph(p11, k1, hp1, ah1, k1, s2)
-    P[2, 2] = _joseph(p22, k2, hp2, ah2, k2, s2)
-    P[3, 3] = _joseph(p33, k3, hp3, ah3, k3, s2)
-    _sym(P, 0, 1, _joseph(p01, k0, hp1, ah0, k1, s2), _joseph(p10, k1, hp0, ah1, k0, s2))
-    _sym(P, 0, 2, _joseph(p02, k0, hp2, ah0, k2, s2), _joseph(p20, k2, hp0, ah2, k0, s2))
-    _sym(P, 0, 3, _joseph(p03, k0, hp3, ah0, k3, s2), _joseph(p30, k3, hp0, ah3, k0, s2))
-    _sym(P, 1, 2, _joseph(p12, k1, hp2, ah1, k2, s2), _joseph(p21, k2, hp1, ah2, k1, s2))
-    _sym(P, 1, 3, _joseph(p13, k1, hp3, ah1, k3, s2), _joseph(p31, k3, hp1, ah3, k1, s2))
-    _sym(P, 2, 3, _joseph(p23, k2, hp3, ah2, k3, s2), _joseph(p32, k3, hp2, ah3, k2, s2))
-    return nu, S
+    # P⁺ = A (I − K H)ᵀ + R K Kᵀ, Aᵢⱼ = Pᵢⱼ − kᵢ (H P)ⱼ, then symmetrised
+    P[0, 0] = _joseph(p00, k0, hp0, ah0, k0, R)
+    P[1, 1] = _joseph(p11, k1, hp1, ah1, k1, R)
+    P[2, 2] = _joseph(p22, k2, hp2, ah2, k2, R)
+    P[3, 3] = _joseph(p33, k3, hp3, ah3, k3, R)
+    _sym(P, 0, 1, _joseph(p01, k0, hp1, ah0, k1, R), _joseph(p10, k1, hp0, ah1, k0, R))
+    _sym(P, 0, 2, _joseph(p02, k0, hp2, ah0, k2, R), _joseph(p20, k2, hp0, ah2, k0, R))
+    _sym(P, 0, 3, _joseph(p03, k0, hp3, ah0, k3, R), _joseph(p30, k3, hp0, ah3, k0, R))
+    _sym(P, 1, 2, _joseph(p12, k1, hp2, ah1, k2, R), _joseph(p21, k2, hp1, ah2, k1, R))
+    _sym(P, 1, 3, _joseph(p13, k1, hp3, ah1, k3, R), _joseph(p31, k3, hp1, ah3, k1, R))
+    _sym(P, 2, 3, _joseph(p23, k2, hp3, ah2, k3, R), _joseph(p32, k3, hp2, ah3, k2, R))
+    return S
 
 
-# (A (I − K H)ᵀ + σ² K Kᵀ)ᵢⱼ = (Pᵢⱼ − kᵢ (H P)ⱼ) − (A Hᵀ)ᵢ kⱼ + σ² kᵢ kⱼ
+# (A (I − K H)ᵀ + R K Kᵀ)ᵢⱼ = (Pᵢⱼ − kᵢ (H P)ⱼ) − (A Hᵀ)ᵢ kⱼ + R kᵢ kⱼ
 @njit(**_JIT)
-def _joseph(p_ij, k_i, hp_j, ah_i, k_j, s2):
-    return (p_ij - k_i * hp_j) - ah_i * k_j + s2 * k_i * k_j
+def _joseph(p_ij, k_i, hp_j, ah_i, k_j, R):
+    return (p_ij - k_i * hp_j) - ah_i * k_j + R * k_i * k_j
 
 
 # --- range-parameterised bank -----------------------------------------------------------------
@@ -174,9 +210,21 @@ def bank_predict(X, P, T, q_tilde, X_out, P_out):
         cv_predict(X[n], P[n], T, q_tilde, X_out[n], P_out[n])
 
 
-# every member: EKF update;  log wᵢ += log N(νᵢ; 0, Sᵢ) = −½(νᵢ²/Sᵢ + ln 2πSᵢ), renormalised
+# every member: second-order EKF update (ekf2_bearing_update: the first-order EKF over-claims
+# by the episode end, theory §11.6);  log wᵢ += log N(νᵢ; 0, Sᵢ) = −½(νᵢ²/Sᵢ + ln 2πSᵢ),
+# renormalised. The BearingsManeuver envs' bank.
 @njit(**_JIT)
 def bank_update(lw, X, P, z, px, py, sigma):
+    """In place on ``lw (N,)``, ``X (N, 4)``, ``P (N, 4, 4)``."""
+    for n in range(X.shape[0]):
+        nu, S = ekf2_bearing_update(X[n], P[n], z, px, py, sigma)
+        lw[n] = lw[n] - 0.5 * (nu * nu / S + np.log(_TWO_PI * S))
+    normalise_log_weights(lw)
+
+
+# every member: first-order EKF update (ekf_bearing_update), the weights as bank_update's
+@njit(**_JIT)
+def ekf_bank_update(lw, X, P, z, px, py, sigma):
     """In place on ``lw (N,)``, ``X (N, 4)``, ``P (N, 4, 4)``."""
     for n in range(X.shape[0]):
         nu, S = ekf_bearing_update(X[n], P[n], z, px, py, sigma)
@@ -463,9 +511,21 @@ def ekf_update_batch(X, P, z, pos, sigma, nu, S):
 
 
 @njit(**_JIT)
+def ekf2_update_batch(X, P, z, pos, sigma, nu, S):
+    for b in range(X.shape[0]):
+        nu[b], S[b] = ekf2_bearing_update(X[b], P[b], z[b], pos[b, 0], pos[b, 1], sigma)
+
+
+@njit(**_JIT)
 def bank_update_batch(lw, X, P, z, pos, sigma):
     for b in range(X.shape[0]):
         bank_update(lw[b], X[b], P[b], z[b], pos[b, 0], pos[b, 1], sigma)
+
+
+@njit(**_JIT)
+def ekf_bank_update_batch(lw, X, P, z, pos, sigma):
+    for b in range(X.shape[0]):
+        ekf_bank_update(lw[b], X[b], P[b], z[b], pos[b, 0], pos[b, 1], sigma)
 
 
 @njit(**_JIT)

@@ -10,6 +10,7 @@ import pytest
 from sensorgym.trackers.bearings.filters import (
     bearing_prior,
     ckf_update,
+    ekf2_update,
     ekf_update,
     polar_moments,
     range_bank_predict,
@@ -80,6 +81,27 @@ def test_ckf_with_a_zero_covariance_keeps_the_known_state():
         ekf_update(s, 0.5, [0.0, 0.0], np.nan)
 
 
+@pytest.mark.parametrize(
+    "args, name",
+    [
+        ((np.nan, [0.0, 0.0], 0.01), "z"),
+        ((0.5, [0.0, np.inf], 0.01), "platform_position"),
+        ((0.5, [0.0, 0.0, 0.0], 0.01), "platform_position"),
+        ((0.5, [0.0, 0.0], 0.0), "sigma"),
+        ((0.5, [0.0, 0.0], np.nan), "sigma"),
+    ],
+)
+def test_ekf2_update_names_the_bad_argument(args, name):
+    s = BearingsGaussian(np.array([1000.0, 2000.0, 1.0, 0.0]), np.eye(4), 0.0)
+    with pytest.raises(ValueError, match=name):
+        ekf2_update(s, *args)
+
+
+def test_bank_update_names_an_unknown_component():
+    with pytest.raises(ValueError, match="component"):
+        range_bank_update(_bank(), 0.3, [100.0, 0.0], 0.02, "ukf")
+
+
 @pytest.mark.parametrize("dist", ["gaussian", "uniform"])
 def test_polar_moments_resolve_tiny_angular_spreads(dist):
     """The cross-line variance ``(m̄² + σ_m²) E[sin²δ]`` is exact to rounding at 1e-8 rad
@@ -138,7 +160,8 @@ def test_uniform_range_density_weights_members_by_their_cell():
     np.testing.assert_allclose(_bank(range_min=lo, range_max=hi).weights, 1.0 / 8.0)
 
 
-def test_bank_updates_stay_finite_with_nearly_noise_free_bearings():
+@pytest.mark.parametrize("component", ["ekf", "ekf2"])
+def test_bank_updates_stay_finite_with_nearly_noise_free_bearings(component):
     """σ = 1e-8 rad against kilometres of range spread: the innovation variance never drops
     below σ² (rounding below zero counts as zero), so weights stay finite."""
     bank = _bank(sigma=1e-8, range_density="uniform", course_sigma=np.pi / np.sqrt(3.0))
@@ -149,6 +172,6 @@ def test_bank_updates_stay_finite_with_nearly_noise_free_bearings():
         target = target + np.r_[60.0 * target[2:], 0.0, 0.0]
         bank = range_bank_predict(bank, 60.0 * k, 0.0)
         z = np.arctan2(target[0] - p[0], target[1] - p[1])
-        bank = range_bank_update(bank, z, p, 1e-8)
+        bank = range_bank_update(bank, z, p, 1e-8, component)
         assert np.all(np.isfinite(bank.log_weights) | (bank.log_weights == -np.inf))
         assert np.all(np.isfinite(bank.estimate().P))
