@@ -1,7 +1,7 @@
 """The headroom of a benchmark: each episode's true upper bound and the normalised score.
 
 An env with a proven bound on an episode's return (theory §11.3.1 for StereoPointing, §11.4.1
-for StereoPlacement) names it in :data:`EPISODE_BOUNDS`: a function ``episode_bound(params,
+for StereoPlacement, §11.5.1 for StereoScanning) names it in :data:`EPISODE_BOUNDS`: a function ``episode_bound(params,
 state) -> (B,)`` of the batched simulator state an episode starts in, which no policy's return
 on that episode can exceed. The benchmark keeps each episode's bound beside its return
 (:func:`~sensorgym.train.evaluation.evaluate`) and reports, per policy,
@@ -26,6 +26,7 @@ import numpy as np
 EPISODE_BOUNDS: dict[str, str] = {
     "sensorgym/StereoPointing-v0": "sensorgym.envs.stereo_pointing.bound:episode_bound",
     "sensorgym/StereoPlacement-v0": "sensorgym.envs.stereo_placement.bound:episode_bound",
+    "sensorgym/StereoScanning-v0": "sensorgym.envs.stereo_scanning.bound:episode_bound",
 }
 
 #: env id → the rule that does nothing (score 0 of the normalised score)

@@ -46,12 +46,21 @@ def test_a_return_above_its_bound_is_reported():
 
 
 #: per env with a bound: a fieldable rule to score beside the passive one and a shipped policy
-RULE_OF = {POINTING: "plan-search", "sensorgym/StereoPlacement-v0": "lookahead-information"}
+RULE_OF = {
+    POINTING: "plan-search",
+    "sensorgym/StereoPlacement-v0": "lookahead-information",
+    "sensorgym/StereoScanning-v0": "cue-entry-search",
+}
 
 
 @pytest.mark.parametrize(
     ("env_id", "episodes"),
-    [(POINTING, 8), (POINTING, 16), ("sensorgym/StereoPlacement-v0", 16)],
+    [
+        (POINTING, 8),
+        (POINTING, 16),
+        ("sensorgym/StereoPlacement-v0", 16),
+        ("sensorgym/StereoScanning-v0", 16),
+    ],
 )  # one round, and a second after the autoreset
 def test_no_policy_exceeds_its_bound_on_a_benchmark_episode(env_id, episodes):
     passive, rule = PASSIVE_RULES[env_id], RULE_OF[env_id]
@@ -62,8 +71,8 @@ def test_no_policy_exceeds_its_bound_on_a_benchmark_episode(env_id, episodes):
     for name, r in results.items():
         assert len(r["bounds"]) == episodes, name
         assert bound_violations(r) == [], name
-        # nothing ends these episodes early, and the drones' paths are the scenario's alone:
-        # every policy meets the same bounds
+        # no policy ends these episodes (StereoScanning's end with the drones' paths), and
+        # the drones' paths are the scenario's alone: every policy meets the same bounds
         assert r["bounds"] == results[passive]["bounds"], name
     room = headroom(results, passive, rule)
     assert room[passive]["normalised"] == 0.0
