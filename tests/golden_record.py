@@ -59,6 +59,34 @@ def vector_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
     return {k: np.asarray(v) for k, v in out.items()}
 
 
+#: envs whose random-action episodes miss their tracker: one vector episode more under a fixed
+#: action that does not read the observation (so no float difference feeds back into it)
+FIXED_ACTION_ENVS = ("sensorgym/StereoScanning-v0",)
+
+
+def fixed_action(env) -> np.ndarray:
+    """The papers' full sweep of every receiver (``FullSweep``): scanning's random sectors
+    never confirm a track, the sweep confirms most drones within a few periods."""
+    from sensorgym.agents.stereo_scanning import FullSweep
+
+    return FullSweep(env.params).predict(np.zeros(env.observation_space.shape))[0]
+
+
+def fixed_action_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
+    """``VECTOR_ENVS`` scenarios of the native vector env under :func:`fixed_action`."""
+    env = gym.make_vec(env_id, num_envs=VECTOR_ENVS, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=seed)
+    a = fixed_action(env)
+    out = {"obs": [obs], "reward": [], "terminated": [], "truncated": []}
+    for _ in range(VECTOR_STEPS):
+        obs, reward, terminated, truncated, _ = env.step(a)
+        out["obs"].append(obs)
+        out["reward"].append(reward)
+        out["terminated"].append(terminated)
+        out["truncated"].append(truncated)
+    return {k: np.asarray(v) for k, v in out.items()}
+
+
 def parallel_episodes(factory, seed: int) -> dict[str, np.ndarray]:
     """The PettingZoo env: joint observations ``(steps + 1, n_agents, obs)`` and team rewards."""
     env = factory()
@@ -122,6 +150,9 @@ def record() -> None:
                     arrays[f"{name}/{kind}/{seed}/{key}"] = value
             for key, value in parallel_episodes(PARALLEL_FACTORIES[env_id], seed).items():
                 arrays[f"{name}/parallel/{seed}/{key}"] = value
+            if env_id in FIXED_ACTION_ENVS:
+                for key, value in fixed_action_episodes(env_id, seed).items():
+                    arrays[f"{name}/fixed/{seed}/{key}"] = value
     np.savez_compressed(GOLDEN / "episodes.npz", **arrays)
     with tempfile.TemporaryDirectory() as tmp:
         for name in REPRODUCTIONS:

@@ -26,7 +26,7 @@ class BearingsManeuverEnv(CoreEnv):
     A platform (ship, vehicle or drone, 2-D) detects a target that moves at constant velocity
     (or nearly so) and measures only its bearing, once per step, with noise ``σ``. Range is
     observable only when the platform manoeuvres (theory §7.6, §10.5 OC-5): the agent chooses turns
-    and speed changes, a range-parameterised EKF bank tracks the target from the bearings, and
+    and speed changes, a range-parameterised bank of second-order EKFs tracks the target from the bearings, and
     the reward is the shrinking of the Cramér–Rao bound on the target's position. Simulation
     core: :mod:`sensorgym.envs.bearings_maneuver.simulation`.
 

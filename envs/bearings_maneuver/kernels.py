@@ -4,7 +4,8 @@
 :func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads);
 :func:`reset_kernel` is :func:`.simulation.reset` after its draws. All are built from the primitives written once in
 :mod:`sensorgym.trackers.bearings.kernels` (prior, bank, bound, accuracy) and
-:mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings). The random draws
+:mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings); the bank's
+members take the second-order EKF update (``bank_update``, theory §7.9, §11.6). The random draws
 are made by the caller with numpy's Generator, in the order and shapes of the numpy form, and
 passed in: seeded episodes do not depend on the kernel or on the split of the rows.
 

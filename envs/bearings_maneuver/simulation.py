@@ -11,7 +11,7 @@ One step (``params.world.dt`` seconds):
 1. the action ``a ∈ [−1, 1]²`` becomes a heading-rate command ``a₀·ω_max`` and a speed change
    ``a₁·Δv_max``; the platform flies the exact arc, the target moves on
    (:func:`sensorgym.envs.worlds.platform.fly`, :func:`~sensorgym.envs.worlds.platform.propagate_target`);
-2. the platform measures a noisy bearing and the range-parameterised EKF bank updates on it
+2. the platform measures a noisy bearing and the range-parameterised bank (second-order EKF members) updates on it
    (:mod:`sensorgym.trackers.bearings.filters`): this estimate is all the agent sees;
 3. the reward is the gain in accuracy of the best possible estimate: the posterior Cramér–Rao
    bound (Tichavský et al. 1998) computed along the *true* trajectory
@@ -121,7 +121,7 @@ class ManeuverParams(FieldsOnlyPickle):
     """Range span (m) covered by the filter bank's members: the prior's range support, over
     which its range density is uniform. ``None``: ``initial_range``, the generator's."""
     bank_members: int = 8
-    """Number of range-parameterised EKF members."""
+    """Number of range-parameterised (second-order EKF) members."""
     prior_speed: tuple[float, float] | None = None
     """Target-speed prior of the filter: mean and standard deviation (m/s). ``None``: those of
     the generator's uniform ``target_speed`` draw, ``((lo + hi)/2, (hi − lo)/√12)``."""
@@ -286,7 +286,7 @@ class ManeuverState:
     target: FloatArray
     """True target state ``(B, 4)``: East, North (m), velocity (m/s)."""
     bank: RangeBankState
-    """The tracker the agents see through: range-parameterised EKF bank, batch ``(B, N)``.
+    """The tracker the agents see through: range-parameterised bank of second-order EKFs, batch ``(B, N)``.
     All scenarios share its clock ``bank.t`` (the dynamics are time-invariant)."""
     bound_factor: FloatArray
     """Square root ``L`` ``(B, 4, 4)`` of the posterior Cramér–Rao bound ``P = L Lᵀ = J⁻¹``

@@ -64,7 +64,7 @@ def test_velocity_prior_is_honest_for_receding_and_approaching_targets(episodes)
 
 def test_final_straight_course_nees_stays_near_chi_square(episodes):
     """After 30 steps without a manoeuvre (range unobservable; the ≈ 1 % of scenarios that came
-    within ``min_range`` left out) the EKF bank's moment-matched estimate is consistent in the
+    within ``min_range`` left out) the bank's moment-matched estimate (numbers measured with EKF members) is consistent in the
     bulk and mildly heavy-tailed: over seeds the median is 3.2–3.5 (χ²₄: 3.36), 2.7–4.2 % lie
     above the 99 % quantile and ≈ 1 % above the 99.9 % one; the mean without the top 0.5 %
     is 4.1–4.4 (χ²₄ so trimmed: 3.9), while the plain mean (4.3–10) follows a rare track or
