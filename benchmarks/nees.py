@@ -22,7 +22,10 @@ env's ``simulator_state`` is pooled over the scenarios:
   NEES is the one the scalar implies read isotropically, ``ε = d ‖e‖²/σ²`` (``d = 3``; joint
   ``d = 6`` the sum): its mean is ``d`` whenever ``σ²`` is the true total variance, whatever
   the shape of the error; the tail above the ``χ²_d`` 99 % quantile is only ``1 %`` for an
-  isotropic error (an elongated one has a heavier tail at the right variance).
+  isotropic error (an elongated one has a heavier tail at the right variance). Each part is
+  also reported per class (:data:`CLASSES`): by association — the track's three latest fixes
+  all of its drone (``own``, matched by their rays, :func:`track_drones`) or not (``wrong``)
+  — and, for ``own``, fixed in the period or coasting.
 
 Per step: the mean NEES over the ``N`` samples and its 95 % band (the mean of ``N`` draws of
 ``χ²_d``, ``chi2.ppf([0.025, 0.975], N d)/N``), whether the mean is inside, and the fraction
@@ -63,6 +66,12 @@ POLICIES = {
 }
 #: the parts of the state and their dimensions, per env
 PARTS = {"joint": None, "position": slice(0, 2), "velocity": slice(2, 4)}
+#: StereoScanning's samples also split by association: ``own`` — the track's latest members
+#: are all fixes of the drone it is assigned to; ``wrong`` — some is another drone's or false;
+#: and the ``own`` ones by whether the track was fixed in the period (``fresh``, compared at
+#: its own time) or coasts (compared at the period end, ``σ_pos² + (σ_vel Δ)²``)
+CLASSES = ("own", "wrong", "own fresh", "own coasting")
+SCANNING_PARTS = (*PARTS, *(f"{c} {p}" for c in CLASSES for p in PARTS))
 
 FloatArray = NDArray[np.float64]
 # per step, per part: the NEES samples pooled over the scenarios
@@ -117,16 +126,45 @@ def bearings_nees(state: Any) -> dict[str, FloatArray]:
     return out
 
 
-def scanning_nees(state: Any, period: float) -> tuple[dict[str, FloatArray], NDArray[np.int64]]:
+def track_drones(state: Any, params: Any, drone: NDArray[np.int64]) -> None:
+    """Update ``drone (B, T)``, the drone whose fixes a track row's latest members all are
+    (−1: some is another drone's or false), for every row updated in the last period (the
+    others keep theirs). A triple's solution passes exactly through its three fixes' rays at
+    their times (``n = 3``): each receiver's member is the fix whose ray the track's position
+    at that fix's time lies on (to 1e-7 in direction; no match: −1)."""
+    updated = state.track_t >= state.t[:, None] - params.period - 1e-9
+    fresh = (state.track_int[..., 2] > 0) & updated
+    b, q = np.nonzero(fresh)
+    if b.size == 0:
+        return
+    x, t1 = state.track_x[b, q], state.track_t[b, q]
+    O = params.receivers[:3]
+    fw, ft = state.fix_world[b, :3], state.fix_time[b, :3]  # (S, 3, F, 3), (S, 3, F)
+    valid = np.arange(fw.shape[2]) < state.fix_count[b, :3, None]
+    d = x[:, None, None, :3] + x[:, None, None, 3:] * (ft - t1[:, None, None])[..., None]
+    d = d - O[None, :, None]
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    on_ray = valid & (np.linalg.norm(d - fw, axis=-1) < 1e-7)
+    idx = on_ray.argmax(-1)  # (S, 3) the member of each receiver
+    of = state.fix_drone[b[:, None], np.arange(3)[None], idx]
+    own = on_ray.any(-1).all(-1) & (of >= 0).all(-1) & (of == of[:, :1]).all(-1)
+    drone[b, q] = np.where(own, of[:, 0], -1)
+
+
+def scanning_nees(
+    state: Any, period: float, drone: NDArray[np.int64] | None = None
+) -> tuple[dict[str, FloatArray], NDArray[np.int64]]:
     """Position, velocity and joint NEES (``d ‖e‖²/σ²``, see the module doc) of every drone
     with an assigned confirmed track, at the time the reward compares them (theory §11.5),
-    and the scenario of each sample."""
+    and the scenario of each sample; with ``drone`` (:func:`track_drones`) also each part per
+    association class (:data:`CLASSES`; NaN where a sample is of the other class)."""
     b, j = np.nonzero(state.assigned >= 0)
     q = state.assigned[b, j]
     t_track = state.track_t[b, q]
     t_end = state.t[b]
     # the track's own time if it was updated in the period, else the period end
-    t_cmp = np.where(t_track >= t_end - period - 1e-9, t_track, t_end)
+    fresh = t_track >= t_end - period - 1e-9
+    t_cmp = np.where(fresh, t_track, t_end)
     lag = t_cmp - t_track
     x = state.track_x[b, q]
     sigma = state.track_sigma[b, q]
@@ -139,7 +177,14 @@ def scanning_nees(state: Any, period: float) -> tuple[dict[str, FloatArray], NDA
     var_pos = sigma[:, 0] ** 2 + (sigma[:, 1] * lag) ** 2
     pos = 3.0 * np.sum((p_hat - p_true) ** 2, axis=1) / var_pos
     vel = 3.0 * np.sum((x[:, 3:] - v_true) ** 2, axis=1) / sigma[:, 1] ** 2
-    return {"joint": pos + vel, "position": pos, "velocity": vel}, b
+    out = {"joint": pos + vel, "position": pos, "velocity": vel}
+    if drone is not None:
+        own = drone[b, q] == j
+        classes = (own, ~own, own & fresh, own & ~fresh)
+        for c, keep in zip(CLASSES, classes, strict=True):
+            # NaN outside the class: every part keeps one entry per sample (and row)
+            out |= {f"{c} {p}": np.where(keep, out[p], np.nan) for p in PARTS}
+    return out, b
 
 
 def run(
@@ -153,10 +198,11 @@ def run(
     live = np.ones(scenarios, dtype=bool)
     bearings = env_id == BEARINGS
     # step 0 is the reset (StereoScanning has no track yet)
-    empty = {p: np.empty(0) for p in PARTS}
+    empty = {p: np.empty(0) for p in (PARTS if bearings else SCANNING_PARTS)}
     steps: Samples = [bearings_nees(env.simulator_state) if bearings else empty]
     last_bearings = steps[0] if bearings else {}
     last_scanning: dict[int, dict[str, FloatArray]] = {}  # scenario → its latest samples
+    drone = np.full(env.simulator_state.track_int.shape[:2], -1) if not bearings else None
     k = 0
     while live.any():
         obs, _, terminated, truncated, _ = env.step(act(obs, k))
@@ -167,10 +213,11 @@ def run(
             steps.append({p: v[live] for p, v in nees.items()})
             last_bearings = {p: np.where(live, nees[p], last_bearings[p]) for p in PARTS}
         else:
-            nees, rows = scanning_nees(state, env.params.period)
+            track_drones(state, env.params, drone)
+            nees, rows = scanning_nees(state, env.params.period, drone)
             keep = live[rows]
             nees, rows = {p: v[keep] for p, v in nees.items()}, rows[keep]
-            steps.append(nees)
+            steps.append({p: v[~np.isnan(v)] for p, v in nees.items()})
             for s in np.unique(rows):
                 last_scanning[int(s)] = {p: v[rows == s] for p, v in nees.items()}
         # NEXT_STEP autoreset: a scenario's episode is over once it terminates or truncates
@@ -178,15 +225,15 @@ def run(
     env.close()
     if bearings:
         return steps, last_bearings
-    end = {p: np.concatenate([v[p] for v in last_scanning.values()]) for p in PARTS}
-    return steps, end
+    end = {p: np.concatenate([v[p] for v in last_scanning.values()]) for p in SCANNING_PARTS}
+    return steps, {p: v[~np.isnan(v)] for p, v in end.items()}
 
 
 def dimension(env_id: str, part: str) -> int:
     """``d`` of a part: 4/2/2 (BearingsManeuver), 6/3/3 (StereoScanning)."""
     if env_id == BEARINGS:
         return 4 if part == "joint" else 2
-    return 6 if part == "joint" else 3
+    return 6 if part.endswith("joint") else 3
 
 
 #: ``--env`` names
@@ -206,7 +253,8 @@ def measure(
                 0 if env_id == BEARINGS else next(i for i, s in enumerate(steps) if s["joint"].size)
             )
             mid = (first + len(steps) - 1) // 2 if env_id == SCANNING else (len(steps) - 1) // 2
-            per_step = [{p: summary(s[p], dimension(env_id, p)) for p in PARTS} for s in steps]
+            parts = PARTS if env_id == BEARINGS else SCANNING_PARTS
+            per_step = [{p: summary(s[p], dimension(env_id, p)) for p in parts} for s in steps]
             records.append(
                 {
                     "env": env_id,
@@ -216,7 +264,7 @@ def measure(
                     "first_step": first,
                     "mid_step": mid,
                     "steps": per_step,
-                    "end": {p: summary(end[p], dimension(env_id, p)) for p in PARTS},
+                    "end": {p: summary(end[p], dimension(env_id, p)) for p in parts},
                 }
             )
     return records
@@ -239,7 +287,8 @@ def table(records: list[dict[str, Any]], title: str) -> Table:
             (f"step {r['mid_step']}", r["steps"][r["mid_step"]]),
             ("end", r["end"]),
         )
-        for part in PARTS:
+        shown = (*PARTS, *(f"{c} joint" for c in CLASSES)) if r["env"] == SCANNING else PARTS
+        for part in shown:
             for label, row in when:
                 s = row[part]
                 if not s["n"]:
