@@ -40,8 +40,12 @@ REPORT_RTOL = 1e-6
 #: path flip.
 EPISODE_RETURN_RTOL = 0.05
 
-#: Shipped policies, after a path flip: the z of a two-sided 99.9 % interval.
-FLIP_Z = 3.29
+#: Shipped policies: at most this share of the episodes (and at least one) may flip its path
+#: (an episode end, or a discrete choice, decided by a last-bit change). The benchmark draws
+#: every episode from its own stream (``sensorgym.envs.shells.streams``): a flip moves its own
+#: episode only. Measured: one episode end flips among the shipped runs' episodes under
+#: ``MKL_CBWR=COMPATIBLE`` (``benchmarks/results/arithmetic.json``).
+MAX_FLIPPED_SHARE = 0.02
 
 
 def assert_episodes_close(got: Mapping[str, np.ndarray], recorded: Mapping[str, np.ndarray],
@@ -89,25 +93,27 @@ def assert_reports_close(got: str, expected: str) -> None:
 def assert_rescored(again: Mapping[str, Any], committed: Mapping[str, Any]) -> None:
     """A policy re-scored on the committed scenarios agrees with its committed result.
 
-    Without a path flip — every episode's return within :data:`EPISODE_RETURN_RTOL` (of
-    ``max(|return|, 1)``) — the statistics agree to 1e-3. A flip (an episode end
-    decided by a last-bit change) re-draws the scenarios every later reset meets, as one
-    generator serves the resets of all slots; after it the re-scored episodes are a fresh
-    sample of the same policy, and only the mean can be held: to the two-sample 99.9 %
-    interval ``FLIP_Z·√(s₁² + s₂²)/√n``.
+    Every episode's return lies within :data:`EPISODE_RETURN_RTOL` (of ``max(|return|, 1)``)
+    but for at most :data:`MAX_FLIPPED_SHARE` of them (at least one): the path flips, each
+    free to move its own episode only, since every episode draws from its own stream. The
+    statistics agree to 1e-3 when nothing flipped; after a flip the mean within what the
+    flipped episodes moved it (``Σ |Δr| / n`` over them, plus 1e-3 of the rest).
     """
     assert again["episodes"] == committed["episodes"]
     r0 = np.asarray(committed["returns"], dtype=np.float64)
     r1 = np.asarray(again["returns"], dtype=np.float64)
     assert r1.shape == r0.shape
     drift = np.abs(r1 - r0) / np.maximum(np.abs(r0), 1.0)
-    if np.all(drift <= EPISODE_RETURN_RTOL):
+    flipped = drift > EPISODE_RETURN_RTOL
+    if not flipped.any():
         for key in ("mean", "std", "ci95", "mean_length"):
             assert math.isclose(again[key], committed[key], rel_tol=1e-3, abs_tol=1e-9), key
         return
-    bound = FLIP_Z * math.hypot(committed["std"], again["std"]) / math.sqrt(r0.size)
-    flipped = int(np.sum(drift > EPISODE_RETURN_RTOL))
-    assert abs(again["mean"] - committed["mean"]) <= bound, (
-        f"{flipped} episodes flipped; mean {again['mean']} against {committed['mean']} "
-        f"(99.9 % bound ±{bound:.3g})"
+    allowed = max(1, int(MAX_FLIPPED_SHARE * r0.size))
+    assert flipped.sum() <= allowed, (
+        f"{int(flipped.sum())} of {r0.size} episodes moved beyond {EPISODE_RETURN_RTOL:.0%} "
+        f"(at most {allowed} may flip): {np.flatnonzero(flipped)[:10].tolist()}"
     )
+    moved = float(np.sum(np.abs(r1 - r0)[flipped])) / r0.size
+    slack = 1e-3 * max(abs(committed["mean"]), 1.0)
+    assert abs(again["mean"] - committed["mean"]) <= moved + slack

@@ -89,12 +89,16 @@ def test_a_rescore_without_a_flip_holds_the_statistics():
         assert_rescored(_scores(r, lengths=30.5), committed)
 
 
-def test_after_a_flip_only_the_mean_is_held_to_its_interval():
+def test_a_flip_may_move_its_own_episode_only():
     rng = np.random.default_rng(2)
     r = rng.normal(4.3, 1.5, 256)
     committed = _scores(r)
-    redrawn = r.copy()
-    redrawn[100:] = rng.normal(4.3, 1.5, 156)  # a flip at episode 100: later scenarios redrawn
-    assert_rescored(_scores(redrawn), committed)
-    with pytest.raises(AssertionError):  # the same flip, and the policy 0.6 worse throughout
-        assert_rescored(_scores(redrawn - 0.6), committed)
+    flipped = r.copy()
+    flipped[100] -= 3.0  # one episode's end decided the other way: that episode alone moves
+    assert_rescored(_scores(flipped), committed)
+    many = r.copy()
+    many[100:110] -= 3.0  # ten episodes moved: more than flips explain
+    with pytest.raises(AssertionError, match="at most 5 may flip"):
+        assert_rescored(_scores(many), committed)
+    with pytest.raises(AssertionError):  # one flip, and the policy 0.6 worse throughout
+        assert_rescored(_scores(flipped - 0.6), committed)

@@ -73,14 +73,18 @@ def score(
     seed: int,
     unsafe_pickle: bool = False,
     params: dict[str, Any] | None = None,
-) -> dict[str, float]:
+    record_actions: bool = False,
+) -> dict[str, Any]:
     """Episode-return statistics (:class:`~.evaluation.EpisodeStats` as a dict) of one policy
     over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
-    with one seed meets the same scenarios. Parameter-sharing models act on the per-agent view
+    with one seed and batch meets the same scenarios, episode by episode, however it ends them
+    (one random stream per episode, :mod:`sensorgym.envs.shells.streams`). Parameter-sharing models act on the per-agent view
     of those scenarios. ``params``: params fields of the env (``--param``); a model trained
     with other ones is refused (:class:`~.models.RunFolderError` saying which differ). For an
     env with a proven bound (:data:`~.bounds.EPISODE_BOUNDS`) each episode's bound comes with
-    its return (``bounds``)."""
+    its return (``bounds``). ``record_actions``: the result also holds every episode's actions
+    and key (``actions``, ``keys``: :attr:`~.evaluation.EpisodeStats.actions`), not JSON, for
+    a bound computed from what the policies played (:data:`~.bounds.HINDSIGHT_BOUNDS`)."""
     from sensorgym.agents.registry import RULES
     from sensorgym.train.bounds import episode_bound_of
     from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
@@ -96,7 +100,7 @@ def score(
 
     params = params or {}
     if spec.kind == "rule":
-        env = make_sb3_env(env_id, n_envs, seed, **params)
+        env = make_sb3_env(env_id, n_envs, seed, episode_streams=True, **params)
         try:
             policy: Any = RULES[env_id][spec.name](env_params(env), simulator_state(env))
         except ValueError as exc:
@@ -108,7 +112,10 @@ def score(
         agents = bool(config.get("agents", False))
         wrappers = wrappers_of(config)
         try:
-            env = make_sb3_env(env_id, n_envs, seed, agents=agents, wrappers=wrappers, **params)
+            env = make_sb3_env(
+                env_id, n_envs, seed, agents=agents, wrappers=wrappers, episode_streams=True,
+                **params,
+            )  # fmt: skip
         except ValueError as exc:  # a wrapper's values in the run's config.yaml
             raise RunFolderError(f"{spec.name}: {CONFIG_FILE}, hyperparams: {exc}") from None
         try:
@@ -120,7 +127,11 @@ def score(
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
     try:
         bound = episode_bound_of(env_id, env_params(env))
-        return evaluate(policy, env, episodes, seed, bound).as_dict()
+        stats = evaluate(policy, env, episodes, seed, bound, record_actions=record_actions)
+        out = stats.as_dict()
+        if record_actions:
+            out["actions"], out["keys"] = list(stats.actions), list(stats.keys)
+        return out
     finally:
         env.close()
 

@@ -44,6 +44,14 @@ class EpisodeStats:
     """Every episode's upper bound on the return (the env's ``episode_bound`` of the state the
     episode started in, :mod:`.bounds`), in the order of :attr:`returns`; empty for an env
     without one."""
+    actions: tuple[np.ndarray, ...] = field(default=(), repr=False)
+    """With ``record_actions``: every episode's actions as the env took them, ``(steps, *a)``
+    with ``a`` a scenario's action shape, in the order of :attr:`returns` (not in
+    :meth:`as_dict`)."""
+    keys: tuple[tuple[int, int], ...] = field(default=(), repr=False)
+    """With ``record_actions``: every episode's ``(scenario slot, episode number in it)``, in
+    the order of :attr:`returns`: with one stream per episode the scenario is
+    :func:`~sensorgym.envs.shells.streams.episode_generator` ``(seed, slot, number)``'s."""
     tails: dict[str, tuple[float, ...]] = field(default_factory=dict, repr=False)
     """The env's tail measures (:mod:`.tail`), name → every episode's value (NaN where the
     episode has none, e.g. no fix at all), in the order of :attr:`returns`; empty for an env
@@ -51,6 +59,7 @@ class EpisodeStats:
 
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
+        del d["actions"], d["keys"]
         d["returns"] = list(self.returns)
         if self.bounds:
             d["bounds"] = list(self.bounds)
@@ -71,18 +80,22 @@ def make_sb3_env(
     seed: int,
     agents: bool = False,
     wrappers: Any = (),
+    episode_streams: bool = False,
     **env_kwargs: Any,
 ) -> VecEnv:
     """The env's native vector env of ``n_envs`` scenarios as an SB3 ``VecEnv`` (SAME_STEP
     autoreset, ``VecMonitor``); ``agents=True`` makes every agent of every scenario a slot
     (parameter sharing over the env's PettingZoo agents). ``wrappers``: a run's wrapper list
-    (:mod:`.wrappers`), applied over the monitor. ``env_kwargs``: params fields."""
+    (:mod:`.wrappers`), applied over the monitor. ``episode_streams``: one random stream per
+    episode (:mod:`sensorgym.envs.shells.streams`; what scoring uses). ``env_kwargs``: params
+    fields."""
     venv = gym.make_vec(
         env_id,
         num_envs=n_envs,
         vectorization_mode="vector_entry_point",
         autoreset_mode=AutoresetMode.SAME_STEP,
         agent_view=agents,
+        episode_streams=episode_streams,
         **env_kwargs,
     )
     env = apply_wrappers(VecMonitor(SB3VecEnv(venv)), wrappers)
@@ -121,13 +134,16 @@ def evaluate(
     seed: int,
     episode_bound: Callable[[Any], np.ndarray] | None = None,
     tails: Sequence[Measure] | None = None,
+    record_actions: bool = False,
 ) -> EpisodeStats:
     """Score ``policy`` (anything with SB3's ``predict``) over ``episodes`` episodes of ``env``,
     deterministic actions.
 
     ``env`` is reseeded with ``seed`` first, so policies evaluated with one seed and batch meet
-    the same scenarios, in the same slots (exactly so while no episode ends early by a
-    termination the policy caused). Slot ``i`` plays episodes until it has its share
+    the same scenarios, in the same slots: exactly so, draw for draw, on an env made with
+    ``episode_streams=True`` (as :func:`~.benchmark.score` makes it), however the policies
+    end their episodes; with one generator for the batch, only while no episode ends early by
+    a termination the policy caused. Slot ``i`` plays episodes until it has its share
     (``episodes // B``, one more for the last ``episodes % B`` slots, as SB3's
     ``evaluate_policy``); the returns are ordered
     by round, then slot (:attr:`EpisodeStats.returns`). On an env whose slots are agents
@@ -138,6 +154,10 @@ def evaluate(
     starts in (one value per scenario, :mod:`.bounds`), read at the reset and after every step
     that ended an episode (the state then holds the next one's start); each episode's bound is
     kept beside its return (:attr:`EpisodeStats.bounds`).
+
+    ``record_actions``: keep every episode's actions as the vector env took them (its
+    ``last_action``, per scenario) and its key (:attr:`EpisodeStats.actions`,
+    :attr:`EpisodeStats.keys`), for bounds that start from what each policy played.
 
     ``tails``: the accuracy measures read per episode from the env's diagnostics
     (:mod:`.tail`; the final ``info`` of an episode or its steps' ``info`` accumulated), kept
@@ -171,9 +191,15 @@ def evaluate(
     length = np.zeros(slots, dtype=np.int64)
     done_returns: list[list[float]] = [[] for _ in range(slots)]
     done_lengths: list[list[int]] = [[] for _ in range(slots)]
+    played: list[list[np.ndarray]] = [[] for _ in range(slots)]  # this episode's actions
+    done_actions: list[list[np.ndarray]] = [[] for _ in range(slots)]
     while any(len(done_returns[i]) < target[i] for i in range(slots)):
         action, state = policy.predict(obs, state=state, episode_start=start, deterministic=True)
         obs, reward, done, infos = env.step(action)
+        if record_actions:
+            taken = np.asarray(env.get_attr("last_action")[0])
+            for i in range(slots):
+                played[i].append(taken[i // n].copy())
         running += np.asarray(reward, dtype=np.float64)
         length += 1
         if collector is not None:
@@ -185,6 +211,9 @@ def evaluate(
                 done_lengths[i].append(int(length[i]))
                 done_bounds[i].append(float(bound[i]))
                 done_tails[i].append(values)
+                if record_actions:
+                    done_actions[i].append(np.stack(played[i]))
+            played[i] = []
         if episode_bound is not None and np.any(done):
             bound = np.where(done, bounds_now(), bound)
         running[done] = 0.0
@@ -202,6 +231,8 @@ def evaluate(
     lengths = np.array([done_lengths[s * n][k] for k, s in order], dtype=np.float64)
     bounds = [done_bounds[s * n][k] for k, s in order] if episode_bound is not None else []
     tail_values = {m.name: tuple(done_tails[s * n][k][m.name] for k, s in order) for m in measures}
+    actions = tuple(done_actions[s * n][k] for k, s in order) if record_actions else ()
+    keys = tuple((s, k) for k, s in order) if record_actions else ()
     std = float(r.std(ddof=1)) if r.size > 1 else 0.0
     return EpisodeStats(
         mean=float(r.mean()),
@@ -211,5 +242,7 @@ def evaluate(
         mean_length=float(np.mean(lengths)),
         returns=tuple(float(x) for x in r),
         bounds=tuple(bounds),
+        actions=actions,
+        keys=keys,
         tails=tail_values,
     )

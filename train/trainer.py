@@ -208,11 +208,14 @@ def _train(
     )
 
     # the same evaluation scenarios for all: the policy on its own (wrapped, per-agent) view,
-    # the rules on the env's joint one
+    # the rules on the env's joint one; one random stream per episode, as the benchmark scores
     n_eval = min(16, eval_episodes)
     eval_seed = VALIDATION_SEED
-    eval_env = make_sb3_env(env_id, n_eval, eval_seed, **params)
-    model_env = make_sb3_env(env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers, **params)
+    eval_env = make_sb3_env(env_id, n_eval, eval_seed, episode_streams=True, **params)
+    model_env = make_sb3_env(
+        env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers, episode_streams=True,
+        **params,
+    )  # fmt: skip
     rule_scores: dict[str, dict[str, Any]] = {}
     for rule, make in RULES.get(env_id, {}).items():
         try:

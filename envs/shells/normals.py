@@ -17,6 +17,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from sensorgym.envs.shells.streams import RowGenerator
+
 #: draws below which NumPy's own call is faster (numba's call costs about 13 µs to unbox the
 #: Generator; NumPy's about 1 µs)
 COMPILED_MIN_DRAWS = 8192
@@ -29,11 +31,14 @@ def _fill(rng, flat, start, stop):
 
 
 def standard_normal_rows(
-    rng: np.random.Generator, out: NDArray[np.float64], lo: int, hi: int
+    rng: np.random.Generator | RowGenerator, out: NDArray[np.float64], lo: int, hi: int
 ) -> None:
     """Fill rows ``out[lo:hi]`` (C-contiguous float64, rows along the first axis) with the
     Generator's next standard normal draws, in C order. Calls over consecutive ranges from 0
     to ``len(out)`` draw what one ``rng.standard_normal(out.shape)`` draws."""
+    if isinstance(rng, RowGenerator):  # one stream per row (common random numbers)
+        rng.standard_normal_rows(out, lo, hi)
+        return
     if not isinstance(rng, np.random.Generator):
         raise TypeError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
     if not (isinstance(out, np.ndarray) and out.dtype == np.float64 and out.flags.c_contiguous):

@@ -27,6 +27,7 @@ from sensorgym.envs.shells.contract import (
     registered_episode_steps,
     resolve_params,
 )
+from sensorgym.envs.shells.streams import EpisodeStreams
 from sensorgym.trackers.validation import count
 
 
@@ -40,6 +41,13 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
     within the step; its last observation and info go to ``infos["final_obs"]``
     ``(num_envs, ...)`` and ``infos["final_info"]`` (valid where ``"_final_obs"`` /
     ``"_final_info"`` are True) — what SB3 needs (:mod:`sensorgym.train.sb3_vec_env`).
+
+    ``episode_streams=True``: every slot's every episode draws its reset and its noise from a
+    generator of its own, keyed by the reset seed, the slot and the episode's number
+    (:mod:`.streams`): common random numbers, so that the scenarios a slot meets do not depend
+    on when its (or another slot's) episodes ended. The default, one generator
+    (``np_random``) for the whole batch, draws each step's noise in one call (faster at large
+    batches; what training uses); with ``num_envs=1`` it reproduces the single env.
     """
 
     simulation: ClassVar[ModuleType]
@@ -54,6 +62,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         agent_view: bool = False,
+        episode_streams: bool = False,
         **fields: Any,
     ):
         num_envs = count(num_envs, "num_envs")
@@ -73,6 +82,11 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         self.max_episode_steps = max_episode_steps
         self.render_mode = render_mode
         self.agent_view = agent_view
+        if not isinstance(episode_streams, bool):
+            raise TypeError(f"episode_streams: expected a bool, got {episode_streams!r}")
+        self.episode_streams = episode_streams
+        self._streams: EpisodeStreams | None = None
+        self._last_action: FloatArray | None = None
         sp = self.core.spaces
         self.n_agents = sp.n_agents
         if agent_view:
@@ -101,6 +115,15 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
             raise RuntimeError("simulator_state: call reset() first")
         return self._state
 
+    @property
+    def last_action(self) -> FloatArray:
+        """The actions of the last step as this env took them (``action_space``'s shape,
+        float64, not yet clipped): for diagnostics and bounds that replay what a policy
+        played."""
+        if self._last_action is None:
+            raise RuntimeError("last_action: no step taken yet")
+        return self._last_action
+
     def _observe(self, state: Any) -> NDArray[np.float32]:
         if self.agent_view:
             return self.core.observe_agents(state)
@@ -110,7 +133,11 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
-        self._state = self.core.reset(self.np_random, self.num_envs)
+        if self.episode_streams:
+            # the streams' root: the seed itself, or fresh entropy from np_random when unseeded
+            root = seed if seed is not None else int(self.np_random.integers(2**63))
+            self._streams = EpisodeStreams(self.num_envs, root)
+        self._state = self.core.reset(self._rng(), self.num_envs)
         self._steps[:] = 0
         self._done[:] = False
         return self._observe(self._state), self._infos(self._state)
@@ -121,6 +148,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         if self._state is None:
             raise RuntimeError("step: call reset() first")
         a = check_action(actions, self.action_space.shape)
+        self._last_action = a
         if self.autoreset_mode is AutoresetMode.SAME_STEP:
             return self._step_same(a)
         return self._step_next(a)
@@ -130,9 +158,11 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         scenario restarts). ``state`` is one a step has just returned: the fresh rows are
         written into its arrays, except those it shares with the previous state or with
         ``keep`` (observations and infos handed out), which are copied."""
+        if self._streams is not None:
+            self._streams.next_episode(done)
         if done.all():
-            return self.core.reset(self.np_random, self.num_envs)
-        fresh = self.core.reset(self.np_random, int(done.sum()), like=state)
+            return self.core.reset(self._rng(), self.num_envs)
+        fresh = self.core.reset(self._rng(done), int(done.sum()), like=state)
         return self.core.scatter(done, fresh, state, in_place=True, keep=(self._state, keep))
 
     def _truncated(self) -> BoolArray:
@@ -145,9 +175,11 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         reward = np.zeros(self.num_envs)
         terminated = np.zeros(self.num_envs, dtype=bool)
         if done.all():
-            new = self.core.reset(self.np_random, self.num_envs)
+            if self._streams is not None:
+                self._streams.next_episode(done)
+            new = self.core.reset(self._rng(), self.num_envs)
         else:
-            new, reward, terminated = self.core.step(self._state, a, self.np_random)
+            new, reward, terminated = self.core.step(self._state, a, self._rng())
             if done.any():
                 new = self._restart(done, new)
                 reward = np.where(done, 0.0, reward)
@@ -159,7 +191,7 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
         return self._observe(new), reward, terminated, truncated, self._infos(new)
 
     def _step_same(self, a: FloatArray) -> tuple:
-        new, reward, terminated = self.core.step(self._state, a, self.np_random)
+        new, reward, terminated = self.core.step(self._state, a, self._rng())
         self._steps = self._steps + 1
         truncated = self._truncated()
         done = terminated | truncated
@@ -172,6 +204,13 @@ class CoreVectorEnv(VectorEnv[NDArray[np.float32], NDArray[np.float32], np.ndarr
             obs, infos = self._observe(new), {**self._infos(new), **final}
         self._state = new
         return obs, reward, terminated, truncated, infos
+
+    def _rng(self, rows: BoolArray | None = None) -> Any:
+        """The generator of the batch's draws (of the rows ``rows`` only, for a partial reset):
+        ``np_random``, or the rows' episode streams."""
+        if self._streams is None:
+            return self.np_random
+        return self._streams.rows(rows)
 
     def _infos(self, state: Any) -> dict[str, Any]:
         # Gymnasium's vector-info layout: the values and a "_key" mask of the envs that set them

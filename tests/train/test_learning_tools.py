@@ -206,7 +206,8 @@ def test_train_with_wrappers_pretraining_and_a_learning_curve(tmp_path):
     assert (result.run_dir / "curve.png").stat().st_size > 1000
     # the saved policy rebuilds its wrappers: benchmark scores it on the wrapped view, the same
     # scenarios as the rules
-    env = make_sb3_env(ENV_ID, 4, VALIDATION_SEED, wrappers=config["hyperparams"]["wrappers"])
+    wrappers = config["hyperparams"]["wrappers"]
+    env = make_sb3_env(ENV_ID, 4, VALIDATION_SEED, wrappers=wrappers, episode_streams=True)
     stats = evaluate(load_model(result.run_dir, env), env, 4, VALIDATION_SEED)
     assert stats.mean == pytest.approx(result.evaluation["trained"]["mean"])
     out = tmp_path / "bench"
