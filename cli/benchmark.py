@@ -116,9 +116,10 @@ def run(args: argparse.Namespace) -> int:
     scores: dict[str, dict[str, dict[str, float]]] = {}
     written: list[Path] = []
     for env_id in env_ids:
-        results = _benchmark(env_id, args, console)
-        if results is None:
+        scored = _benchmark(env_id, args, console)
+        if scored is None:
             continue
+        results, bound_summary = scored
         scores[env_id] = results
         args.out.mkdir(parents=True, exist_ok=True)
         path = args.out / f"{env_id.replace('/', '__')}.json"
@@ -134,6 +135,8 @@ def run(args: argparse.Namespace) -> int:
         if room:
             doc["passive_rule"] = PASSIVE_RULES[env_id]
             doc["headroom"] = room
+        if bound_summary is not None:
+            doc["bound"] = bound_summary
         tails = tail_summaries(env_id, results)
         if tails:
             doc["tail"] = tails
@@ -193,12 +196,21 @@ def _check_model(path: Path, env_ids: list[str], args: argparse.Namespace) -> No
 
 def _benchmark(
     env_id: str, args: argparse.Namespace, console: Any
-) -> dict[str, dict[str, float]] | None:
-    """Score every policy of ``env_id`` and print its table; ``None`` when it has none."""
+) -> tuple[dict[str, dict[str, Any]], dict[str, Any] | None] | None:
+    """Score every policy of ``env_id`` and print its table: the results and, for an env whose
+    bound is computed from what the policies played, its summary; ``None`` when it has no
+    policy."""
     from rich.table import Table
 
     from sensorgym.train.benchmark import NotApplicable, paired_to_best_rule, policies_for, score
-    from sensorgym.train.bounds import PASSIVE_RULES, bound_violations, headroom
+    from sensorgym.train.bounds import (
+        HINDSIGHT_BOUNDS,
+        PASSIVE_RULES,
+        add_hindsight_bounds,
+        bound_violations,
+        headroom,
+    )
+    from sensorgym.train.env_params import resolve
     from sensorgym.train.models import RunFolderError, check_model_params, read_config, run_dir_of
 
     params = args.params[env_id]
@@ -228,12 +240,19 @@ def _benchmark(
                     args.seed,
                     args.unsafe_pickle,
                     params,
+                    record_actions=env_id in HINDSIGHT_BOUNDS,
                 )
             except RunFolderError as exc:
                 raise SystemExit(f"--model: {exc}") from None
             except NotApplicable as exc:  # a rule that does not apply to these params
                 console.print(f"{env_id}: rule left out: {exc}")
 
+    bound_summary = None
+    if env_id in HINDSIGHT_BOUNDS:
+        with console.status(f"{env_id}: the hindsight optimum of every episode"):
+            bound_summary = add_hindsight_bounds(
+                env_id, resolve(env_id, params), args.seed, results
+            )
     best, paired = paired_to_best_rule(results)
     room = headroom(results, PASSIVE_RULES.get(env_id), best)
     for name, r in results.items():
@@ -275,7 +294,7 @@ def _benchmark(
     tails = tail_summaries(env_id, results)
     if tails:
         console.print(tail_table(env_id, tails, args.episodes, order))
-    return results
+    return results, bound_summary
 
 
 def headroom_table(

@@ -1,10 +1,13 @@
 """The headroom of a benchmark: each episode's true upper bound and the normalised score.
 
 An env with a proven bound on an episode's return (theory §11.3.1 for StereoPointing, §11.4.1
-for StereoPlacement, §11.5.1 for StereoScanning) names it in :data:`EPISODE_BOUNDS`: a function ``episode_bound(params,
-state) -> (B,)`` of the batched simulator state an episode starts in, which no policy's return
-on that episode can exceed. The benchmark keeps each episode's bound beside its return
-(:func:`~sensorgym.train.evaluation.evaluate`) and reports, per policy,
+for StereoPlacement, §11.5.1 for StereoScanning) names it in :data:`EPISODE_BOUNDS`: a function
+``episode_bound(params, state) -> (B,)`` of the batched simulator state an episode starts in,
+which no policy's return on that episode can exceed. The platform-manoeuvre envs' bound is
+the hindsight optimum (theory §11.2.1), computed once every policy has played the episode
+(:data:`HINDSIGHT_BOUNDS`, :func:`add_hindsight_bounds`). The benchmark keeps each episode's
+bound beside its return (:func:`~sensorgym.train.evaluation.evaluate`) and reports, per
+policy,
 
 * the bound's mean over the policy's episodes;
 * the normalised score: per episode ``(R − R₀)/(B − R₀)``, averaged, with its normal 95 %
@@ -27,6 +30,16 @@ EPISODE_BOUNDS: dict[str, str] = {
     "sensorgym/StereoPointing-v0": "sensorgym.envs.stereo_pointing.bound:episode_bound",
     "sensorgym/StereoPlacement-v0": "sensorgym.envs.stereo_placement.bound:episode_bound",
     "sensorgym/StereoScanning-v0": "sensorgym.envs.stereo_scanning.bound:episode_bound",
+}
+
+#: env id → ``"module:function"`` of a bound computed after the policies have played: the
+#: hindsight optimum of each episode (theory §11.2.1), started from every policy's own actions
+#: on it, so that it is at least each one's return by construction. The function takes
+#: ``(params, seed, keys, played, steps)`` (``played[p][e]``: policy ``p``'s actions on episode
+#: ``e``) and returns ``(bound, gain)`` per episode.
+HINDSIGHT_BOUNDS: dict[str, str] = {
+    "sensorgym/BearingsManeuver-v0": "sensorgym.envs.bearings_maneuver.bound:benchmark_bounds",
+    "sensorgym/BearingsManeuverBook-v0": "sensorgym.envs.bearings_maneuver.bound:benchmark_bounds",
 }
 
 #: env id → the rule that does nothing (score 0 of the normalised score)
@@ -52,6 +65,37 @@ def episode_bound_of(env_id: str, params: Any) -> Callable[[Any], np.ndarray] | 
     module, _, name = entry.partition(":")
     fn = getattr(importlib.import_module(module), name)
     return lambda state: fn(params, state)
+
+
+def add_hindsight_bounds(
+    env_id: str, params: Any, seed: int, results: dict[str, dict[str, Any]]
+) -> dict[str, Any] | None:
+    """For an env of :data:`HINDSIGHT_BOUNDS`: each episode's bound, from every policy's
+    recorded ``actions`` (``score(..., record_actions=True)``, one stream per episode, so all
+    played the same episodes: their ``keys`` agree), written into every result as ``bounds``;
+    the ``actions`` and ``keys`` are removed. Returns a summary (the optimiser's gain over the
+    best start, mean and largest), or ``None`` for another env."""
+    import gymnasium
+
+    entry = HINDSIGHT_BOUNDS.get(env_id)
+    if entry is None or not results:
+        return None
+    names = list(results)
+    keys = [tuple(k) for k in results[names[0]]["keys"]]
+    for name in names:
+        if [tuple(k) for k in results[name]["keys"]] != keys:
+            raise RuntimeError(f"{env_id}: {name} played other episodes than {names[0]}")
+    module, _, fn = entry.partition(":")
+    compute = getattr(importlib.import_module(module), fn)
+    steps = int(gymnasium.spec(env_id).max_episode_steps)
+    played = [results[name]["actions"] for name in names]
+    bound, gain = compute(params, seed, keys, played, steps)
+    for name in names:
+        r = results[name]
+        del r["actions"], r["keys"]
+        r["bounds"] = [float(b) for b in bound]
+    return {"method": "hindsight optimum", "gain_mean": float(np.mean(gain)),
+            "gain_max": float(np.max(gain))}  # fmt: skip
 
 
 def bound_violations(result: dict[str, Any], tolerance: float = 1e-6) -> list[int]:

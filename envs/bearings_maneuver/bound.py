@@ -523,3 +523,50 @@ def hindsight_optimum(
         final_bound=np.array(out["final"]),
         initial_bound=np.array(out["initial"]),
     )
+
+
+#: the benchmark's search per episode: random restarts beside the policies' own sequences, and
+#: how many of all the starts SLSQP polishes (the best by the smooth objective)
+BENCHMARK_RESTARTS = 2
+BENCHMARK_POLISH = 2
+
+
+def benchmark_episode(
+    params: ManeuverParams, seed: int, slot: int, episode: int, steps: int
+) -> tuple[ManeuverState, FloatArray]:
+    """The reset state (batch 1) and the target path ``(1, steps + 1, 4)`` of a benchmark
+    episode: slot ``slot``'s ``episode``-th under ``reset(seed=seed)`` of a vector env with one
+    random stream per episode (:mod:`sensorgym.envs.shells.streams`), rebuilt from that
+    stream alone — its reset's draws, then its steps' (which no action moves)."""
+    from sensorgym.envs.shells.streams import RowGenerator, episode_generator
+
+    rng = RowGenerator([episode_generator(seed, slot, episode)])
+    state = simulation.reset(params, rng, 1)
+    return state, target_paths(params, state, steps, rng)
+
+
+def benchmark_bounds(
+    params: ManeuverParams,
+    seed: int,
+    keys: Sequence[tuple[int, int]],
+    played: Sequence[Sequence[ArrayLike]],
+    steps: int,
+    restarts: int = BENCHMARK_RESTARTS,
+    polish: int | None = BENCHMARK_POLISH,
+) -> tuple[FloatArray, FloatArray]:
+    """The hindsight optimum of every benchmark episode ``keys[e] = (slot, number)`` (seed
+    ``seed``, :func:`benchmark_episode`), started from every policy's own actions on it —
+    ``played[p][e]``, ``(steps', K, 2)`` or ``(steps', 2K)`` as the env took them — and from
+    ``restarts`` random sequences: ``(value, gain)``, each ``(E,)``. ``value`` is at least every
+    policy's return on the episode, by construction (module docstring); ``gain`` is what the
+    optimiser added over the best start."""
+    value, gain = np.empty(len(keys)), np.empty(len(keys))
+    for e, (slot, number) in enumerate(keys):
+        state, path = benchmark_episode(params, seed, slot, number, steps)
+        K = state.heading.shape[1]
+        starts = [np.asarray(p[e], dtype=np.float64).reshape(1, -1, K, 2) for p in played]
+        res = hindsight_optimum(
+            params, state, starts, restarts=restarts, seed=seed + e, paths=path, polish=polish
+        )
+        value[e], gain[e] = res.value[0], res.gain[0]
+    return value, gain

@@ -179,3 +179,34 @@ def test_the_optimum_of_two_platforms_and_speed_changes_keeps_the_best_start() -
     assert np.any(res.actions[0, :, :, 1] != 0.0)  # speed changes were used
     replay = bound.episode_returns(params, state, [res.actions], steps=30)[0]
     assert replay.value[0] == res.value[0]
+
+
+@pytest.mark.parametrize("env_id", ENVS)
+def test_a_benchmark_episode_is_rebuilt_from_its_stream_alone(env_id: str) -> None:
+    """The vector env with one stream per episode: slot ``i``'s ``k``-th episode starts in the
+    state :func:`bound.benchmark_episode` rebuilds, and its target follows the rebuilt path
+    (two rounds of ``steps`` steps, NEXT_STEP autoreset between them, random actions)."""
+    seed, slots, steps = 321, 3, 6
+    env = gym.make_vec(env_id, num_envs=slots, vectorization_mode="vector_entry_point",
+                       episode_streams=True, max_episode_steps=steps)  # fmt: skip
+    env.reset(seed=seed)
+    params = env.params
+    rng = np.random.default_rng(0)
+    starts, paths = [], []
+    for _ in range(2):
+        starts.append(env.simulator_state)
+        path = [env.simulator_state.target]
+        for _ in range(steps):
+            _, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, env.action_space.shape))
+            path.append(env.simulator_state.target)
+        assert truncated.all() and not terminated.any()
+        paths.append(np.stack(path, axis=1))  # (slots, steps + 1, 4)
+        env.step(np.zeros(env.action_space.shape))  # NEXT_STEP: the next episodes' resets
+    for k, (start, path) in enumerate(zip(starts, paths, strict=True)):
+        for i in range(slots):
+            state, rebuilt = bound.benchmark_episode(params, seed, i, k, steps)
+            np.testing.assert_array_equal(state.target[0], start.target[i])
+            np.testing.assert_array_equal(state.bound_factor[0], start.bound_factor[i])
+            np.testing.assert_array_equal(state.platform_position[0], start.platform_position[i])
+            np.testing.assert_allclose(rebuilt[0], path[i], rtol=0.0, atol=1e-9)
+    env.close()
