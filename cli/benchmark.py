@@ -144,7 +144,8 @@ def run(args: argparse.Namespace) -> int:
         written.append(path)
     if scores:
         summary = args.out / "benchmark.json"
-        scores = {**_kept_scores(summary, settings, args), **scores}
+        merged = {**_kept_scores(summary, settings, args), **scores}
+        scores = {e: merged[e] for e in known if e in merged}  # the registry's order
         summary.write_text(json.dumps({"settings": settings, "scores": scores}, indent=2) + "\n")
         written.append(summary)
         if not args.no_chart:
