@@ -98,16 +98,16 @@ HINDSIGHT = {
 
 @pytest.mark.parametrize("env_id", sorted(HINDSIGHT))
 def test_the_hindsight_bound_holds_every_policy_on_the_benchmark_episodes(env_id):
-    """Two rounds of four scenarios (an autoreset between): every policy meets the same
-    episodes (one stream per episode), each episode's bound is at least every policy's return,
-    and the recorded actions do not reach the JSON."""
+    """Every rule and shipped policy, two rounds of four scenarios (an autoreset between): all
+    meet the same episodes (one stream per episode), each episode's bound is at least every
+    policy's return, and the recorded actions do not reach the JSON."""
+    from sensorgym.train.benchmark import policies_for
     from sensorgym.train.bounds import add_hindsight_bounds
     from sensorgym.train.env_params import resolve
 
     passive, rule = PASSIVE_RULES[env_id], HINDSIGHT[env_id]
-    specs = {name: PolicySpec("rule", name) for name in (passive, rule)}
-    run, folder = next(iter(shipped_policies(env_id).items()))
-    specs[f"shipped:{run}"] = PolicySpec("model", str(folder), shipped=True)
+    specs = policies_for(env_id)
+    assert {passive, rule} <= set(specs) and any(n.startswith("shipped:") for n in specs)
     results = {
         name: score(env_id, spec, 8, 4, 10_000, record_actions=True) for name, spec in specs.items()
     }
