@@ -92,6 +92,10 @@ RULES: dict[str, dict[str, RuleFactory]] = {
 }
 
 
+# three drones for four receivers: every StereoPointing rule (they read n and m from params)
+RULES["sensorgym/StereoPointingCrowded-v0"] = dict(RULES["sensorgym/StereoPointing-v0"])
+
+
 def rules_for(env_id: str, params: Any, state_fn: StateFn) -> dict[str, PolicyPredictor]:
     """The rules registered for ``env_id``, built for ``params`` and the simulator behind
     ``state_fn``; ``KeyError`` names the known ids."""

@@ -4,15 +4,15 @@ Every env's kernels and every registered rule's kernels are compiled on first us
 to numba's disk cache (``cache=True``); from then on they load in milliseconds. Compiling is
 single-threaded and takes minutes for all envs in one process (``benchmarks/cold_start.py``),
 so this command compiles them in parallel: one process per env package (variants sharing a
-package's kernels, such as ``BearingsManeuverBook-v0``, go with it), each making the Gymnasium
-env and the native vector env, stepping both, and playing one short episode of every
-registered rule, exactly as ``sensorgym benchmark`` will; then two decisions of every rule at
-each params variant in the simulation module's ``COMPILE_VARIANTS`` (sizes or settings whose
-episodes take other compiled paths: degenerate periods, polynomial searches at many receivers),
-so that no run stalls midway on them. With a warm cache it only loads
-(seconds: the rules' episodes are played all the same); with ``--stamp FILE`` it does nothing
-when FILE holds the digest of the current sources (:func:`source_digest`) — the set-up scripts
-run it that way after every install.
+package's kernels, such as ``BearingsManeuverBook-v0`` and ``StereoPointingCrowded-v0``, go
+with it), each making the Gymnasium env and the native vector env, stepping both, and playing
+one short episode of every registered rule, exactly as ``sensorgym benchmark`` will; then two
+decisions of every rule at each params variant in the simulation module's ``COMPILE_VARIANTS``
+(sizes or settings whose episodes take other compiled paths: degenerate periods, polynomial
+searches at many receivers), so that no run stalls midway on them. With a warm cache it only
+loads (seconds: the rules' episodes are played all the same); with ``--stamp FILE`` it does
+nothing when FILE holds the digest of the current sources (:func:`source_digest`) — the set-up
+scripts run it that way after every install.
 """
 
 from __future__ import annotations

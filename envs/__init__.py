@@ -9,6 +9,7 @@ length is set; the vector and PettingZoo doors read it from there.
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
 | ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``book.book_parallel_env`` |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
+| ``sensorgym/StereoPointingCrowded-v0`` | :mod:`.stereo_pointing.crowded` | ``stereo_pointing.crowded_parallel_env`` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |
 | ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning.parallel_env`` |
 
@@ -35,6 +36,14 @@ _ENVS = [
         "id": "sensorgym/StereoPointing-v0",
         "entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingEnv",
         "vector_entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingVectorEnv",
+        "max_episode_steps": 150,
+    },
+    {
+        "id": "sensorgym/StereoPointingCrowded-v0",
+        "entry_point": "sensorgym.envs.stereo_pointing.crowded:StereoPointingCrowdedEnv",
+        "vector_entry_point": (
+            "sensorgym.envs.stereo_pointing.crowded:StereoPointingCrowdedVectorEnv"
+        ),
         "max_episode_steps": 150,
     },
     {
@@ -94,6 +103,7 @@ PARALLEL_ENVS = {
     "sensorgym/BearingsManeuver-v0": bearings_maneuver.parallel_env,
     "sensorgym/BearingsManeuverBook-v0": bearings_maneuver.book_parallel_env,
     "sensorgym/StereoPointing-v0": stereo_pointing.parallel_env,
+    "sensorgym/StereoPointingCrowded-v0": stereo_pointing.crowded_parallel_env,
     "sensorgym/StereoPlacement-v0": stereo_placement.parallel_env,
     "sensorgym/StereoScanning-v0": stereo_scanning.parallel_env,
 }

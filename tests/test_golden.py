@@ -18,6 +18,7 @@ import sensorgym.envs as envs
 from sensorgym.envs.bearings_maneuver import book_parallel_env
 from sensorgym.envs.bearings_maneuver import parallel_env as maneuver_parallel
 from sensorgym.envs.stereo_placement import parallel_env as placement_parallel
+from sensorgym.envs.stereo_pointing import crowded_parallel_env
 from sensorgym.envs.stereo_pointing import parallel_env as pointing_parallel
 from sensorgym.envs.stereo_scanning import parallel_env as scanning_parallel
 from tests.arithmetic import assert_episodes_close, assert_reports_close
@@ -37,6 +38,7 @@ PARALLEL_FACTORIES = {
     "sensorgym/BearingsManeuver-v0": functools.partial(maneuver_parallel, platforms=2),
     "sensorgym/BearingsManeuverBook-v0": book_parallel_env,
     "sensorgym/StereoPointing-v0": pointing_parallel,
+    "sensorgym/StereoPointingCrowded-v0": crowded_parallel_env,
     "sensorgym/StereoPlacement-v0": placement_parallel,
     "sensorgym/StereoScanning-v0": scanning_parallel,
 }

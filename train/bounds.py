@@ -28,6 +28,7 @@ import numpy as np
 #: env id → ``"module:function"`` of its episode bound
 EPISODE_BOUNDS: dict[str, str] = {
     "sensorgym/StereoPointing-v0": "sensorgym.envs.stereo_pointing.bound:episode_bound",
+    "sensorgym/StereoPointingCrowded-v0": "sensorgym.envs.stereo_pointing.bound:episode_bound",
     "sensorgym/StereoPlacement-v0": "sensorgym.envs.stereo_placement.bound:episode_bound",
     "sensorgym/StereoScanning-v0": "sensorgym.envs.stereo_scanning.bound:episode_bound",
 }
@@ -47,6 +48,7 @@ PASSIVE_RULES: dict[str, str] = {
     "sensorgym/BearingsManeuver-v0": "straight-course",
     "sensorgym/BearingsManeuverBook-v0": "straight-course",
     "sensorgym/StereoPointing-v0": "hold-still",
+    "sensorgym/StereoPointingCrowded-v0": "hold-still",
     "sensorgym/StereoPlacement-v0": "hold-position",
     "sensorgym/StereoScanning-v0": "full-sweep",
 }

@@ -12,7 +12,7 @@ the return's p10.
 |-----|---------|------|-------------|
 | BearingsManeuver, Book | ``final_error`` | m | the env's tracker's position error at the end |
 | | ``final_bound`` | m | the position RMS bound ``√(P_xx + P_yy)`` (PCRLB) at the end |
-| StereoPointing, StereoPlacement | ``fix_sigma`` | m | mean CRLB ``σ_pos`` over the fixed drone-steps |
+| StereoPointing, Crowded, StereoPlacement | ``fix_sigma`` | m | mean CRLB ``σ_pos`` over the fixed drone-steps |
 | | ``no_fix_share`` | share | drone-steps without a fix / all drone-steps |
 | StereoScanning | ``gospa`` | m | mean over periods of GOSPA (``c = truth_gate``, ``p = 2``, ``α = 2``) |
 """
@@ -86,6 +86,7 @@ TAIL_MEASURES: dict[str, tuple[Measure, ...]] = {
     "sensorgym/BearingsManeuver-v0": _BEARINGS,
     "sensorgym/BearingsManeuverBook-v0": _BEARINGS,
     "sensorgym/StereoPointing-v0": _STEREO,
+    "sensorgym/StereoPointingCrowded-v0": _STEREO,
     "sensorgym/StereoPlacement-v0": _STEREO,
     "sensorgym/StereoScanning-v0": (
         Measure(

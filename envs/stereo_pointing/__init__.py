@@ -2,10 +2,18 @@
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.env` (Gymnasium, native
 vector and PettingZoo envs), :mod:`.bound` (a true upper bound on the reward, per step and per
-episode, on the truth) and :mod:`.render`.
+episode, on the truth), :mod:`.render` and :mod:`.crowded` (three drones for four receivers,
+``sensorgym/StereoPointingCrowded-v0``).
 """
 
 from sensorgym.envs.stereo_pointing.bound import episode_bound, step_bound
+from sensorgym.envs.stereo_pointing.crowded import (
+    CrowdedPointingParams,
+    StereoPointingCrowdedEnv,
+    StereoPointingCrowdedParallelEnv,
+    StereoPointingCrowdedVectorEnv,
+)
+from sensorgym.envs.stereo_pointing.crowded import parallel_env as crowded_parallel_env
 from sensorgym.envs.stereo_pointing.env import (
     StereoPointingEnv,
     StereoPointingParallelEnv,
@@ -15,11 +23,16 @@ from sensorgym.envs.stereo_pointing.env import (
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingState
 
 __all__ = [
+    "CrowdedPointingParams",
     "PointingParams",
     "PointingState",
+    "StereoPointingCrowdedEnv",
+    "StereoPointingCrowdedParallelEnv",
+    "StereoPointingCrowdedVectorEnv",
     "StereoPointingEnv",
     "StereoPointingParallelEnv",
     "StereoPointingVectorEnv",
+    "crowded_parallel_env",
     "episode_bound",
     "parallel_env",
     "step_bound",

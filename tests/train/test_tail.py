@@ -77,15 +77,20 @@ def test_every_env_gives_finite_measures_per_episode_in_the_order_of_the_returns
     for m in measures:
         values = np.asarray(stats.tails[m.name])
         assert values.shape == (3,), m.name
-        assert np.all(np.isfinite(values)) and np.all(values >= 0.0), m.name
+        # a ratio is missing (NaN) in an episode where its denominator never counted: no fix
+        # in the whole episode has no fix_sigma (quantile_summary leaves it out); hold-still,
+        # the first crowded rule, loses every drone in some episodes
+        finite = np.isfinite(values)
+        assert np.all(finite | (m.reading == "ratio")), m.name
+        assert np.all(values[finite] >= 0.0), m.name
         if m.unit == "share":
-            assert np.all(values <= 1.0), m.name
+            assert np.all(values[finite] <= 1.0), m.name
         want = {
             "final": info[m.key],
             "mean": sums[m.key] / steps,
-            "ratio": sums[m.key] / sums[m.per] if m.per else None,
+            "ratio": (sums[m.key] / sums[m.per] if sums[m.per] > 0 else np.nan) if m.per else None,
         }[m.reading]
-        assert values[0] == pytest.approx(want, rel=1e-12), m.name
+        assert values[0] == pytest.approx(want, rel=1e-12, nan_ok=True), m.name
     d = stats.as_dict()
     assert set(d["tails"]) == set(stats.tails)
     bare = make_sb3_env(env_id, 2, 0)
