@@ -45,18 +45,22 @@ def single_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
     return {k: np.asarray(v) for k, v in out.items()}
 
 
-def vector_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
-    """``VECTOR_ENVS`` scenarios of the native vector env (NEXT_STEP autoreset)."""
-    env = gym.make_vec(env_id, num_envs=VECTOR_ENVS, vectorization_mode="vector_entry_point")
-    obs, _ = env.reset(seed=seed)
+def _vector_run(env, obs, actions) -> dict[str, np.ndarray]:
     out = {"obs": [obs], "reward": [], "terminated": [], "truncated": []}
-    for a in _actions(seed, VECTOR_STEPS, env.action_space.shape):
+    for a in actions:
         obs, reward, terminated, truncated, _ = env.step(a)
         out["obs"].append(obs)
         out["reward"].append(reward)
         out["terminated"].append(terminated)
         out["truncated"].append(truncated)
     return {k: np.asarray(v) for k, v in out.items()}
+
+
+def vector_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
+    """``VECTOR_ENVS`` scenarios of the native vector env (NEXT_STEP autoreset)."""
+    env = gym.make_vec(env_id, num_envs=VECTOR_ENVS, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=seed)
+    return _vector_run(env, obs, _actions(seed, VECTOR_STEPS, env.action_space.shape))
 
 
 #: envs whose random-action episodes miss their tracker: one vector episode more under a fixed
@@ -76,15 +80,7 @@ def fixed_action_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
     """``VECTOR_ENVS`` scenarios of the native vector env under :func:`fixed_action`."""
     env = gym.make_vec(env_id, num_envs=VECTOR_ENVS, vectorization_mode="vector_entry_point")
     obs, _ = env.reset(seed=seed)
-    a = fixed_action(env)
-    out = {"obs": [obs], "reward": [], "terminated": [], "truncated": []}
-    for _ in range(VECTOR_STEPS):
-        obs, reward, terminated, truncated, _ = env.step(a)
-        out["obs"].append(obs)
-        out["reward"].append(reward)
-        out["terminated"].append(terminated)
-        out["truncated"].append(truncated)
-    return {k: np.asarray(v) for k, v in out.items()}
+    return _vector_run(env, obs, [fixed_action(env)] * VECTOR_STEPS)
 
 
 def parallel_episodes(factory, seed: int) -> dict[str, np.ndarray]:

@@ -57,14 +57,16 @@ def test_no_arguments_runs_the_main_job_the_benchmark_of_every_env(tmp_path, mon
 
 def test_rescoring_one_env_keeps_the_others_in_the_summary(tmp_path):
     """``--env`` rewrites its env's entry of ``benchmark.json`` and keeps the others' when the
-    file was written with the same episodes, batch and seed; with other settings it starts
-    afresh (a summary never mixes settings)."""
-    env_id = "sensorgym/StereoPlacement-v0"
+    file was written with the same episodes, batch and seed, in the registry's order; with
+    other settings it starts afresh (a summary never mixes settings)."""
+    from sensorgym.train.benchmark import registered_envs
+
+    env_id, kept_id = "sensorgym/StereoPlacement-v0", "sensorgym/BearingsManeuver-v0"
     settings = {"episodes": 2, "n_envs": 2, "seed": 10_000}
     summary = tmp_path / "benchmark.json"
     other = {"some-rule": {"mean": 1.0}}
     for kept_settings, kept in ((settings, True), ({**settings, "seed": 7}, False)):
-        doc = {"settings": kept_settings, "scores": {"sensorgym/Other-v0": other, env_id: {}}}
+        doc = {"settings": kept_settings, "scores": {kept_id: other, env_id: {}}}
         summary.write_text(json.dumps(doc))
         argv = ["benchmark", "--env", env_id, "--episodes", "2", "--n-envs", "2",
                 "--no-shipped", "--no-chart", "--out", str(tmp_path)]  # fmt: skip
@@ -73,7 +75,8 @@ def test_rescoring_one_env_keeps_the_others_in_the_summary(tmp_path):
         assert written["settings"] == settings
         per_env = json.loads((tmp_path / f"{env_id.replace('/', '__')}.json").read_text())
         assert written["scores"][env_id] == per_env["results"] != {}
-        assert ("sensorgym/Other-v0" in written["scores"]) is kept
+        assert (kept_id in written["scores"]) is kept
+        assert list(written["scores"]) == [e for e in registered_envs() if e in written["scores"]]
 
 
 def test_version(capsys):
