@@ -77,27 +77,6 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "sigma_ref": 0.5,
         "reward_clip": 3.0,
     },
-    "sensorgym/StereoPointingCrowded-v0": {
-        "n_receivers": 3,
-        "circle_radius": 40.0,
-        "receiver_angles_deg": (0.0, 90.0, 180.0, 270.0),
-        "n_drones": 2,
-        "start_distance": (70.0, 120.0),
-        "start_altitude": (20.0, 60.0),
-        "drone_speed": (3.0, 9.0),
-        "climb_rate": (-0.5, 0.5),
-        "dt": 0.1,
-        "fov": 0.2,
-        "slew_rate": 1.0,
-        "max_elevation": 1.2,
-        "initial_elevation": (0.1, 0.2),
-        "cued_start": False,
-        "sigma_ang": 2e-3,
-        "cue_sigma": (3.0, 1.0),
-        "process_noise": 0.5,
-        "sigma_ref": 0.5,
-        "reward_clip": 3.0,
-    },
     "sensorgym/StereoPlacement-v0": {
         "n_receivers": 4,
         "delays": (0.0, 0.2, 0.5),
@@ -159,6 +138,13 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
         "false_track_penalty": 1.0,
         "truth_gate": 3.0,
     },
+}
+
+
+# the crowded variant: StereoPointing's values, but 2 drones (3 is its own default)
+OTHER_VALUES["sensorgym/StereoPointingCrowded-v0"] = {
+    **OTHER_VALUES["sensorgym/StereoPointing-v0"],
+    "n_drones": 2,
 }
 
 
