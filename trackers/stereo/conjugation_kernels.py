@@ -140,6 +140,33 @@ def pair_kernel(
     return 0
 
 
+@njit(inline="always")
+def _triple_inverse(a, c2, c3, d2, d3):
+    """``(ok, M⁻¹)`` of the ``n = 3`` system's ``M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]``
+    (theory §3.5) as a 3-tuple of rows, by Cramer: the rows are ``(u_2×u_3, u_3×u_1, u_1×u_2)
+    / det M``, ``det M = u_1·(u_2×u_3)``. ``ok`` is False (and ``M⁻¹`` zeros) for (near-)
+    coplanar columns, where det M is rounding noise and so is the Cramer inverse, whose κ_F
+    could then look small (parallel unit vectors give ``u_2×u_3 ~ det ~ 1e-18``)."""
+    u1 = ((d3 - d2) * a[0], (d3 - d2) * a[1], (d3 - d2) * a[2])
+    u2 = (-d3 * c2[0], -d3 * c2[1], -d3 * c2[2])
+    u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
+    x23 = _cross(u2, u3)
+    det = _dot(u1, x23)
+    scale = np.sqrt(_dot(u1, u1) * _dot(u2, u2) * _dot(u3, u3))
+    if not np.abs(det) > SINGULAR_VOLUME * scale:
+        zero = (0.0, 0.0, 0.0)
+        return False, (zero, zero, zero)
+    inv_det = 1.0 / det
+    x31 = _cross(u3, u1)
+    x12 = _cross(u1, u2)
+    Mi = (
+        (x23[0] * inv_det, x23[1] * inv_det, x23[2] * inv_det),
+        (x31[0] * inv_det, x31[1] * inv_det, x31[2] * inv_det),
+        (x12[0] * inv_det, x12[1] * inv_det, x12[2] * inv_det),
+    )
+    return True, Mi
+
+
 @njit(**_JIT)
 def triple_velocity_kernel(
     a1: Array,
@@ -193,27 +220,12 @@ def triple_velocity_kernel(
             if not (np.isfinite(d2) and np.isfinite(d3)):
                 return 5
         # Δt_3·(block 2) − Δt_2·(block 3):  M R = d,  M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]
-        u1 = ((d3 - d2) * a[0], (d3 - d2) * a[1], (d3 - d2) * a[2])
-        u2 = (-d3 * c2[0], -d3 * c2[1], -d3 * c2[2])
-        u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
-        # rows of M⁻¹ = (u_2×u_3, u_3×u_1, u_1×u_2) / det M   (Cramer), det M = u_1·(u_2×u_3)
-        x23 = _cross(u2, u3)
-        det = _dot(u1, x23)
-        # (near-)coplanar columns: det M is rounding noise and so is the Cramer inverse, whose
-        # κ_F can then look small (parallel unit vectors give u_2×u_3 ~ det ~ 1e-18). κ_F = inf
-        # hands the element to the caller's SVD path, which measures κ_F properly.
-        scale = np.sqrt(_dot(u1, u1) * _dot(u2, u2) * _dot(u3, u3))
-        if not np.abs(det) > SINGULAR_VOLUME * scale:
+        ok, Mi = _triple_inverse(a, c2, c3, d2, d3)
+        if not ok:
+            # (near-)coplanar columns: κ_F = inf hands the element to the caller's SVD path,
+            # which measures κ_F properly
             kappa[i] = np.inf
             continue
-        inv_det = 1.0 / det
-        x31 = _cross(u3, u1)
-        x12 = _cross(u1, u2)
-        Mi = (
-            (x23[0] * inv_det, x23[1] * inv_det, x23[2] * inv_det),
-            (x31[0] * inv_det, x31[1] * inv_det, x31[2] * inv_det),
-            (x12[0] * inv_det, x12[1] * inv_det, x12[2] * inv_det),
-        )
         # R̂ = M⁻¹ d,  d = Δt_3 b_2 − Δt_2 b_3
         d = (d3 * b2[0] - d2 * b3[0], d3 * b2[1] - d2 * b3[1], d3 * b2[2] - d2 * b3[2])
         r1, r2, r3 = _dot(Mi[0], d), _dot(Mi[1], d), _dot(Mi[2], d)
@@ -522,26 +534,12 @@ def velocity_fix_element(a, c2, c3, d2, d3, r1, r2, r3, s1, s2, s3, position_var
     The numpy reference is :func:`~.conjugation.velocity_fix_jacobian` (``J Σ Jᵀ``).
     """
     g = d3 - d2
-    u1 = (g * a[0], g * a[1], g * a[2])
-    u2 = (-d3 * c2[0], -d3 * c2[1], -d3 * c2[2])
-    u3 = (d2 * c3[0], d2 * c3[1], d2 * c3[2])
-    x23 = _cross(u2, u3)
-    det = _dot(u1, x23)
-    scale = np.sqrt(_dot(u1, u1) * _dot(u2, u2) * _dot(u3, u3))
-    if not np.abs(det) > SINGULAR_VOLUME * scale:
+    ok, Mi = _triple_inverse(a, c2, c3, d2, d3)
+    if not ok:
         for j in range(6):
             for k in range(6):
                 C[i, j, k] = np.nan
         return False
-    inv_det = 1.0 / det
-    x31 = _cross(u3, u1)
-    x12 = _cross(u1, u2)
-    # rows of M⁻¹ (Cramer), M = [(Δt_3 − Δt_2) a_1, −Δt_3 c_2, Δt_2 c_3]
-    Mi = (
-        (x23[0] * inv_det, x23[1] * inv_det, x23[2] * inv_det),
-        (x31[0] * inv_det, x31[1] * inv_det, x31[2] * inv_det),
-        (x12[0] * inv_det, x12[1] * inv_det, x12[2] * inv_det),
-    )
     m = Mi[0]
     # H = G M⁻¹ in work[6:9], G columns (−(Δt_2 + Δt_3) a_1, Δt_2 c_2, Δt_3 c_3)
     for j in range(3):
