@@ -115,6 +115,10 @@ class BearingsManeuverEnv(CoreEnv):
       frame, the position's formula), so a lone platform's observation grew from 10 to 13 and
       other platforms' positions moved to 13+ (dynamics, rewards and episode ends unchanged;
       the golden episodes re-recorded for the observation; the shipped policies retrained).
+      Issue 35, in place: the bank's members update by the second-order EKF (theory §7.9,
+      §11.6), so the observation's estimate and its uncertainty change (rewards, dynamics and
+      episode ends unchanged; golden episodes re-recorded; every policy rescored, the shipped
+      ones not retrained).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

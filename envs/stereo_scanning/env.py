@@ -205,10 +205,9 @@ class StereoScanningEnv(CoreEnv):
       Issue 35 (rewards and observations change; golden episodes re-recorded): a triple's
       ``σ_pos``, ``σ_vel`` are the square roots of the traces of its exact first-order
       covariance under the angle noise (theory §3.5, §11.6) instead of the papers'
-      ``σ_e² (AᵀA)⁻¹``, which put ``σ_vel`` 10–45 % too small. Every policy rescored on both
+      ``σ_e² (AᵀA)⁻¹``, which understates ``σ_vel``. Every policy rescored on both
       held-out seeds (``docs/scores/``); the shipped PPO runs, not retrained, still beat
-      every fieldable rule (seed 10000, paired over ``cue-entry-search``:
-      +4.72, +4.87, +5.25).
+      every fieldable rule (``docs/environments.md``).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}

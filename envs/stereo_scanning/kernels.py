@@ -463,8 +463,8 @@ def _triple_sigmas(c, la, P, cmem, dt, X, Q, sig, position_sigma, C, work):
     (:func:`~sensorgym.trackers.stereo.conjugation_kernels.velocity_fix_element`, theory §3.5,
     §11.6), on the scratch ``C (1, 6, 6)``, ``work (9, 3)``. The papers' ``σ_e² (AᵀA)⁻¹``
     (:func:`candidate_sigmas`) takes the two blocks' conjugation errors as independent and
-    isotropic, where both share receiver 1's direction error: it put ``σ_vel`` 10–45 % too
-    small (``research/nees``)."""
+    isotropic, where both share receiver 1's direction error: it understates ``σ_vel``
+    (theory §11.6, ``research/nees``)."""
     j1, j2, j3 = cmem[c, 0], cmem[c, 1], cmem[c, 2]
     ok = velocity_fix_element(
         (la[0, j1, 0], la[0, j1, 1], la[0, j1, 2]),
