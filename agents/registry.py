@@ -18,6 +18,7 @@ from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents import stereo_pointing_horizon as pointing_horizon
+from sensorgym.agents import stereo_pointing_schedule as pointing_schedule
 from sensorgym.agents import stereo_pointing_search as pointing_search
 from sensorgym.agents import stereo_pointing_sharing as pointing_sharing
 from sensorgym.agents import stereo_scanning as scanning
@@ -61,6 +62,15 @@ RULES: dict[str, dict[str, RuleFactory]] = {
             params, acquisition=True, sharing=pointing_sharing.Sharing(), cue_steps=1
         ),
         "plan-search": lambda params, _: pointing_horizon.PlanHorizon(
+            params,
+            acquisition=True,
+            sharing=pointing_sharing.Sharing(),
+            cue_steps=1,
+            search=pointing_search.EpipolarSearch(),
+        ),
+        # the time-sharing schedule of issue 37: plan-search's planner and aiming, a drifting
+        # drone handed a pair before its error outgrows the fields of view
+        "plan-schedule": lambda params, _: pointing_schedule.PlanSchedule(
             params,
             acquisition=True,
             sharing=pointing_sharing.Sharing(),

@@ -92,6 +92,8 @@ class _View:
     """(N, n, m, 3) unit lines of sight from the receivers to the predicted positions."""
     ranges: FloatArray
     """(N, n, m) ranges to the predicted positions, m (inf: predicted on the receiver)."""
+    velocity_sigma: FloatArray | None = None
+    """(N, m) velocity RMS of the tracks, m/s (``None``: not decoded)."""
 
 
 def _view(params: PointingParams, obs: FloatArray) -> _View:
@@ -112,6 +114,7 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
         velocity=drones[..., 4:7] * params.velocity_scale,
         los=los,
         ranges=np.where(r > MIN_RANGE, np.maximum(r, MIN_RANGE), np.inf),
+        velocity_sigma=np.exp(drones[..., 7]) * params.sigma_ref,
     )
 
 
@@ -463,22 +466,30 @@ def plan_geometry(
     ``azimuth``/``elevation (B, n)``, on every ``stride``-th step."""
     p = params
     n, m, B = p.n_receivers, p.n_drones, azimuth.shape[0]
-    step = max(p.slew_rate * p.dt, 1e-12)
     # future steps s = 1, 1 + stride, …, weighted by stride where s ≤ left
     s = np.arange(1, max(int(np.max(left)), 1) + 1, stride, dtype=np.float64)  # (S,)
     weight = np.where(s[None, :] <= left[:, None], float(stride), 0.0)  # (B, S)
     dt = (s * p.dt)[None, :, None, None]
     q = position[:, None] + velocity[:, None] * dt  # (B, S, m, 3)
     u, r = lines_of_sight(p, q.reshape(B * len(s), m, 3))
-    # steps until receiver k's boresight reaches drone j (half a field of view counts)
-    off = np.abs(pointing_offsets(p, azimuth, elevation, q[:, 0]))  # (B, n, m, 2)
-    reach = np.maximum(np.ceil((off.max(axis=-1) - 0.5 * p.fov) / step), 1.0)  # (B, n, m)
+    reach = slew_steps(p, azimuth, elevation, q[:, 0])  # (B, n, m)
     return PlanGeometry(
         u=u.reshape(B, len(s), n, m, 3),
         r=np.maximum(r, MIN_RANGE).reshape(B, len(s), n, m),
         ready=s[None, :, None, None] >= reach[:, None],  # (B, S, n, m)
         weight=weight,
     )
+
+
+def slew_steps(
+    params: PointingParams, azimuth: FloatArray, elevation: FloatArray, points: FloatArray
+) -> FloatArray:
+    """Steps ``(B, n, m)``, at least 1, until receiver ``k``'s boresight (at
+    ``azimuth``/``elevation (B, n)``), slewing at full rate, is within half a field of view of
+    ``points (B, m, 3)`` (the plan's :attr:`PlanGeometry.ready`)."""
+    step = max(params.slew_rate * params.dt, 1e-12)
+    off = np.abs(pointing_offsets(params, azimuth, elevation, points))  # (B, n, m, 2)
+    return np.maximum(np.ceil((off.max(axis=-1) - 0.5 * params.fov) / step), 1.0)
 
 
 def plan_values(params: PointingParams, *flight: Any) -> FloatArray:

@@ -29,6 +29,7 @@ from sensorgym.agents.protocol import as_batch
 from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
     PLAN_ASSIGNMENTS,
+    PlanGeometry,
     _assignments,
     _keep_bonus,
     _starts,
@@ -111,11 +112,11 @@ class PlanHorizon:
         left = self.episode_steps - np.asarray(t, dtype=np.int64)
         return np.clip(left, 1, self.horizon).astype(np.float64)
 
-    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
-        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
-        p = self.params
-        geometry = plan_geometry(
-            p,
+    def geometry(self, view: _View, t: NDArray[Any]) -> PlanGeometry:
+        """The plan's :class:`~sensorgym.agents.stereo_pointing.PlanGeometry` at episode steps
+        ``t (N,)``."""
+        return plan_geometry(
+            self.params,
             view.azimuth,
             view.elevation,
             view.position,
@@ -123,17 +124,27 @@ class PlanHorizon:
             self.planning_horizon(t),
             self.stride,
         )
-        if not exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
-            return best_of(
-                plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
-            )
-        cand = _assignments(p)
+
+    def values(self, view: _View, geometry: PlanGeometry) -> NDArray[np.float64]:
+        """The exhaustive search's value ``(N, C)`` of every candidate of
+        :func:`~sensorgym.agents.stereo_pointing._assignments`: its planned return (with
+        ``acquisition``, weighted by the chance of a fix) plus the hysteresis bonus."""
+        p = self.params
         if self.acquisition:
             values = acquired_values(p, geometry, acquisition_probability(p, view))
         else:
             values = geometry_values(p, geometry)
-        values = values + _keep_bonus(view, cand, self.keep_bonus)
-        return cand[np.argmax(values, axis=-1)]
+        return values + _keep_bonus(view, _assignments(p), self.keep_bonus)
+
+    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
+        p = self.params
+        geometry = self.geometry(view, t)
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
+            return best_of(
+                plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
+            )
+        return _assignments(p)[np.argmax(self.values(view, geometry), axis=-1)]
 
     def assign(self, observation: NDArray[Any], t: NDArray[Any] | int = 0) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``, at episode step(s)

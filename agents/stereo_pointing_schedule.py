@@ -1,0 +1,117 @@
+"""Time-share the receiver pairs between more drones than pairs: the ``plan-schedule`` rule
+(``sensorgym/StereoPointingCrowded-v0``, issue 37).
+
+With four receivers and three drones at most two drones hold a pair (unless one receiver holds
+two drones in its field of view). The drone left without one drifts: its track only predicts
+and its RMS error grows, and once that error is wider than a receiver's cone at its range the
+pair sent back to it no longer finds it. :class:`PlanSchedule` is the ``plan-search`` planner
+(:class:`~sensorgym.agents.stereo_pointing_horizon.PlanHorizon` with acquisition, sharing, the
+cue hold and the epipolar search; its exhaustive candidate values, its aiming) with one
+constraint from a schedule: each step it predicts, for every drone, the step at which its
+error passes what the fields of view re-acquire (:func:`reacquire_steps`) and how many steps
+the fastest pair of receivers needs to reach it (:func:`~sensorgym.agents.stereo_pointing.
+slew_steps`); when a drone's deadline comes within that transit plus ``lead`` steps, the most
+urgent such drone (the largest growing uncertainty for its deadline) must get a pair, and the
+planner picks the best assignment that gives it one (which pair hands over, and whom the
+others watch). A drone already past its deadline is not forced: a pair sent there would
+likely miss it, and the plan's acquisition weight and the epipolar search handle it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sensorgym.agents.stereo_pointing import _assignments, _View, slew_steps
+from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
+
+#: the furthest a deadline is predicted, steps (beyond it: never)
+MAX_DEADLINE = 1000
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """When a drifting drone gets a pair back. The defaults were chosen on tuning seeds 500 and
+    600 (``research/pointing_schedule.py``, ``research/results/pointing_schedule.json``)."""
+
+    reach: float = 1.0
+    """The error a pair still re-acquires, in units of the field of view's radius ``fov ·
+    r̄_j`` at the drone's mean range from the receivers (at 1, a receiver sent to the
+    prediction finds the drone with probability 0.78 under the plan's acquisition model)."""
+    lead: float = 2.0
+    """Steps of margin: a drone is handed a pair when its deadline is at most its transit plus
+    ``lead`` steps away."""
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.reach) and self.reach > 0.0):
+            raise ValueError(f"reach: must be finite and > 0, got {self.reach!r}")
+        if not self.lead >= 0.0:  # NaN fails; inf hands over as soon as a drone is reachable
+            raise ValueError(f"lead: must be >= 0, got {self.lead!r}")
+
+
+def reacquire_steps(params: PointingParams, view: _View, reach: float) -> NDArray[np.float64]:
+    """Steps ``(N, m)`` until drone ``j``'s predicted RMS error exceeds ``reach · fov · r̄_j``
+    (``r̄_j`` its mean range from the receivers): the track predicts without a fix, ``σ̂²(τ) =
+    σ̂² + σ̂_v² τ² + q τ³`` (``τ`` in s, the CV filter's growth of ``tr P_pp`` without the
+    position-velocity correlation, ``q`` its process noise). 0 when it is already past,
+    :data:`MAX_DEADLINE` when it stays inside that long."""
+    p = params
+    ranges = np.where(np.isfinite(view.ranges), view.ranges, np.nan)
+    limit = reach * p.fov * np.nanmean(ranges, axis=1)  # (N, m)
+    tau = np.arange(MAX_DEADLINE + 1, dtype=np.float64) * p.dt  # (T,)
+    grown = (
+        view.sigma[..., None] ** 2
+        + (view.velocity_sigma[..., None] * tau) ** 2
+        + p.process_noise * tau**3
+    )  # (N, m, T)
+    past = grown > limit[..., None] ** 2
+    return np.where(past.any(axis=-1), np.argmax(past, axis=-1), MAX_DEADLINE).astype(np.float64)
+
+
+def forced_drone(params: PointingParams, view: _View, schedule: Schedule) -> NDArray[np.int64]:
+    """The drone ``(N,)`` that must get a pair now, ``-1`` for none: among the drones whose
+    :func:`reacquire_steps` deadline is positive and at most the fastest pair's transit
+    (the second-smallest :func:`~sensorgym.agents.stereo_pointing.slew_steps` over the
+    receivers) plus ``lead``, the one with the least slack (deadline minus transit)."""
+    deadline = reacquire_steps(params, view, schedule.reach)
+    steps = slew_steps(params, view.azimuth, view.elevation, view.position)  # (N, n, m)
+    transit = np.sort(steps, axis=1)[:, 1]  # (N, m): the fastest pair's slower receiver
+    slack = deadline - transit
+    urgent = (deadline > 0) & (slack <= schedule.lead)
+    slack = np.where(urgent, slack, np.inf)
+    return np.where(urgent.any(axis=-1), np.argmin(slack, axis=-1), -1)
+
+
+@dataclass(frozen=True)
+class PlanSchedule(PlanHorizon):
+    """:class:`~sensorgym.agents.stereo_pointing_horizon.PlanHorizon` on a schedule: the
+    exhaustive planner (every assignment, ``acquisition`` weighted), restricted on each step
+    where :func:`forced_drone` names a drone to the assignments that send at least two
+    receivers to it. Aiming (cue hold, sharing, search) and the step count are
+    :class:`PlanHorizon`'s."""
+
+    solver: str = "exhaustive"
+    """The schedule constrains the exhaustive search's candidates; only ``"exhaustive"``."""
+    schedule: Schedule = Schedule()
+    """When a drifting drone gets a pair back."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.solver != "exhaustive":
+            raise ValueError(f"solver: PlanSchedule searches exhaustively, got {self.solver!r}")
+        if not isinstance(self.schedule, Schedule):
+            raise ValueError(f"schedule: must be a Schedule, got {self.schedule!r}")
+
+    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
+        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
+        p = self.params
+        cand = _assignments(p)  # (C, n)
+        values = self.values(view, self.geometry(view, t))  # (N, C)
+        forced = forced_drone(p, view, self.schedule)  # (N,)
+        pairs = (cand[None] == forced[:, None, None]).sum(axis=-1) >= 2  # (N, C)
+        allowed = pairs | (forced < 0)[:, None]
+        return cand[np.argmax(np.where(allowed, values, -np.inf), axis=-1)]
