@@ -115,6 +115,36 @@ def _turn_command(params: ManeuverParams, turn: FloatArray) -> FloatArray:
     return np.clip(turn / (w.dt * w.max_turn_rate), -1.0, 1.0)
 
 
+def estimate_frame(
+    params: ManeuverParams, views: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The planning world the observation holds, in platform 1's frame (platform 1 at the
+    origin, heading 0 = ahead), from every platform's view ``(N, K, obs_dim)``: platform
+    positions ``(N, K, 2)``, headings and speeds ``(N, K)``, the estimated target state
+    ``(N, 4)`` and the square root ``(N, 4, 4)`` of the estimate's covariance, block-diagonal
+    (the observation holds no position–velocity cross-covariance): the position block from
+    obs 7–9, the velocity block from obs 10–12 (what :class:`EstimateLookahead` and
+    :class:`~sensorgym.agents.bearings_mpc.RecedingPlan` plan on)."""
+    p, w = params, params.world
+    n, K = views.shape[:2]
+    views = np.asarray(views, dtype=np.float64)
+    first = views[:, 0]
+    pos = np.zeros((n, K, 2))
+    if K > 1:
+        pos[:, 1:] = first[:, OBS_DIM:].reshape(n, K - 1, 2) * p.range_scale
+    heading = relative_headings(p, views)
+    speed = views[:, :, 2] * w.max_speed
+    # estimated target state in platform 1's frame: relative velocity + own (0, v)
+    target = np.empty((n, 4))
+    target[:, :2] = first[:, 3:5] * p.range_scale
+    target[:, 2] = first[:, 5] * p.speed_scale
+    target[:, 3] = first[:, 6] * p.speed_scale + speed[:, 0]
+    L = np.zeros((n, 4, 4))
+    L[:, :2, :2] = _spread_factor(first[:, 7:10], p.range_scale)
+    L[:, 2:, 2:] = _spread_factor(first[:, 10:13], p.speed_scale)
+    return pos, heading, speed, target, L
+
+
 @dataclass(frozen=True)
 class StraightCourse(ManeuverRule):
     """Hold course and speed: range stays unobservable (the baseline every rule must beat)."""
@@ -362,24 +392,5 @@ class EstimateLookahead(ManeuverRule):
 
     def choose(self, views: FloatArray) -> FloatArray:
         """Every platform's action ``(N, K, 2)``: :class:`TruthLookahead`'s compiled plans from
-        the estimate, in platform 1's frame."""
-        p, w = self.params, self.params.world
-        n, K = views.shape[:2]
-        views = np.asarray(views, dtype=np.float64)
-        first = views[:, 0]
-        pos = np.zeros((n, K, 2))
-        if K > 1:
-            pos[:, 1:] = first[:, OBS_DIM:].reshape(n, K - 1, 2) * p.range_scale
-        heading = relative_headings(p, views)
-        speed = views[:, :, 2] * w.max_speed
-        # estimated target state in platform 1's frame: relative velocity + own (0, v)
-        target = np.empty((n, 4))
-        target[:, :2] = first[:, 3:5] * p.range_scale
-        target[:, 2] = first[:, 5] * p.speed_scale
-        target[:, 3] = first[:, 6] * p.speed_scale + speed[:, 0]
-        # the bound's square root from the estimate, block-diagonal: the position block from
-        # obs 7–9, the velocity block from obs 10–12
-        L = np.zeros((n, 4, 4))
-        L[:, :2, :2] = _spread_factor(first[:, 7:10], p.range_scale)
-        L[:, 2:, 2:] = _spread_factor(first[:, 10:13], p.speed_scale)
-        return _joint_plans(self, pos, heading, speed, target, L)
+        the estimate, in platform 1's frame (:func:`estimate_frame`)."""
+        return _joint_plans(self, *estimate_frame(self.params, views))
