@@ -345,6 +345,87 @@ def results_curves() -> str:
     return "\n".join(lines).rstrip()
 
 
+NOT_RECORDED = "not recorded"
+
+
+def _thousands(n: int) -> str:
+    return f"{n:,}".replace(",", " ")
+
+
+def _seconds(s: float) -> str:
+    return f"{s:.0f} s" if s < 600 else f"{s / 60:.1f} min"
+
+
+def training_cost(policies: Path | None = None) -> str:
+    """Per env and shipped run: the samples it trained on, the wall-clock and CPUs it took
+    (its ``cost.json``, :mod:`sensorgym.train.cost`; "not recorded" for runs trained before
+    it), and when its learning curve first beat the env's best rule (``best_rule`` of
+    ``docs/scores/<env>.json``) on the curve's own evaluation scenarios: the first
+    ``curve.json`` point whose mean exceeds that rule's mean in the curve's ``rules``, its
+    samples and its wall-clock."""
+    import yaml
+
+    from sensorgym.train.cost import first_beat, pretrain_samples
+
+    policies = ROOT / "train" / "policies" if policies is None else Path(policies)
+    lines = [
+        "| env | run | algorithm | samples: RL + imitation | wall-clock, training (whole run) "
+        "| CPUs usable of machine, torch threads | load, 1 min, start → end "
+        "| curve seed | best rule, its mean there | first beats it at: samples | wall-clock |",
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | --- | ---: | ---: |",
+    ]
+    for env in SCORE_ENVS:
+        runs = sorted(p.parent for p in (policies / f"sensorgym__{env}").glob("*/config.yaml"))
+        best = _score_doc(env).get("best_rule")
+        if not runs:
+            lines.append(f"| `{env}` | none shipped | | | | | | | `{best}` | | |")
+            continue
+        for run in runs:
+            config = yaml.safe_load((run / "config.yaml").read_text())
+            hp = config["hyperparams"]
+            cost_path = run / "cost.json"
+            cost = json.loads(cost_path.read_text()) if cost_path.is_file() else None
+            curve_path = run / "curve.json"
+            curve = json.loads(curve_path.read_text()) if curve_path.is_file() else None
+            if cost is not None:
+                steps, imitated = cost["samples"]["timesteps"], cost["samples"]["pretrain"]
+                wall = cost["wall_s"]
+                m = cost["machine"]
+                load = cost["load_average_1min"]
+                clock = f"{_seconds(wall['training'])} ({_seconds(wall['total'])})"
+                cpus = f"{m['usable_cpus']} of {m['cpu_count']}, {m['torch_threads']}"
+                loads = f"{load['start']:.1f} → {load['end']:.1f}"
+            else:  # the samples are on record in curve.json and config.yaml; the time is not
+                pre = hp.get("pretrain")
+                imitated = (
+                    pretrain_samples(pre["steps"], pre.get("rounds", 1), hp["n_envs"]) if pre else 0
+                )
+                steps = curve["points"][-1]["timesteps"] if curve else hp["n_timesteps"]
+                clock = cpus = loads = NOT_RECORDED
+            samples = f"{_thousands(steps)} + {_thousands(imitated)}"
+            seed = json.loads((run / "evaluation.json").read_text())["seed"]
+            head = f"| `{env}` | `{run.name}` | {config['algo'].upper()} | {samples} | {clock} "
+            head += f"| {cpus} | {loads} | {seed} "
+            if curve is None:
+                lines.append(head + f"| `{best}` | no curve | |")
+                continue
+            if best not in curve["rules"]:
+                lines.append(head + f"| `{best}`: not in curve.json | | |")
+                continue
+            rule = curve["rules"][best]
+            point = first_beat(curve["points"], rule)
+            if point is None:
+                top = max(p["mean"] for p in curve["points"])
+                lines.append(head + f"| `{best}`, {rule:.3f} | never (best point {top:.3f}) | |")
+                continue
+            when = _seconds(point["wall_s"]) if "wall_s" in point else NOT_RECORDED
+            lines.append(
+                head + f"| `{best}`, {rule:.3f} | {_thousands(point['timesteps'])} "
+                f"+ {_thousands(imitated)} ({point['mean']:.3f}) | {when} |"
+            )
+    return "\n".join(lines)
+
+
 def cold_start() -> str:
     """Seconds from a fresh interpreter to every env's first steps, with an empty and a warm
     numba cache (``benchmarks/cold_start.py``)."""
@@ -501,6 +582,7 @@ TABLES = {
     "scores-scanning": lambda: scores("StereoScanning-v0"),
     "results-summary": results_summary,
     "results-curves": results_curves,
+    "training-cost": training_cost,
     **{f"results-{env.split('-')[0]}": (lambda e=env: results_env(e)) for env in SCORE_ENVS},
 }
 

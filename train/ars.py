@@ -35,6 +35,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sensorgym.train.candidate_policy import CandidatePolicy
+from sensorgym.train.cost import RunClock
 from sensorgym.train.evaluation import evaluate
 
 #: scenario seeds of the iterations are drawn from this range: above the tuning seeds (500,
@@ -101,7 +102,10 @@ class ARS(BaseAlgorithm):
         self.noise_std, self.episodes = float(noise_std), episodes
         self.history: list[dict[str, float]] = []
         """Per iteration: its scenario seed, the mean return of the perturbations kept, the
-        mean paired difference ``r₊ − r₋`` and the step's norm."""
+        mean paired difference ``r₊ − r₋``, the step's norm and ``wall_s``, the seconds on
+        :attr:`clock` when the iteration ended."""
+        self.clock: RunClock | None = None
+        """The run's clock (``sensorgym train`` sets it; else one starts with learning)."""
         if _init_setup_model:
             self._setup_model()
 
@@ -154,6 +158,9 @@ class ARS(BaseAlgorithm):
         total_timesteps, callback = self._setup_learn(
             total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar
         )
+        if self.clock is None or self.clock.origin is None:
+            self.clock = RunClock()
+            self.clock.start()
         callback.on_training_start(locals(), globals())
         rng = np.random.default_rng(self.seed)
         while True:
@@ -193,6 +200,7 @@ class ARS(BaseAlgorithm):
             "mean_return": float(np.concatenate([r_plus[top], r_minus[top]]).mean()),
             "paired_difference": float(np.mean(r_plus - r_minus)),
             "step_norm": float(np.linalg.norm(step)),
+            **({} if self.clock is None else {"wall_s": round(self.clock.elapsed(), 3)}),
             **{f"theta_{i}": float(v) for i, v in enumerate(theta + step)},
         }
         self.history.append(row)

@@ -3,12 +3,16 @@
 :class:`LearningCurve` evaluates the policy being trained at evenly spaced sample counts on a
 fixed evaluation seed (the same scenarios every time, and the same as the rules'), so the curve
 measures learning, not scenario luck. ``sensorgym train`` writes the points to ``curve.json``
-and the picture to ``curve.png`` in the run folder.
+and the picture to ``curve.png`` in the run folder. Each point carries ``wall_s``, the seconds
+of training when it was taken (:class:`~.cost.RunClock`), and ``eval_s``, how many of them the
+curve's own earlier evaluations took; ``curve.png`` then has a wall-clock axis on top (curves
+of runs trained before it was recorded have none).
 """
 
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any
 
@@ -19,28 +23,46 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.train.benchmark import best_rule
+from sensorgym.train.cost import RunClock
 from sensorgym.train.evaluation import evaluate
 
 
 class LearningCurve(BaseCallback):
     """Evaluates the model every ``every`` samples (and once before the first update) on
-    ``episodes`` episodes of ``env`` seeded with ``seed``; the points are in :attr:`points`."""
+    ``episodes`` episodes of ``env`` seeded with ``seed``; the points are in :attr:`points`.
 
-    def __init__(self, env: VecEnv, episodes: int, seed: int, every: int):
+    ``clock``: the run's clock, read for every point's ``wall_s`` (and its evaluations added to
+    its ``eval_s``); without one, a clock started when learning starts."""
+
+    def __init__(
+        self, env: VecEnv, episodes: int, seed: int, every: int, clock: RunClock | None = None
+    ):
         super().__init__()
         if every < 1:
             raise ValueError(f"every: must be >= 1, got {every}")
         self.env, self.episodes, self.seed, self.every = env, episodes, seed, every
+        self.clock = clock if clock is not None else RunClock()
         self.points: list[dict[str, float]] = []
         self._next = 0
 
     def _point(self) -> None:
+        wall, spent = self.clock.elapsed(), self.clock.eval_s
+        begin = time.perf_counter()
         stats = evaluate(self.model, self.env, self.episodes, self.seed)
+        self.clock.add_eval(time.perf_counter() - begin)
         self.points.append(
-            {"timesteps": int(self.num_timesteps), "mean": stats.mean, "ci95": stats.ci95}
+            {
+                "timesteps": int(self.num_timesteps),
+                "mean": stats.mean,
+                "ci95": stats.ci95,
+                "wall_s": round(wall, 3),
+                "eval_s": round(spent, 3),
+            }
         )
 
     def _on_training_start(self) -> None:
+        if self.clock.origin is None:
+            self.clock.start()
         self._point()
         self._next = self.every
 
@@ -99,6 +121,38 @@ def spread_labels(y: NDArray[np.float64], gap: float) -> NDArray[np.float64]:
     out = np.empty_like(y)
     out[order] = fitted
     return out
+
+
+#: the least distance between two wall-clock ticks, as a fraction of the samples axis
+CLOCK_TICK_GAP = 0.09
+
+
+def wall_clock_axis(ax: Any, points: list[dict[str, float]]) -> Any:
+    """A wall-clock axis on top of ``ax``: ticks at curve points (as many as fit, the first and
+    the last among them) labelled with the training seconds recorded there (``wall_s``; minutes
+    past ten minutes), so every label is a measured time, not an interpolation. ``None``, and
+    nothing drawn, unless every point has ``wall_s``."""
+    if not points or not all("wall_s" in p for p in points):
+        return None
+    steps = [float(p["timesteps"]) for p in points]
+    wall = [float(p["wall_s"]) for p in points]
+    gap = CLOCK_TICK_GAP * max(steps[-1] - steps[0], 1.0)
+    kept = [0]
+    for i in range(1, len(points)):
+        if steps[i] - steps[kept[-1]] >= gap:
+            kept.append(i)
+    if kept[-1] != len(points) - 1:  # the last point's time is the run's: always shown
+        if len(kept) > 1 and steps[-1] - steps[kept[-1]] < gap:
+            kept.pop()
+        kept.append(len(points) - 1)
+    minutes = wall[-1] > 600.0
+    unit = "min" if minutes else "s"
+    labels = [f"{wall[i] / 60.0:.1f}" if minutes else f"{wall[i]:.0f}" for i in kept]
+    top = ax.secondary_xaxis("top")
+    top.set_xticks([steps[i] for i in kept], labels=labels)
+    top.set_xlabel(f"wall-clock of training at the evaluations ({unit})", fontsize=8)
+    top.tick_params(labelsize=7)
+    return top
 
 
 def write_curve(
@@ -161,6 +215,7 @@ def write_curve(
             bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
         )  # fmt: skip
     ax.set_xlabel("samples (environment steps, all scenarios)")
+    wall_clock_axis(ax, points)
     ax.set_ylabel("evaluation return (mean ± 95 %)")
     ax.set_title(title, fontsize=10, loc="left")
     ax.grid(alpha=0.3)

@@ -5,7 +5,8 @@ pickle), the resolved configuration, an evaluation of the trained policy beside 
 rule registered for the env, all on one seed and the same evaluation scenarios (a seed disjoint
 from training's), and the learning curve on those scenarios (:mod:`.curves`). A run may act
 through wrappers (:mod:`.wrappers`) and imitate an expert before RL (:mod:`.experts`), as its
-hyperparameters say.
+hyperparameters say. What the run cost (wall-clock per phase, samples, the machine) goes to
+``cost.json`` (:mod:`.cost`), and every curve point and ARS iteration carries its wall-clock.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import json
 import math
 import platform
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib.metadata import version
@@ -31,6 +33,14 @@ from sensorgym.train.config import (
     for_mode,
     load_hyperparams,
     split_run_settings,
+)
+from sensorgym.train.cost import (
+    RunClock,
+    load_average,
+    machine_record,
+    now_utc,
+    pretrain_samples,
+    write_cost,
 )
 from sensorgym.train.curves import LearningCurve, write_curve
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
@@ -182,6 +192,7 @@ def _train(
     curve_points: int,
     params: dict[str, Any],
 ) -> TrainResult:
+    begin, started, load_start = time.perf_counter(), now_utc(), load_average()
     hp = apply_overrides(for_mode(load_hyperparams(algo, env_id), agents), overrides)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
@@ -216,6 +227,7 @@ def _train(
         env_id, n_eval, eval_seed, agents=agents, wrappers=wrappers, episode_streams=True,
         **params,
     )  # fmt: skip
+    rules_begin = time.perf_counter()
     rule_scores: dict[str, dict[str, Any]] = {}
     for rule, make in RULES.get(env_id, {}).items():
         try:
@@ -224,11 +236,23 @@ def _train(
             continue
         rule_scores[rule] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()
 
+    rules_s = time.perf_counter() - rules_begin
+
+    clock = RunClock()  # training starts: imitation, then learning (see .cost)
+    clock.start()
+    if hasattr(model, "clock"):  # ARS stamps its iterations with the run's clock
+        model.clock = clock
     pretrain_loss = pretrain(model, env, imitation, seed) if imitation is not None else []
+    pretrain_s = clock.elapsed()
+    imitated = (  # the transitions the imitation phase collected, every slot's
+        0
+        if imitation is None
+        else pretrain_samples(imitation.steps, imitation.rounds, env.num_envs)
+    )
     curve = None
     if curve_points:
         every = max(1, -(-run["n_timesteps"] // curve_points))
-        curve = LearningCurve(model_env, eval_episodes, eval_seed, every)
+        curve = LearningCurve(model_env, eval_episodes, eval_seed, every, clock=clock)
     name = run_dir_for(Path("."), env_id, algo, seed, agents)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
@@ -242,6 +266,7 @@ def _train(
             ],
             tb_log_name=f"{name.parent.name}_{name.name}",
         )
+    training_s, curve_eval_s = clock.elapsed(), clock.eval_s
     env.close()
 
     run_dir = run_dir_for(out, env_id, algo, seed, agents)
@@ -262,6 +287,7 @@ def _train(
     }
     save_run(model, run_dir, config)  # weights + config.yaml: no pickle, see .models
 
+    final_begin = time.perf_counter()
     trained = evaluate(model, model_env, eval_episodes, eval_seed).as_dict()
     evaluation = {"trained": trained, **rule_scores}
     model_env.close()
@@ -274,4 +300,31 @@ def _train(
     if curve is not None:
         lines = {k: r["mean"] for k, r in rule_scores.items()}
         write_curve(run_dir, f"{algo} on {env_id}, seed {seed}", curve.points, lines, pretrain_loss)
+    final_s = time.perf_counter() - final_begin
+    write_cost(
+        run_dir,
+        {
+            "started_utc": started,
+            "finished_utc": now_utc(),
+            "wall_s": {
+                "total": round(time.perf_counter() - begin, 3),
+                "rules_evaluation": round(rules_s, 3),
+                "pretrain": round(pretrain_s, 3),
+                "learn": round(training_s - pretrain_s, 3),
+                "training": round(training_s, 3),
+                "curve_evaluation": round(curve_eval_s, 3),
+                "final_evaluation": round(final_s, 3),
+            },
+            "samples": {
+                "timesteps": int(model.num_timesteps),
+                "pretrain": imitated,
+                "total": int(model.num_timesteps) + imitated,
+            },
+            "n_envs": run["n_envs"],
+            "eval_episodes": eval_episodes,
+            "curve_points": curve_points,
+            "load_average_1min": {"start": load_start, "end": load_average()},
+            "machine": machine_record(),
+        },
+    )
     return TrainResult(run_dir, evaluation, model)

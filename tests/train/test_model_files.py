@@ -147,7 +147,9 @@ def test_trained_weights_reload_to_the_same_actions(tmp_path, algo):
     )  # fmt: skip
     files = sorted(p.name for p in result.run_dir.iterdir())
     # no pickle written
-    assert files == [CONFIG_FILE, "curve.json", "curve.png", "evaluation.json", WEIGHTS_FILE]
+    assert files == [
+        CONFIG_FILE, "cost.json", "curve.json", "curve.png", "evaluation.json", WEIGHTS_FILE
+    ]  # fmt: skip
     loaded = load_model(result.run_dir)
     assert type(loaded) is type(result.model) and loaded.get_env() is None
     size = loaded.observation_space.shape[0]  # the env's 10 and what the run's wrappers add
