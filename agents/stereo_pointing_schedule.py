@@ -31,12 +31,17 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sensorgym.agents.assignment_solver import exhaustive
 from sensorgym.agents.stereo_pointing import _assignments, _View, slew_steps
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 #: the furthest a deadline is predicted, steps (beyond it: never)
 MAX_DEADLINE = 1000
+
+#: ``solver="auto"`` schedules the exhaustive search up to this many assignments (at about 30 µs
+#: per assignment and scenario, 8 ms a step at 256)
+SCHEDULE_ASSIGNMENTS = 256
 
 
 @dataclass(frozen=True)
@@ -99,26 +104,28 @@ def forced_drone(params: PointingParams, view: _View, schedule: Schedule) -> NDA
 @dataclass(frozen=True)
 class PlanSchedule(PlanHorizon):
     """:class:`~sensorgym.agents.stereo_pointing_horizon.PlanHorizon` on a schedule: the
-    exhaustive planner (every assignment, ``acquisition`` weighted), restricted on each step
+    exhaustive planner (every assignment, ``acquisition`` weighted; ``solver``: see
+    :meth:`choose`), restricted on each step
     where :func:`forced_drone` names a drone to the assignments that send at least two
     receivers to it. Aiming (cue hold, sharing, search) and the step count are
     :class:`PlanHorizon`'s."""
 
-    solver: str = "exhaustive"
-    """The schedule constrains the exhaustive search's candidates; only ``"exhaustive"``."""
     schedule: Schedule = Schedule()
     """When a drifting drone gets a pair back."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if self.solver != "exhaustive":
-            raise ValueError(f"solver: PlanSchedule searches exhaustively, got {self.solver!r}")
         if not isinstance(self.schedule, Schedule):
             raise ValueError(f"schedule: must be a Schedule, got {self.schedule!r}")
 
     def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
-        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
+        """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``: with ``solver``
+        ``"auto"`` the schedule constrains the exhaustive search up to
+        :data:`SCHEDULE_ASSIGNMENTS` assignments (4 × 3's 81, 4 × 4's 256), beyond that (and
+        with ``"greedy"``) the rule is :class:`PlanHorizon`'s polynomial search, unscheduled."""
         p = self.params
+        if not exhaustive(self.solver, p.n_receivers, p.n_drones, SCHEDULE_ASSIGNMENTS):
+            return super().choose(view, t)
         cand = _assignments(p)  # (C, n)
         values = self.values(view, self.geometry(view, t))  # (N, C)
         forced = forced_drone(p, view, self.schedule)  # (N,)

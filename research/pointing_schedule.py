@@ -3,7 +3,8 @@
 ``python research/pointing_schedule.py [--seeds 500 600] [--episodes 128] [--jobs 2]`` scores
 ``plan-search`` and settings of :class:`~sensorgym.agents.stereo_pointing_schedule.PlanSchedule`
 on the benchmark's own scenarios (:func:`sensorgym.train.benchmark.score`, the episodes of
-``sensorgym benchmark --seed S``), each paired episode by episode to ``plan-search``:
+``sensorgym benchmark --seed S --n-envs 64``), each paired episode by episode to
+``plan-search``:
 
 * ``off``: the schedule never forces a hand-over (``reach`` so small that every drone counts as
   already lost): the exhaustive acquisition-weighted plan over all 81 assignments, with
@@ -133,7 +134,13 @@ def main() -> None:
             flush=True,
         )
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    record = {"env": ENV_ID, "episodes": args.episodes, "seeds": args.seeds, "rows": rows}
+    record = {
+        "env": ENV_ID,
+        "episodes": args.episodes,
+        "seeds": args.seeds,
+        "n_envs": min(args.episodes, 64),
+        "rows": rows,
+    }
     args.out.write_text(json.dumps(record, indent=1) + "\n")
     cache.unlink()
     print(f"wrote {args.out}")

@@ -146,14 +146,25 @@ def test_the_schedule_hands_a_pair_back_to_the_drifting_drone():
     [{"reach": 0.0}, {"reach": float("nan")}, {"reach": float("inf")}, {"lead": -1.0}],
 )
 def test_bad_schedule_raises(kwargs):
+    """A schedule's settings are checked where it is built."""
     with pytest.raises(ValueError, match=next(iter(kwargs))):
         Schedule(**kwargs)
+
+
+def test_beyond_the_scheduled_size_it_is_the_polynomial_plan():
+    """At 16 receivers and 10 drones (10^16 assignments) ``"auto"`` falls back to
+    plan-search's polynomial search, unscheduled: the same actions."""
+    params = simulation.PointingParams(n_receivers=16, n_drones=10)
+    obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(4), 2))
+    ours = rules_for("sensorgym/StereoPointing-v0", params, lambda: None)["plan-schedule"]
+    theirs = rules_for("sensorgym/StereoPointing-v0", params, lambda: None)["plan-search"]
+    np.testing.assert_array_equal(ours.predict(obs)[0], theirs.predict(obs)[0])
 
 
 def test_bad_rule_settings_and_observations_raise():
     params = CrowdedPointingParams()
     with pytest.raises(ValueError, match="solver"):
-        PlanSchedule(params, solver="greedy")
+        PlanSchedule(params, solver="optimal")
     with pytest.raises(ValueError, match="schedule"):
         PlanSchedule(params, schedule=(1.0, 2.0))
     with pytest.raises(ValueError):
