@@ -534,6 +534,164 @@ def bot_control() -> str:
 HELD_OUT = ROOT / "docs" / "scores" / "seed31337"
 
 
+GAP = RESULTS / "headroom_gap.json"
+
+
+def _pct(x: float | None) -> str:
+    return "" if x is None else f"{100 * x:+.1f} %"
+
+
+def headroom_share() -> str:
+    """Per env of ``docs/scores/``: the best rule's share of the headroom above the passive
+    rule, ``(R̄_best − R̄₀)/(B̄ − R̄₀)``, and each shipped run's ``closes``, the share of the
+    headroom above the best rule its mean closes (:func:`sensorgym.train.bounds.headroom`)."""
+    lines = [
+        "| env | mean bound | passive rule, its mean | best rule, its mean | best rule closes "
+        "of the headroom above the passive rule | shipped runs: closes of the headroom above "
+        "the best rule |",
+        "| --- | ---: | --- | --- | ---: | --- |",
+    ]
+    for env in SCORE_ENVS:
+        doc = _score_doc(env)
+        res, best, passive = doc["results"], doc.get("best_rule"), doc.get("passive_rule")
+        room = doc.get("headroom") or {}
+        if best not in room or passive not in res:
+            lines.append(f"| `{env}` | no bound | | | | |")
+            continue
+        bound = room[best]["bound"]
+        r0, rb = res[passive]["mean"], res[best]["mean"]
+        runs = ", ".join(
+            f"`{name.split(':', 1)[1]}` {_pct(room[name]['closes'])}"
+            for name in _trained(res)
+            if name in room
+        )
+        lines.append(
+            f"| `{env}` | {bound:.3f} | `{passive}`, {r0:.3f} | `{best}`, {rb:.3f} | "
+            f"{_pct((rb - r0) / (bound - r0))} | {runs or 'none shipped'} |"
+        )
+    return "\n".join(lines)
+
+
+def headroom_gap(env: str) -> str:
+    """Where the gap ``bound − return`` of the best shipped run and the best rule goes on
+    ``env``, by phase and by episode (``benchmarks/headroom_gap.py``,
+    ``benchmarks/results/headroom_gap.json``)."""
+    r = json.loads(GAP.read_text())["results"][f"sensorgym/{env}"]
+    pol, rule, b = r["policy"], r["best_rule"], r["bound"]
+    P = r["players"]
+    names = [rule] + ([pol] if pol else [])
+    hindsight = "hindsight" in b["method"]
+    what = (
+        "the hindsight optimum of each episode started from both players' actions, its "
+        "reward per step replayed in the env"
+        if hindsight
+        else "the per-step bound B_t of the episode, whose sum is the benchmark's bound"
+    )
+    head = (
+        f"`benchmarks/headroom_gap.py` (`benchmarks/results/headroom_gap.json`): seed "
+        f"{r['seed']}, the benchmark's episodes ({r['episodes']}"
+        + (f" of {_score_doc(env)['settings']['episodes']}" if hindsight else "")
+        + f"), the best rule `{rule}`"
+        + (f" and the best shipped run `{pol.split(':', 1)[1]}`" if pol else "")
+        + f"; the bound per step is {what} (mean {b['mean']:.3f}; the benchmark's on the same "
+        f"episodes {b['benchmark_mean']:.3f}). Gap = bound − return per episode, by phase of "
+        f"the episode"
+    )
+    if pol:
+        head += (
+            "; the run's gain over the rule in each phase, and the share of the rule's gap it "
+            "closes there (the shares sum to the run's closes on these episodes)"
+        )
+    cols = [f"`{n.split(':', 1)[-1]}` gap" for n in names]
+    lines = [head + ":", "", "| phase | " + " | ".join(cols)]
+    lines[-1] += " | gain | closes |" if pol else " |"
+    lines.append("| --- |" + " ---: |" * (len(cols) + (2 if pol else 0)))
+    for i, ph in enumerate(P[rule]["phases"]):
+        cells = [f"{P[n]['phases'][i]['gap']:.3f}" for n in names]
+        if pol:
+            g = r["gain"]["phases"][i]
+            cells += [f"{g['gain']:+.3f}", _pct(g["closes"])]
+        lines.append(f"| {ph['phase']} | " + " | ".join(cells) + " |")
+    cells = [f"**{P[n]['mean_gap']:.3f}**" for n in names]
+    if pol:
+        cells += [f"**{r['gain']['gain']:+.3f}**", f"**{_pct(r['gain']['closes'])}**"]
+    lines.append("| all steps | " + " | ".join(cells) + " |")
+    lines.append("")
+    notes = []
+    for n in names:
+        d = P[n]
+        notes.append(
+            f"`{n.split(':', 1)[-1]}`: the worst 10 % of the episodes carry "
+            f"{100 * d['worst']['10 %']:.1f} % of its summed gap, the worst 25 % "
+            f"{100 * d['worst']['25 %']:.1f} %"
+            + (
+                f"; the steps after its episode ended (the bound goes on) "
+                f"{100 * d['after_end']['share']:.1f} %."
+                if d["after_end"]["gap"]
+                else "."
+            )
+        )
+    if pol:
+        g = r["gain"]
+        top = (
+            ""
+            if g["gain_worst_10_share"] is None
+            else (
+                f"; the 10 % of the episodes where it gains most carry "
+                f"{100 * g['gain_worst_10_share']:.1f} % of its summed gain"
+            )
+        )
+        notes.append(
+            f"The run beats the rule on {g['episodes_better']} of the {r['episodes']} episodes "
+            f"and trails it on {g['episodes_worse']}{top}."
+        )
+    lines.append(" ".join(notes))
+    for name in P[rule].get("splits", {}):
+        labels = sorted({k for n in names for k in P[n]["splits"][name]})
+        if len([k for k in labels if k != "after the end"]) < 2:
+            continue  # one state throughout: nothing to split
+        cols = [f"`{n.split(':', 1)[-1]}` {c}" for n in names for c in ("gap", "share", "steps")]
+        lines += [
+            "",
+            f"By the state of the step ({name}; steps per episode of {r['steps']}):",
+            "",
+            f"| {name} | " + " | ".join(cols) + " |",
+            "| --- |" + " ---: |" * len(cols),
+        ]
+        for k in labels:
+            cells = []
+            for n in names:
+                v = P[n]["splits"][name].get(k, {"gap": 0.0, "share": 0.0, "steps": 0.0})
+                cells += [f"{v['gap']:.3f}", f"{100 * v['share']:.1f} %", f"{v['steps']:.1f}"]
+            lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Scenario features at the reset (truth, evaluation only) against the episode's gap: "
+        "Spearman's rank correlation, and the feature's mean over the 10 % of the episodes with "
+        "the largest gap against the rest (features the same in every episode left out)"
+        + (", for the run; and the correlation with the run's gain over the rule:" if pol else ":"),
+        "",
+    ]
+    d = P[pol or rule]
+    cols = ["feature", "ρ with the gap", "worst 10 % mean", "rest mean"]
+    if pol:
+        cols += [f"ρ with `{rule}`'s gap", "ρ with the gain"]
+    lines.append("| " + " | ".join(cols) + " |")
+    lines.append("| --- |" + " ---: |" * (len(cols) - 1))
+
+    def rho(x: float | None) -> str:
+        return "—" if x is None else f"{x:+.2f}"
+
+    for k, v in d["features"].items():
+        if v["spearman"] is None and v["worst_10_mean"] == v["rest_mean"]:
+            continue  # the same in every episode
+        cells = [rho(v["spearman"]), f"{v['worst_10_mean']:.4g}", f"{v['rest_mean']:.4g}"]
+        if pol:
+            cells += [rho(P[rule]["features"][k]["spearman"]), rho(r["gain"]["features"][k])]
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def held_out(env: str) -> str:
     """Every shipped policy of ``env`` on both held-out seeds (``docs/scores/``: 10000,
     ``docs/scores/seed31337/``): its mean, the best fieldable rule's, and the paired difference
@@ -580,6 +738,8 @@ TABLES = {
     "scores-crowded": lambda: scores("StereoPointingCrowded-v0"),
     "scores-placement": lambda: scores("StereoPlacement-v0"),
     "scores-scanning": lambda: scores("StereoScanning-v0"),
+    "headroom-share": headroom_share,
+    **{f"headroom-gap-{env.split('-')[0]}": (lambda e=env: headroom_gap(e)) for env in SCORE_ENVS},
     "results-summary": results_summary,
     "results-curves": results_curves,
     "training-cost": training_cost,
