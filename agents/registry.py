@@ -106,15 +106,16 @@ RULES: dict[str, dict[str, RuleFactory]] = {
 RULES["sensorgym/StereoPointingCrowded-v0"] = dict(RULES["sensorgym/StereoPointing-v0"])
 # plan-search searching all 81 assignments with the acquisition weight (its "auto" solver
 # searches polynomially above 32, without it): the best rule on the tuning seeds
-# (research/results/pointing_schedule.json); at 4 x 2 it is plan-search itself
+# (research/results/pointing_schedule.json); PlanSchedule never forced, exhaustive up to 256
+# assignments and plan-search beyond; at 4 x 2 it is plan-search itself
 RULES["sensorgym/StereoPointingCrowded-v0"]["plan-search-exhaustive"] = lambda params, _: (
-    pointing_horizon.PlanHorizon(
+    pointing_schedule.PlanSchedule(
         params,
         acquisition=True,
         sharing=pointing_sharing.Sharing(),
         cue_steps=1,
         search=pointing_search.EpipolarSearch(),
-        solver="exhaustive",
+        schedule=None,
     )
 )
 

@@ -19,8 +19,8 @@ What it measured (tuning seeds 500 and 600, ``research/results/pointing_schedule
 exhaustive acquisition-weighted search is worth about +24 and +28 over ``plan-search``; the
 schedule on top of it costs 2 to 10 (the more hand-overs, the more): a pair sent back to the
 drifting drone leaves a fixed one, and the slew there earns nothing, since the reward counts
-only the drones fixed now. ``plan-search-exhaustive`` (the same planner, never forced) is
-registered beside it.
+only the drones fixed now. ``plan-search-exhaustive`` (the same planner, never forced:
+``schedule=None``) is registered beside it.
 """
 
 from __future__ import annotations
@@ -110,13 +110,14 @@ class PlanSchedule(PlanHorizon):
     receivers to it. Aiming (cue hold, sharing, search) and the step count are
     :class:`PlanHorizon`'s."""
 
-    schedule: Schedule = Schedule()
-    """When a drifting drone gets a pair back."""
+    schedule: Schedule | None = Schedule()
+    """When a drifting drone gets a pair back; ``None``: never forced, the exhaustive plan
+    alone (the ``plan-search-exhaustive`` rule)."""
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        if not isinstance(self.schedule, Schedule):
-            raise ValueError(f"schedule: must be a Schedule, got {self.schedule!r}")
+        if self.schedule is not None and not isinstance(self.schedule, Schedule):
+            raise ValueError(f"schedule: must be a Schedule or None, got {self.schedule!r}")
 
     def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``: with ``solver``
@@ -128,6 +129,8 @@ class PlanSchedule(PlanHorizon):
             return super().choose(view, t)
         cand = _assignments(p)  # (C, n)
         values = self.values(view, self.geometry(view, t))  # (N, C)
+        if self.schedule is None:
+            return cand[np.argmax(values, axis=-1)]
         forced = forced_drone(p, view, self.schedule)  # (N,)
         pairs = (cand[None] == forced[:, None, None]).sum(axis=-1) >= 2  # (N, C)
         allowed = pairs | (forced < 0)[:, None]

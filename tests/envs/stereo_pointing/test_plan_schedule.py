@@ -151,6 +151,19 @@ def test_bad_schedule_raises(kwargs):
         Schedule(**kwargs)
 
 
+def test_without_a_schedule_it_is_the_exhaustive_plan_search():
+    """``schedule=None`` (``plan-search-exhaustive``) decides as plan-search's planner with
+    every assignment searched, on mid-episode crowded observations."""
+    params = CrowdedPointingParams()
+    seen, _ = _play(_rule(params), params, seed=13, B=8, steps=10)
+    never = RULES[CROWDED_ENV_ID]["plan-search-exhaustive"](params, None)
+    full = dataclasses.replace(
+        rules_for(CROWDED_ENV_ID, params, lambda: None)["plan-search"], solver="exhaustive"
+    )
+    t = np.full(8, 9)
+    np.testing.assert_array_equal(never.predict(seen[-1], t)[0], full.predict(seen[-1], t)[0])
+
+
 def test_beyond_the_scheduled_size_it_is_the_polynomial_plan():
     """At 16 receivers and 10 drones (10^16 assignments) ``"auto"`` falls back to
     plan-search's polynomial search, unscheduled: the same actions."""
@@ -166,7 +179,7 @@ def test_bad_rule_settings_and_observations_raise():
     with pytest.raises(ValueError, match="solver"):
         PlanSchedule(params, solver="optimal")
     with pytest.raises(ValueError, match="schedule"):
-        PlanSchedule(params, schedule=(1.0, 2.0))
+        PlanSchedule(params, schedule=(1.0, 2.0))  # a Schedule or None
     with pytest.raises(ValueError):
         _rule(params).predict(np.zeros((2, params.obs_dim + 1), dtype=np.float32))
     with pytest.raises(ValueError, match="state"):
