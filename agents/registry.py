@@ -14,6 +14,7 @@ from collections.abc import Callable
 from typing import Any
 
 from sensorgym.agents import bearings_maneuver as maneuver
+from sensorgym.agents import bearings_mpc as mpc
 from sensorgym.agents import book_maneuver as book
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
@@ -33,6 +34,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "paper002": lambda params, _: maneuver.Paper002Maneuver(params),
         "greedy-information": lambda params, _: maneuver.GreedyManeuver(params),
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
+        "mpc-estimate": lambda params, _: mpc.mpc_estimate(params, mpc.MANEUVER_ID),
         "truth-lookahead": lambda params, state_fn: maneuver.TruthLookahead(state_fn, params),
     },
     # the textbook scenario: the same rules (they read the book's limits from params), and the
@@ -45,6 +47,8 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "lookahead-estimate": lambda params, _: maneuver.EstimateLookahead(params),
         "truth-lookahead": lambda params, state_fn: maneuver.TruthLookahead(state_fn, params),
         "book-optimised-plan": lambda params, _: book.optimised_open_loop(params.platforms),
+        "mpc-estimate": lambda params, _: mpc.mpc_estimate(params, mpc.BOOK_ID),
+        "book-plan-tuned": lambda params, _: book.tuned_open_loop(params.platforms),
     },
     "sensorgym/StereoPointing-v0": {
         "hold-still": lambda params, _: pointing.HoldStill(params),
