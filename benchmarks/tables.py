@@ -74,6 +74,8 @@ POLICY_LABELS = {
     "book-leg-change": "`book_leg_change` (the book's manoeuvre: 140° → 20° at 30°/min in minutes 13–16, open loop)",
     "book-optimised-plan": "`optimised_open_loop` (a fixed turn sequence optimised on the book's nominal target path, 500 m stand-off margin, by `reproduce bot-control`)",
     "lookahead-estimate": "`EstimateLookahead` (`TruthLookahead`'s 8-step planner on the tracker's estimate instead of the truth)",
+    "mpc-estimate": "`RecedingPlan` (every remaining step's command optimised on the tracker's estimate each step, range kept ≥ stand-off + κσ_r)",
+    "book-plan-tuned": "`tuned_open_loop` (`optimised_open_loop`'s optimiser with its stand-off margin tuned on tuning seeds: 500 m)",
     "paper002": "`Paper002Maneuver` (theory §10.5 OC-5: run along the bearing, then turn abeam at full speed)",
     "straight-course": "`StraightCourse` (no manoeuvre: range unobservable)",
     "orthogonal-pairs": "`OrthogonalPairs` (theory §10.1 OC-1: pair the receivers whose lines of sight are closest to 90°)",
