@@ -135,3 +135,63 @@ class PlanSchedule(PlanHorizon):
         pairs = (cand[None] == forced[:, None, None]).sum(axis=-1) >= 2  # (N, C)
         allowed = pairs | (forced < 0)[:, None]
         return cand[np.argmax(np.where(allowed, values, -np.inf), axis=-1)]
+
+
+#: the per-candidate schedule evidence of :func:`schedule_features`, in order
+SCHEDULE_FEATURES = ("unpaired_urgency", "urgent_paired", "lost_paired", "unpaired_growth")
+
+#: steps of re-acquisition slack over which a drone's urgency falls by ``e``
+SLACK_SCALE = 10.0
+
+#: decades (natural-log units) of RMS below the re-acquisition limit over which a drone's
+#: growth feature rises from 0 to 1
+GROWTH_SPAN = 6.0
+
+
+def schedule_features(
+    params: PointingParams, view: _View, schedule: Schedule = Schedule()
+) -> NDArray[np.float64]:
+    """Per candidate assignment of :func:`~sensorgym.agents.stereo_pointing._assignments`
+    the schedule's evidence ``(N, C, len(SCHEDULE_FEATURES))``, each O(1), for a policy that
+    learns when to hand a pair back to a drifting drone (the ``plan-features`` wrapper with
+    ``schedule``). A drone is *paired* by a candidate that sends at least two receivers to it;
+    its *slack* is its :func:`reacquire_steps` deadline minus the fastest pair's transit
+    (:func:`forced_drone`'s), its *urgency* ``exp(−max(slack, 0) / SLACK_SCALE)`` while its
+    deadline lies ahead (0 once past: a pair would likely miss it):
+
+    * ``unpaired_urgency``: the urgency summed over the drones the candidate leaves unpaired,
+      ``[0, m]``;
+    * ``urgent_paired``: 1 when the candidate pairs the drone :func:`forced_drone` names (the
+      one ``plan-schedule`` forces), else 0;
+    * ``lost_paired``: the drones already past their deadline that it pairs, ``[0, m]``;
+    * ``unpaired_growth``: over the drones it leaves unpaired, ``clip(1 + log(σ̂_j / L_j) /
+      GROWTH_SPAN, 0, 1)``, ``L_j`` the error :func:`reacquire_steps` still re-acquires: how far
+      each one's RMS has grown towards being lost, ``[0, m]``.
+
+    The track's RMS integrates the steps since the drone's last fix, so the features need no
+    memory: they are a function of the observation, like the plan's."""
+    p = params
+    cand = _assignments(p)  # (C, n)
+    paired = (cand[:, :, None] == np.arange(p.n_drones)).sum(axis=1) >= 2  # (C, m)
+    deadline = reacquire_steps(p, view, schedule.reach)  # (N, m)
+    steps = slew_steps(p, view.azimuth, view.elevation, view.position)  # (N, n, m)
+    slack = deadline - np.sort(steps, axis=1)[:, 1]
+    live = deadline > 0
+    urgency = np.where(live, np.exp(-np.maximum(slack, 0.0) / SLACK_SCALE), 0.0)  # (N, m)
+    ranges = np.where(np.isfinite(view.ranges), view.ranges, np.nan)
+    limit = schedule.reach * p.fov * np.nanmean(ranges, axis=1)  # (N, m), reacquire_steps'
+    growth = np.clip(1.0 + np.log(np.maximum(view.sigma, 1e-12) / limit) / GROWTH_SPAN, 0.0, 1.0)
+    forced = forced_drone(p, view, schedule)  # (N,)
+    unpaired = (~paired).astype(np.float64)
+    urgent = np.where(
+        (forced >= 0)[:, None], paired.T[np.maximum(forced, 0)].astype(np.float64), 0.0
+    )  # (N, C)
+    return np.stack(
+        [
+            urgency @ unpaired.T,
+            urgent,
+            (~live).astype(np.float64) @ paired.T.astype(np.float64),
+            growth @ unpaired.T,
+        ],
+        axis=-1,
+    )

@@ -14,8 +14,8 @@ rounding): imitation and RL start from it and only have to learn where to deviat
 
 With ``residual="linear"`` the learned score is instead linear in a few named per-candidate
 features (:meth:`CandidateNetworks.linear_features`: the planned-return gap to the best
-candidate at every block, the best-plan flags, the receivers kept), its weights starting at
-zero: a small parameter vector whose zero point is the rule, what the ``ars`` trainer
+candidate at every block, the best-plan flags, the receivers kept, and with ``schedule`` the
+schedule block's re-acquisition evidence), its weights starting at zero: a small parameter vector whose zero point is the rule, what the ``ars`` trainer
 (:mod:`sensorgym.train.ars`) searches.
 
 The critic pools per-candidate embeddings (mean and max) and reads them with the env's own
@@ -38,6 +38,7 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
+from sensorgym.agents.stereo_pointing_schedule import SCHEDULE_FEATURES
 from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS
 
 #: the learned score's forms: an MLP over the candidate's inputs, or linear in named features
@@ -65,6 +66,10 @@ class CandidateLayout:
     share_inputs: int = 0
     """Inputs per candidate and receiver in the share block of ``plan-features`` with
     ``sharing`` (:data:`~sensorgym.agents.stereo_pointing_sharing.SHARE_INPUTS`; 0: none)."""
+    schedule_inputs: int = 0
+    """Inputs per candidate in the schedule block of ``plan-features`` with ``schedule``
+    (:data:`~sensorgym.agents.stereo_pointing_schedule.SCHEDULE_FEATURES`, after the share
+    block; 0: none)."""
 
     @property
     def blocks(self) -> int:
@@ -77,9 +82,21 @@ class CandidateLayout:
         return self.n_candidates * self.n_receivers * self.share_inputs
 
     @property
+    def schedule_size(self) -> int:
+        """Size of the schedule block."""
+        return self.n_candidates * self.schedule_inputs
+
+    @property
     def obs_dim(self) -> int:
         """Size of the observation this layout reads."""
-        return self.base_dim + self.n_candidates * (2 * self.blocks + 1) + self.share_size + 1
+        plan = self.n_candidates * (2 * self.blocks + 1)
+        return self.base_dim + plan + self.share_size + self.schedule_size + 1
+
+    def schedule_block(self, obs: th.Tensor) -> th.Tensor:
+        """The schedule block ``(B, C, schedule_inputs)`` of observations ``(B, obs_dim)``."""
+        start = self.base_dim + self.n_candidates * (2 * self.blocks + 1) + self.share_size
+        block = obs[:, start : start + self.schedule_size]
+        return block.reshape(obs.shape[0], self.n_candidates, self.schedule_inputs)
 
     def share_block(self, obs: th.Tensor) -> th.Tensor:
         """The share block ``(B, C, n, share_inputs)`` of observations ``(B, obs_dim)``."""
@@ -144,7 +161,9 @@ class CandidateNetworks(nn.Module):
         )
         self.score_out = nn.Linear(hidden, 1)
         self.linear = (
-            nn.Linear(2 * layout.blocks + 1, 1, bias=False) if residual == "linear" else None
+            nn.Linear(2 * layout.blocks + 1 + layout.schedule_inputs, 1, bias=False)
+            if residual == "linear"
+            else None
         )
         self.log_alpha = nn.Parameter(th.tensor(float(np.log(alpha_init))))
         self.embed = nn.Sequential(nn.Linear(n_in, hidden), nn.Tanh())
@@ -202,16 +221,20 @@ class CandidateNetworks(nn.Module):
         return th.clamp(th.round(remaining * self.layout.episode_steps), min=1.0)
 
     def linear_features(self, obs: th.Tensor) -> th.Tensor:
-        """The linear residual's per-candidate features ``(B, C, 2 H + 1)``, each on a scale
-        where a weight of 1 matters: per block (the fixed horizons, then the time left), the
-        planned-return gap to the best candidate (the per-step loss times the block's
+        """The linear residual's per-candidate features ``(B, C, 2 H + 1 + S)``, each on a
+        scale where a weight of 1 matters: per block (the fixed horizons, then the time left),
+        the planned-return gap to the best candidate (the per-step loss times the block's
         horizon, return units); per block, ``LINEAR_FLAG_SCALE`` for the best candidate; the
-        number of receivers the candidate keeps on their drone."""
+        number of receivers the candidate keeps on their drone; with a schedule block
+        (``S`` inputs), ``LINEAR_FLAG_SCALE`` times each of its features."""
         _, loss, best, kept, remaining = self.layout.split(obs)
         h = th.tensor([float(x) for x in self.layout.horizons], dtype=loss.dtype)
         h = th.cat([h.expand(loss.shape[0], -1), self.steps_left(remaining)], dim=1)  # (B, H)
         gap = loss * h[:, None, :]
-        return th.cat([gap, LINEAR_FLAG_SCALE * best, self.n_receivers * kept[..., None]], dim=-1)
+        parts = [gap, LINEAR_FLAG_SCALE * best, self.n_receivers * kept[..., None]]
+        if self.layout.schedule_inputs:
+            parts.append(LINEAR_FLAG_SCALE * self.layout.schedule_block(obs))
+        return th.cat(parts, dim=-1)
 
     def forward_actor(self, obs: th.Tensor) -> th.Tensor:
         x, prior, _, _ = self.inputs(obs)
@@ -254,7 +277,9 @@ class CandidatePolicy(ActorCriticPolicy):
     ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form) and ``share`` (the
     action also holds a share bit per receiver, ``pointing-plan`` with ``share_bits``, whose
     logits are the rule's plus a learned linear term of the ``plan-features`` share block:
-    :meth:`CandidateNetworks.share_logits`)."""
+    :meth:`CandidateNetworks.share_logits`) and ``schedule`` (the observation holds the
+    ``plan-features`` schedule block, which the linear residual weighs:
+    :meth:`CandidateNetworks.linear_features`)."""
 
     def __init__(
         self,
@@ -270,6 +295,7 @@ class CandidatePolicy(ActorCriticPolicy):
         alpha_init: float = 3.0,
         residual: str = "mlp",
         share: bool = False,
+        schedule: bool = False,
         **kwargs: Any,
     ):
         if share:
@@ -294,9 +320,12 @@ class CandidatePolicy(ActorCriticPolicy):
             )
         H = len(horizons) + 1
         n_share = int(n_receivers) if share else 0
-        base_dim = observation_space.shape[0] - C * (2 * H + 1) - C * n_share * S - 1
+        n_schedule = len(SCHEDULE_FEATURES) if schedule else 0
+        base_dim = (
+            observation_space.shape[0] - C * (2 * H + 1) - C * n_share * S - C * n_schedule - 1
+        )
         self.layout = CandidateLayout(
-            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps), n_share, S
+            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps), n_share, S, n_schedule
         )
         if base_dim < 0:
             raise ValueError(
@@ -332,7 +361,7 @@ class CandidatePolicy(ActorCriticPolicy):
         """The vector a direct policy search perturbs, zero the prior rule: with ``share`` the
         share weights ``(len(SHARE_FEATURES),)`` (the assignment's residual then stays at
         zero: the search moves the sharing alone, whose paired differences are small);
-        otherwise the linear residual's weights ``(1, 2 H + 1)`` (``residual="linear"``)."""
+        otherwise the linear residual's weights ``(1, 2 H + 1 + S)`` (``residual="linear"``)."""
         if self.mlp_extractor.share_weights is not None:
             return self.mlp_extractor.share_weights
         linear = self.mlp_extractor.linear

@@ -48,6 +48,11 @@ from sensorgym.agents.stereo_pointing import (
     rewards_values,
 )
 from sensorgym.agents.stereo_pointing_horizon import check_cue_steps, plan_aims
+from sensorgym.agents.stereo_pointing_schedule import (
+    SCHEDULE_FEATURES,
+    Schedule,
+    schedule_features,
+)
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import (
     SHARE_INPUTS,
@@ -294,6 +299,13 @@ class PlanFeatures(VecEnvWrapper):
     decision, :func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs` (the rule's share
     logit, then the share features), ``m^n · n · len(SHARE_INPUTS)`` values; a ``pointing-plan``
     with ``share_bits`` and the same setting acts on them.
+
+    With ``schedule`` (a :class:`~sensorgym.agents.stereo_pointing_schedule.Schedule`) the
+    schedule block follows (after the share block): per candidate the re-acquisition evidence
+    of :func:`~sensorgym.agents.stereo_pointing_schedule.schedule_features` (the urgency of the
+    drones it leaves without a pair, whether it pairs the drone ``plan-schedule`` would force,
+    the lost drones it pairs, how far the unpaired drones' errors have grown),
+    ``m^n · len(SCHEDULE_FEATURES)`` values in ``[0, m]``.
     """
 
     def __init__(
@@ -307,10 +319,13 @@ class PlanFeatures(VecEnvWrapper):
         acquisition: bool = False,
         plain_horizons: tuple[int, ...] | list[int] = (),
         sharing: Sharing | None = None,
+        schedule: Schedule | None = None,
     ):
         p = _pointing_params(venv, params)
         if sharing is not None and not isinstance(sharing, Sharing):
             raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
+        if schedule is not None and not isinstance(schedule, Schedule):
+            raise TypeError(f"schedule: expected a Schedule or None, got {type(schedule)!r}")
         if venv.observation_space.shape != (p.obs_dim,):
             raise ValueError(
                 f"venv: expected the joint observation ({p.obs_dim},), got "
@@ -349,14 +364,28 @@ class PlanFeatures(VecEnvWrapper):
         """With a setting, the share block follows: per candidate and receiver the inputs of a
         learned share decision
         (:func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs`)."""
+        self.schedule = schedule
+        """With a setting, the schedule block follows the share block: per candidate the
+        :func:`~sensorgym.agents.stereo_pointing_schedule.schedule_features`."""
         extra = C * (2 * H + 1)
         share = C * p.n_receivers * len(SHARE_INPUTS) if sharing is not None else 0
+        sched = C * len(SCHEDULE_FEATURES) if schedule is not None else 0
         box = venv.observation_space
         low = np.concatenate(
-            [box.low, np.full(extra, -10.0, np.float32), np.full(share, -20.0, np.float32)]
+            [
+                box.low,
+                np.full(extra, -10.0, np.float32),
+                np.full(share, -20.0, np.float32),
+                np.zeros(sched, np.float32),
+            ]
         ).astype(np.float32)
         high = np.concatenate(
-            [box.high, np.ones(extra, np.float32), np.full(share, 20.0, np.float32)]
+            [
+                box.high,
+                np.ones(extra, np.float32),
+                np.full(share, 20.0, np.float32),
+                np.full(sched, float(p.n_drones), np.float32),
+            ]
         ).astype(np.float32)
         super().__init__(venv, observation_space=spaces.Box(low, high, dtype=np.float32))
         self._steps = EpisodeSteps(venv.num_envs)
@@ -390,6 +419,8 @@ class PlanFeatures(VecEnvWrapper):
         parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
         if self.sharing is not None:
             parts.append(self.share_block(view, t))
+        if self.schedule is not None:
+            parts.append(schedule_features(self.params, view, self.schedule).reshape(N, -1))
         return np.concatenate(parts, axis=1).astype(np.float32)
 
     def share_block(self, view: _View, t: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -429,12 +460,18 @@ def plan_features(venv: VecEnv, **kwargs: Any) -> VecEnv:
     """Factory of the ``plan-features`` wrapper (``WRAPPERS`` registry); keywords as
     :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``,
     ``acquisition``, ``plain_horizons``; ``sharing`` as ``pointing-plan``'s: the share
-    block)."""
+    block; ``schedule``: ``true`` for the default
+    :class:`~sensorgym.agents.stereo_pointing_schedule.Schedule` (``plan-schedule``'s), a
+    mapping of its fields, or absent/``false``/``null`` for none: the schedule block)."""
     for key in ("horizons", "plain_horizons"):
         if key in kwargs:
             kwargs[key] = tuple(kwargs[key])
     if "sharing" in kwargs:
         kwargs["sharing"] = _sharing(kwargs["sharing"])
+    if "schedule" in kwargs:
+        kwargs["schedule"] = _setting(
+            kwargs["schedule"], Schedule, "schedule", lambda _, v: float(v)
+        )
     return PlanFeatures(venv, **kwargs)
 
 
