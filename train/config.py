@@ -3,8 +3,9 @@
 Hyperparameters live in ``hyperparams/<algo>.yml`` keyed by env id (the rl-baselines3-zoo
 layout) and are read with ``yaml.safe_load`` — values are data, never code. ``n_envs``,
 ``n_timesteps`` and ``policy`` are run settings, and so are the optional ``wrappers``
-(:mod:`.wrappers`: what the policy sees and how it acts) and ``pretrain`` (:mod:`.experts`:
-imitation before RL); every other key goes to the algorithm.
+(:mod:`.wrappers`: what the policy sees and how it acts), ``training_wrappers`` (wrappers of
+the training env only, outside ``wrappers``: reward shaping that must not reach evaluation)
+and ``pretrain`` (:mod:`.experts`: imitation before RL); every other key goes to the algorithm.
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": SensorgymPPO, "sac": SAC, "
 RUN_KEYS = ("n_envs", "n_timesteps", "policy")
 
 #: keys a hyperparameter set may have that configure the run, not the algorithm
-OPTIONAL_RUN_KEYS = ("wrappers", "pretrain")
+OPTIONAL_RUN_KEYS = ("wrappers", "training_wrappers", "pretrain")
 
 
 def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
@@ -181,6 +182,7 @@ def check_overrides(
         if check_values:
             check_run_settings(run)
             check_wrappers(run.get("wrappers"))
+            check_wrappers(run.get("training_wrappers"))
             check_sizes(algo, algo_kwargs, n_envs=run["n_envs"])
     return hp
 

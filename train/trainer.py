@@ -206,7 +206,12 @@ def _train(
         raise ValueError(f"curve_points: must be >= 0, got {curve_points}")
     wrappers = run.get("wrappers", [])
     imitation = Pretrain.from_config(run["pretrain"]) if "pretrain" in run else None
-    env = make_sb3_env(env_id, run["n_envs"], seed, agents=agents, wrappers=wrappers, **params)
+    # training-only wrappers (reward shaping) sit outside the policy's wrappers: the policy's
+    # spaces are the same, evaluation and the curve score the env's own return
+    shaping = run.get("training_wrappers", [])
+    env = make_sb3_env(
+        env_id, run["n_envs"], seed, agents=agents, wrappers=[*wrappers, *shaping], **params
+    )
     tb_log = None if tensorboard is None else str(Path(tensorboard).resolve())
     model = ALGORITHMS[algo](
         run["policy"],

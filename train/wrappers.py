@@ -27,6 +27,7 @@ from sensorgym.train.messages import brief, one_line
 WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
+    "termination-penalty": "sensorgym.train.wrappers:TerminationPenalty",
     "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
     "pointing-plan": "sensorgym.envs.stereo_pointing.wrappers:plan_wrapper",
     "plan-features": "sensorgym.envs.stereo_pointing.wrappers:plan_features",
@@ -151,6 +152,37 @@ class TimeFeature(VecEnvWrapper):
                     terminal.dtype
                 )
         return self._with_time(obs), rewards, dones, infos
+
+
+class TerminationPenalty(VecEnvWrapper):
+    """Subtracts ``penalty`` from the reward of every step that *terminates* an episode (a
+    failure such as a broken stand-off; a time-limit truncation, ``TimeLimit.truncated`` in
+    the step's info, is not penalised). A training-only reward shaping: list it under
+    ``training_wrappers`` so that evaluation, the benchmark and the curve score the env's own
+    return. It makes a rare failure expensive enough that the policy keeps its margin (the env's
+    own penalty is of the size of one episode's return, so a policy that fails in 2 % of the
+    episodes may still gain by flying closer)."""
+
+    def __init__(self, venv: VecEnv, penalty: float = 0.0):
+        if isinstance(penalty, bool) or not isinstance(penalty, int | float):
+            raise ValueError(f"termination-penalty: penalty must be a number, got {brief(penalty)}")
+        if not (np.isfinite(penalty) and penalty >= 0.0):
+            raise ValueError(f"termination-penalty: penalty must be finite and >= 0, got {penalty}")
+        super().__init__(venv)
+        self.penalty = float(penalty)
+
+    def reset(self) -> np.ndarray:
+        return self.venv.reset()
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        failed = np.array(
+            [
+                bool(d) and not info.get("TimeLimit.truncated", False)
+                for d, info in zip(dones, infos, strict=True)
+            ]
+        )
+        return obs, rewards - self.penalty * failed.astype(rewards.dtype), dones, infos
 
 
 def _time_limit(venv: VecEnv) -> int | None:
