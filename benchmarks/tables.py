@@ -15,6 +15,8 @@ import re
 import sys
 from pathlib import Path
 
+from sensorgym.train.tail import rms
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 REPRODUCTION = ROOT / "docs" / "reproduction"
@@ -286,25 +288,29 @@ def _headroom_lines(doc: dict, order: list[str]) -> list[str]:
 
 def _tail_lines(doc: dict, order: list[str]) -> list[str]:
     """The tail table of a score file that has one (:mod:`sensorgym.train.tail`): the return's
-    10th percentile and each measure's median, 90th percentile (the bad side) and worst-5 %
-    mean."""
+    10th percentile and each measure's median, 90th percentile (the bad side), worst-5 % mean
+    and, for an error in metres, its RMS over the episodes (from the per-episode values when
+    the summary predates it)."""
     tail = doc.get("tail")
     if not tail:
         return []
     first = next(iter(tail.values()))["measures"]
     measures = list(first)
     label = {m: f"{m} ({first[m]['unit']})" if first[m]["unit"] == "m" else m for m in measures}
+    metres = [m for m in measures if first[m]["unit"] == "m" and first[m]["lower_is_better"]]
     header = "| policy | return p10 | " + " | ".join(
-        f"{label[m]} median | {label[m]} p90 | {label[m]} worst 5 %" for m in measures
+        f"{label[m]} median | {label[m]} p90 | {label[m]} worst 5 %"
+        + (f" | {label[m]} RMS" if m in metres else "")
+        for m in measures
     )
     lines = [
         "",
         "The tail, in the units a user of the sensor quotes (theory §11.7): the return's 10th "
         "percentile and, per accuracy measure, its median, 90th percentile and the mean of "
-        "the worst 5 % of episodes:",
+        "the worst 5 % of episodes (and an error's RMS over the episodes):",
         "",
         header + " |",
-        "| --- |" + " ---: |" * (1 + 3 * len(measures)),
+        "| --- |" + " ---: |" * (1 + 3 * len(measures) + len(metres)),
     ]
 
     def cell(x: float | None) -> str:
@@ -318,6 +324,12 @@ def _tail_lines(doc: dict, order: list[str]) -> list[str]:
         for m in measures:
             q = t["measures"].get(m, {})
             cells += [cell(q.get("median")), cell(q.get("p90")), cell(q.get("cvar5"))]
+            if m in metres:
+                per_episode = doc["results"].get(name, {}).get("tails", {}).get(m)
+                value = q.get("rms")
+                if value is None and per_episode is not None:
+                    value = rms(per_episode)
+                cells.append(cell(value))
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
     return lines
 

@@ -155,18 +155,27 @@ def _column(rows: Sequence[Mapping[str, Any]], key: str) -> np.ndarray:
 def quantile_summary(values: Sequence[float], lower_is_better: bool = True) -> dict[str, Any]:
     """``median``, ``p90`` and ``cvar5`` of the finite ``values`` (``p90``: the 90th
     percentile, or the 10th for a higher-is-better measure — the bad side; ``cvar5``: the mean
-    of the worst ``⌈5 %⌉`` of them, at least one), and ``episodes`` (finite values) and
+    of the worst ``⌈5 %⌉`` of them, at least one), for a lower-is-better measure its ``rms``
+    ``√(mean x²)`` (an error's RMS, as a tracking user quotes it), and ``episodes`` (finite values) and
     ``missing`` (not finite: an episode without any fix has no ``fix_sigma``)."""
     x = np.asarray(values, dtype=np.float64)
     finite = x[np.isfinite(x)]
     out: dict[str, Any] = {"episodes": int(finite.size), "missing": int(x.size - finite.size)}
     if finite.size == 0:
-        return {**out, "median": None, "p90": None, "cvar5": None}
+        return {**out, "median": None, "p90": None, "cvar5": None, "rms": None}
     worst_q = 90.0 if lower_is_better else 10.0
     out["median"] = float(np.median(finite))
     out["p90"] = float(np.percentile(finite, worst_q))
     out["cvar5"] = cvar(finite, CVAR_SHARE, lower_is_better)
+    out["rms"] = rms(finite) if lower_is_better else None
     return out
+
+
+def rms(values: Sequence[float]) -> float:
+    """``√(mean x²)`` of the finite ``values`` (NaN when there are none)."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
 def cvar(values: Sequence[float], share: float = CVAR_SHARE, lower_is_better: bool = True) -> float:

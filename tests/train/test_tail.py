@@ -31,9 +31,12 @@ def test_quantile_summary_skips_missing_values_and_reads_the_bad_side():
     assert s["median"] == pytest.approx(50.5)
     assert s["p90"] == pytest.approx(np.percentile(np.arange(1.0, 101.0), 90))
     assert s["cvar5"] == pytest.approx(98.0)
+    # RMS of 1..100: sqrt(sum k^2 / 100) = sqrt(101 * 201 / 6)
+    assert s["rms"] == pytest.approx(np.sqrt(101 * 201 / 6), rel=1e-12)
     higher = quantile_summary(x, lower_is_better=False)
     assert higher["p90"] == pytest.approx(np.percentile(np.arange(1.0, 101.0), 10))
     assert higher["cvar5"] == pytest.approx(3.0)
+    assert higher["rms"] is None  # an RMS only for an error
     assert quantile_summary([np.nan])["median"] is None
 
 
