@@ -28,6 +28,19 @@ from sensorgym.agents.protocol import PolicyPredictor
 StateFn = Callable[[], Any]
 RuleFactory = Callable[[Any, StateFn], PolicyPredictor]
 
+
+def _plan_search() -> dict[str, Any]:
+    """The settings of the ``plan-search`` planner (acquisition weight, sharing, the cue held
+    for one step, the epipolar search), which ``plan-schedule`` and ``plan-search-exhaustive``
+    plan with too."""
+    return {
+        "acquisition": True,
+        "sharing": pointing_sharing.Sharing(),
+        "cue_steps": 1,
+        "search": pointing_search.EpipolarSearch(),
+    }
+
+
 RULES: dict[str, dict[str, RuleFactory]] = {
     "sensorgym/BearingsManeuver-v0": {
         "straight-course": lambda params, _: maneuver.StraightCourse(params),
@@ -65,22 +78,10 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "plan-fix-first": lambda params, _: pointing_horizon.PlanHorizon(
             params, acquisition=True, sharing=pointing_sharing.Sharing(), cue_steps=1
         ),
-        "plan-search": lambda params, _: pointing_horizon.PlanHorizon(
-            params,
-            acquisition=True,
-            sharing=pointing_sharing.Sharing(),
-            cue_steps=1,
-            search=pointing_search.EpipolarSearch(),
-        ),
+        "plan-search": lambda params, _: pointing_horizon.PlanHorizon(params, **_plan_search()),
         # the time-sharing schedule of issue 37: plan-search's planner and aiming, a drifting
         # drone handed a pair before its error outgrows the fields of view
-        "plan-schedule": lambda params, _: pointing_schedule.PlanSchedule(
-            params,
-            acquisition=True,
-            sharing=pointing_sharing.Sharing(),
-            cue_steps=1,
-            search=pointing_search.EpipolarSearch(),
-        ),
+        "plan-schedule": lambda params, _: pointing_schedule.PlanSchedule(params, **_plan_search()),
         "truth-plan": lambda params, state_fn: pointing.TruthPlan(state_fn, params),
     },
     "sensorgym/StereoPlacement-v0": {
@@ -113,14 +114,7 @@ RULES["sensorgym/StereoPointingCrowded-v0"] = dict(RULES["sensorgym/StereoPointi
 # (research/results/pointing_schedule.json); PlanSchedule never forced, exhaustive up to 256
 # assignments and plan-search beyond; at 4 x 2 it is plan-search itself
 RULES["sensorgym/StereoPointingCrowded-v0"]["plan-search-exhaustive"] = lambda params, _: (
-    pointing_schedule.PlanSchedule(
-        params,
-        acquisition=True,
-        sharing=pointing_sharing.Sharing(),
-        cue_steps=1,
-        search=pointing_search.EpipolarSearch(),
-        schedule=None,
-    )
+    pointing_schedule.PlanSchedule(params, **_plan_search(), schedule=None)
 )
 
 
