@@ -131,6 +131,7 @@ def test_benchmark_command_scores_every_rule(tmp_path, capsys):
         "paper002",
         "greedy-information",
         "lookahead-estimate",
+        "mpc-estimate",
         "truth-lookahead",
         # the shipped policies, scored by default
         *(f"shipped:{run}" for run in shipped_policies(ENV_ID)),
