@@ -114,21 +114,17 @@ def players(env_id: str, doc: dict[str, Any]) -> tuple[str | None, str]:
 
 
 def build(env_id: str, name: str, n_envs: int, seed: int) -> tuple[Any, Any]:
-    """``(vector env, policy)`` as :func:`sensorgym.train.benchmark.score` builds them."""
-    from sensorgym.agents.registry import RULES
-    from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
-    from sensorgym.train.models import load_model, read_config, run_dir_of, wrappers_of
-    from sensorgym.train.shipped import shipped_policies
+    """``(vector env, policy)`` of the benchmark's policy ``name``
+    (:func:`sensorgym.train.benchmark.build_policy`, as ``score`` plays it). The split is per
+    scenario slot, so a parameter-sharing run (a slot per agent) is refused."""
+    from sensorgym.train.benchmark import build_policy, policies_for
+    from sensorgym.train.evaluation import agents_per_scenario
 
-    if name.startswith("shipped:"):
-        folder = shipped_policies(env_id)[name.split(":", 1)[1]]
-        config = read_config(run_dir_of(folder))
-        if config.get("agents", False):
-            raise NotImplementedError(f"{name}: parameter-sharing runs are not supported here")
-        env = make_sb3_env(env_id, n_envs, seed, wrappers=wrappers_of(config), episode_streams=True)
-        return env, load_model(folder, env)
-    env = make_sb3_env(env_id, n_envs, seed, episode_streams=True)
-    return env, RULES[env_id][name](env_params(env), simulator_state(env))
+    env, policy = build_policy(env_id, policies_for(env_id)[name], n_envs, seed)
+    if agents_per_scenario(env) != 1:
+        env.close()
+        raise ValueError(f"{name}: a parameter-sharing run has a slot per agent, not per scenario")
+    return env, policy
 
 
 def _import(entry: str) -> Callable[..., Any]:

@@ -65,29 +65,20 @@ def policies_for(
     return specs
 
 
-def score(
+def build_policy(
     env_id: str,
     spec: PolicySpec,
-    episodes: int,
     n_envs: int,
     seed: int,
     unsafe_pickle: bool = False,
     params: dict[str, Any] | None = None,
-    record_actions: bool = False,
-) -> dict[str, Any]:
-    """Episode-return statistics (:class:`~.evaluation.EpisodeStats` as a dict) of one policy
-    over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
-    with one seed and batch meets the same scenarios, episode by episode, however it ends them
-    (one random stream per episode, :mod:`sensorgym.envs.shells.streams`). Parameter-sharing models act on the per-agent view
-    of those scenarios. ``params``: params fields of the env (``--param``); a model trained
-    with other ones is refused (:class:`~.models.RunFolderError` saying which differ). For an
-    env with a proven bound (:data:`~.bounds.EPISODE_BOUNDS`) each episode's bound comes with
-    its return (``bounds``). ``record_actions``: the result also holds every episode's actions
-    and key (``actions``, ``keys``: :attr:`~.evaluation.EpisodeStats.actions`), not JSON, for
-    a bound computed from what the policies played (:data:`~.bounds.HINDSIGHT_BOUNDS`)."""
+) -> tuple[Any, Any]:
+    """``(vector env, policy)`` as :func:`score` plays them: ``n_envs`` scenarios seeded
+    ``seed``, one random stream per episode; a rule on the env's joint view
+    (:class:`NotApplicable` when it does not apply to ``params``), a run folder through its
+    wrappers (per agent for a parameter-sharing run). The caller closes the env."""
     from sensorgym.agents.registry import RULES
-    from sensorgym.train.bounds import episode_bound_of
-    from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env, simulator_state
+    from sensorgym.train.evaluation import env_params, make_sb3_env, simulator_state
     from sensorgym.train.models import (
         CONFIG_FILE,
         RunFolderError,
@@ -125,6 +116,33 @@ def score(
             raise
     else:
         raise ValueError(f"spec.kind: expected 'rule' or 'model', got {spec.kind!r}")
+    return env, policy
+
+
+def score(
+    env_id: str,
+    spec: PolicySpec,
+    episodes: int,
+    n_envs: int,
+    seed: int,
+    unsafe_pickle: bool = False,
+    params: dict[str, Any] | None = None,
+    record_actions: bool = False,
+) -> dict[str, Any]:
+    """Episode-return statistics (:class:`~.evaluation.EpisodeStats` as a dict) of one policy
+    over ``episodes`` episodes of ``n_envs`` scenarios seeded with ``seed``: every policy scored
+    with one seed and batch meets the same scenarios, episode by episode, however it ends them
+    (one random stream per episode, :mod:`sensorgym.envs.shells.streams`). Parameter-sharing models act on the per-agent view
+    of those scenarios. ``params``: params fields of the env (``--param``); a model trained
+    with other ones is refused (:class:`~.models.RunFolderError` saying which differ). For an
+    env with a proven bound (:data:`~.bounds.EPISODE_BOUNDS`) each episode's bound comes with
+    its return (``bounds``). ``record_actions``: the result also holds every episode's actions
+    and key (``actions``, ``keys``: :attr:`~.evaluation.EpisodeStats.actions`), not JSON, for
+    a bound computed from what the policies played (:data:`~.bounds.HINDSIGHT_BOUNDS`)."""
+    from sensorgym.train.bounds import episode_bound_of
+    from sensorgym.train.evaluation import env_params, evaluate
+
+    env, policy = build_policy(env_id, spec, n_envs, seed, unsafe_pickle, params)
     try:
         bound = episode_bound_of(env_id, env_params(env))
         stats = evaluate(policy, env, episodes, seed, bound, record_actions=record_actions)
