@@ -71,8 +71,8 @@ BOOK_OPTIMISED_TURNS = (
 #: re-optimised the plan on the book's nominal target path
 #: (``bot_control.optimise_open_loop(restarts=8, seed=0, margin=m)``) for margins 0, 100, 200,
 #: 300, 400, 450 and 500 m and flew each on 256 episodes of seeds 500 and 600; 500 m is the
-#: smallest that broke no stand-off there (400 m: 2, 450 m: 1) and so the best mean final PCRLB
-#: without a break (49.0 m; ``benchmarks/results/book_plan_margin.json``). Prior
+#: smallest that broke no stand-off there, and so the best mean final PCRLB without a break
+#: (``benchmarks/results/book_plan_margin.json``). Prior
 #: knowledge only (no simulator truth): a fieldable rule, not a bound.
 BOOK_TUNED_TURNS = (
     -0.9999999999999576,

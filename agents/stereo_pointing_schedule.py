@@ -16,8 +16,8 @@ others watch). A drone already past its deadline is not forced: a pair sent ther
 likely miss it, and the plan's acquisition weight and the epipolar search handle it.
 
 What it measured (tuning seeds 500 and 600, ``research/results/pointing_schedule.json``): the
-exhaustive acquisition-weighted search is worth about +24 and +28 over ``plan-search``; the
-schedule on top of it costs 2 to 10 (the more hand-overs, the more): a pair sent back to the
+gain over ``plan-search`` is the exhaustive acquisition-weighted search; the schedule on top
+of it costs return (the more hand-overs, the more): a pair sent back to the
 drifting drone leaves a fixed one, and the slew there earns nothing, since the reward counts
 only the drones fixed now. ``plan-search-exhaustive`` (the same planner, never forced:
 ``schedule=None``) is registered beside it.
@@ -48,10 +48,10 @@ SCHEDULE_ASSIGNMENTS = 256
 class Schedule:
     """When a drifting drone gets a pair back. The defaults are the best schedule measured on
     tuning seeds 500 and 600 (``research/pointing_schedule.py``,
-    ``research/results/pointing_schedule.json``, 128 episodes each, paired to ``plan-search``:
-    +21.0 ± 9.9 and +26.1 ± 11.8). Every schedule measured there forces hand-overs that cost
-    return: the same planner never forced (``plan-search-exhaustive``) scored +23.9 and +28.2,
-    and earlier or more hand-overs (``lead`` 3, ``reach`` 0.5) less than later ones."""
+    ``research/results/pointing_schedule.json``, 128 episodes each, paired to ``plan-search``).
+    Every schedule measured there forces hand-overs that cost return: the same planner never
+    forced (``plan-search-exhaustive``) scored higher, and earlier or more hand-overs (``lead``
+    3, ``reach`` 0.5) less than later ones."""
 
     reach: float = 1.0
     """The error a pair still re-acquires, in units of the field of view's radius ``fov ·
