@@ -28,6 +28,7 @@ WRAPPERS: dict[str, str] = {
     "frame-stack": "sensorgym.train.wrappers:frame_stack",
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
     "termination-penalty": "sensorgym.train.wrappers:TerminationPenalty",
+    "final-error-penalty": "sensorgym.train.wrappers:FinalErrorPenalty",
     "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
     "pointing-plan": "sensorgym.envs.stereo_pointing.wrappers:plan_wrapper",
     "plan-features": "sensorgym.envs.stereo_pointing.wrappers:plan_features",
@@ -183,6 +184,59 @@ class TerminationPenalty(VecEnvWrapper):
             ]
         )
         return obs, rewards - self.penalty * failed.astype(rewards.dtype), dones, infos
+
+
+class FinalErrorPenalty(VecEnvWrapper):
+    """Subtracts ``weight · (e / scale)²`` from the reward of every step that ends an episode
+    (terminated or truncated), ``e`` the value of ``key`` in the episode's final info — by default
+    ``position_error``, the bearings envs' tracker's position error at the end (m). A
+    training-only, tail-aware shaping: the mean of the penalty is ``weight / scale²`` times the
+    mean squared final error, so it charges the policy for the RMS error a user quotes, not only
+    for the bound the env's reward measures; a few badly tracked episodes cost more than many
+    slightly worse ones. The error reads ground truth, which is why it may only shape training
+    (list it under ``training_wrappers``): the policy still observes the tracker only, and
+    evaluation, the benchmark and the curve score the env's own return."""
+
+    def __init__(
+        self,
+        venv: VecEnv,
+        weight: float = 0.0,
+        scale: float = 1000.0,
+        key: str = "position_error",
+    ):
+        for name, value, low in (("weight", weight, 0.0), ("scale", scale, None)):
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                raise ValueError(
+                    f"final-error-penalty: {name} must be a number, got {brief(value)}"
+                )
+            if not np.isfinite(value) or (value < 0.0 if low is not None else value <= 0.0):
+                bound = ">= 0" if low is not None else "> 0"
+                raise ValueError(
+                    f"final-error-penalty: {name} must be finite and {bound}, got {value}"
+                )
+        if not isinstance(key, str) or not key:
+            raise ValueError(f"final-error-penalty: key must be an info key, got {brief(key)}")
+        super().__init__(venv)
+        self.weight, self.scale, self.key = float(weight), float(scale), key
+
+    def reset(self) -> np.ndarray:
+        return self.venv.reset()
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        rewards = np.array(rewards, copy=True)
+        for i in np.flatnonzero(dones):
+            final = infos[i].get("final_info", infos[i])
+            if self.key not in final:
+                raise KeyError(
+                    f"final-error-penalty: the env's final info has no {self.key!r} "
+                    f"(keys: {sorted(final)})"
+                )
+            e = float(final[self.key])
+            if not np.isfinite(e):
+                raise ValueError(f"final-error-penalty: {self.key} is {e} at an episode end")
+            rewards[i] -= self.weight * (e / self.scale) ** 2
+        return obs, rewards, dones, infos
 
 
 def _time_limit(venv: VecEnv) -> int | None:
