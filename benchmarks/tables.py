@@ -373,7 +373,8 @@ def _seconds(s: float) -> str:
 def training_cost(policies: Path | None = None) -> str:
     """Per env and shipped run: the samples it trained on, the wall-clock and CPUs it took
     (its ``cost.json``, :mod:`sensorgym.train.cost`; "not recorded" for runs trained before
-    it), and when its learning curve first beat the env's best rule (``best_rule`` of
+    it, "not reproducible" where ``benchmarks/training_cost.py`` found that retraining gives
+    other weights), and when its learning curve first beat the env's best rule (``best_rule`` of
     ``docs/scores/<env>.json``) on the curve's own evaluation scenarios: the first
     ``curve.json`` point whose mean exceeds that rule's mean in the curve's ``rules``, its
     samples and its wall-clock."""
@@ -382,6 +383,10 @@ def training_cost(policies: Path | None = None) -> str:
     from sensorgym.train.cost import first_beat, pretrain_samples
 
     policies = ROOT / "train" / "policies" if policies is None else Path(policies)
+    unreproducible_path = RESULTS / "training_cost_unreproducible.json"
+    unreproducible = (
+        json.loads(unreproducible_path.read_text()) if unreproducible_path.is_file() else {}
+    )
     lines = [
         "| env | run | algorithm | samples: RL + imitation | wall-clock, training (whole run) "
         "| CPUs usable of machine, torch threads | load, 1 min, start → end "
@@ -416,6 +421,8 @@ def training_cost(policies: Path | None = None) -> str:
                 )
                 steps = curve["points"][-1]["timesteps"] if curve else hp["n_timesteps"]
                 clock = cpus = loads = NOT_RECORDED
+                if str(run.relative_to(policies.parent.parent)) in unreproducible:
+                    clock = "not reproducible: retrained weights differ"
             samples = f"{_thousands(steps)} + {_thousands(imitated)}"
             seed = json.loads((run / "evaluation.json").read_text())["seed"]
             head = f"| `{env}` | `{run.name}` | {config['algo'].upper()} | {samples} | {clock} "

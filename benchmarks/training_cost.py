@@ -8,7 +8,12 @@ mapping: its metadata's order varies from save to save). Only when every tensor 
 does the retraining measure the shipped run's cost: its ``cost.json`` (:mod:`sensorgym.train.cost`)
 is copied into the shipped folder with a ``reproduced`` note, and the ``wall_s``/``eval_s`` of its
 curve points (and ARS iterations) are merged into the shipped ``curve.json`` (``search.json``),
-whose ``curve.png`` is redrawn. When anything differs it reports by how much and writes nothing.
+whose ``curve.png`` is redrawn. When the weights are identical but the curve's points are not
+(a run trained before the curve's points and evaluation seed were fixed), the retraining's
+``curve.json``, ``curve.png``, ``evaluation.json`` (and ``search.json``) replace the shipped
+ones: the same weights, now with a clock and evaluated on the tuning seed. When the weights
+differ it reports by how much, records that (and the retraining's own cost) in
+``benchmarks/results/training_cost_unreproducible.json`` and writes nothing into the run.
 
 ``--estimate`` trains nothing: for every shipped run without a cost record it prints the
 samples it trained on and a time estimate from ``benchmarks/results/training.json``'s PPO fps
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import struct
 import sys
 import tempfile
@@ -35,6 +41,8 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
 TRAINING = ROOT / "benchmarks" / "results" / "training.json"
+#: shipped runs whose retraining from config.yaml gave other weights (the env changed since)
+UNREPRODUCIBLE = ROOT / "benchmarks" / "results" / "training_cost_unreproducible.json"
 
 
 def read_safetensors(path: Path) -> tuple[dict[str, Any], dict[str, bytes]]:
@@ -121,6 +129,8 @@ def retrain(run_dir: Path, write: bool = True) -> dict[str, Any]:
         cost = json.loads((result.run_dir / COST_FILE).read_text())
         report["cost"] = cost
         if not weights["identical"]:
+            if write:  # why the run has no cost record: on the record, beside the others
+                record_unreproducible(report, cost)
             return report
         new_curve = json.loads((result.run_dir / "curve.json").read_text())
         points = (
@@ -128,17 +138,17 @@ def retrain(run_dir: Path, write: bool = True) -> dict[str, Any]:
             if curve is None
             else _merge_clock(curve["points"], new_curve["points"], "timesteps")
         )
-        if curve is not None and points is None:
-            report["error"] = "the retrained curve has other sample counts than the shipped one"
-            return report
+        # the same weights but other curve points (a run trained before the curve's points and
+        # its evaluation seed were fixed): the retraining's whole record replaces the shipped
+        # one, which is then evaluated on the tuning seed like every later run's
+        replace = curve is not None and points is None
         search = None
         if (run_dir / SEARCH_FILE).is_file():
             old = json.loads((run_dir / SEARCH_FILE).read_text())
             new = json.loads((result.run_dir / SEARCH_FILE).read_text())
             search = _merge_clock(old, new, "iteration")
-            if search is None:
-                report["error"] = "the retrained search has other iterations than the shipped one"
-                return report
+            replace = replace or search is None
+        report["record_replaced"] = replace
         if not write:
             return report
         cost["reproduced"] = {
@@ -151,6 +161,17 @@ def retrain(run_dir: Path, write: bool = True) -> dict[str, Any]:
                 (result.run_dir / "evaluation.json").read_text()
             )["seed"],
         }
+        if replace:
+            cost["reproduced"]["record_replaced"] = (
+                "the shipped curve's points differed from the retraining's: curve.json, "
+                "curve.png, evaluation.json (and search.json) are the retraining's"
+            )
+            for name in ("curve.json", "curve.png", "evaluation.json", SEARCH_FILE):
+                if (result.run_dir / name).is_file():
+                    shutil.copyfile(result.run_dir / name, run_dir / name)
+            (run_dir / COST_FILE).write_text(json.dumps(cost, indent=2) + "\n")
+            report["recorded"] = True
+            return report
         (run_dir / COST_FILE).write_text(json.dumps(cost, indent=2) + "\n")
         if search is not None:
             (run_dir / SEARCH_FILE).write_text(json.dumps(search, indent=1) + "\n")
@@ -159,6 +180,24 @@ def retrain(run_dir: Path, write: bool = True) -> dict[str, Any]:
             write_curve(run_dir, title, points, curve["rules"], curve.get("pretrain_loss"))
         report["recorded"] = True
     return report
+
+
+def record_unreproducible(report: dict[str, Any], cost: dict[str, Any]) -> None:
+    """Merge into :data:`UNREPRODUCIBLE` the shipped run whose retraining gave other weights:
+    the date, the largest weight difference and the retraining's own cost (the recipe's time
+    on this machine, not the shipped run's), so that the training-cost table can say why the
+    run has no cost of its own."""
+    from sensorgym.train.cost import now_utc
+
+    doc = json.loads(UNREPRODUCIBLE.read_text()) if UNREPRODUCIBLE.is_file() else {}
+    tensors = report["weights"].get("tensors", {})
+    doc[report["run"]] = {
+        "date_utc": now_utc(),
+        "weights_identical": False,
+        "max_abs_weight_diff": max((t["max_abs_diff"] for t in tensors.values()), default=None),
+        "retraining_cost": cost,
+    }
+    UNREPRODUCIBLE.write_text(json.dumps(dict(sorted(doc.items())), indent=1) + "\n")
 
 
 def shipped_runs() -> list[Path]:
