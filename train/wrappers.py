@@ -195,7 +195,12 @@ class FinalErrorPenalty(VecEnvWrapper):
     for the bound the env's reward measures; a few badly tracked episodes cost more than many
     slightly worse ones. The error reads ground truth, which is why it may only shape training
     (list it under ``training_wrappers``): the policy still observes the tracker only, and
-    evaluation, the benchmark and the curve score the env's own return."""
+    evaluation, the benchmark and the curve score the env's own return.
+
+    ``time_limit_only``: charge only episodes that reach the time limit. Needed for a measure
+    that a termination itself makes small — the bound ``position_bound`` collapses when the
+    platform runs into the target, so charging it at a broken stand-off pays the policy for
+    breaking it; the termination is then left to ``termination-penalty``."""
 
     def __init__(
         self,
@@ -203,6 +208,7 @@ class FinalErrorPenalty(VecEnvWrapper):
         weight: float = 0.0,
         scale: float = 1000.0,
         key: str = "position_error",
+        time_limit_only: bool = False,
     ):
         for name, value, low in (("weight", weight, 0.0), ("scale", scale, None)):
             if isinstance(value, bool) or not isinstance(value, int | float):
@@ -216,8 +222,14 @@ class FinalErrorPenalty(VecEnvWrapper):
                 )
         if not isinstance(key, str) or not key:
             raise ValueError(f"final-error-penalty: key must be an info key, got {brief(key)}")
+        if not isinstance(time_limit_only, bool):
+            raise ValueError(
+                f"final-error-penalty: time_limit_only must be true or false, got "
+                f"{brief(time_limit_only)}"
+            )
         super().__init__(venv)
         self.weight, self.scale, self.key = float(weight), float(scale), key
+        self.time_limit_only = time_limit_only
 
     def reset(self) -> np.ndarray:
         return self.venv.reset()
@@ -226,6 +238,8 @@ class FinalErrorPenalty(VecEnvWrapper):
         obs, rewards, dones, infos = self.venv.step_wait()
         rewards = np.array(rewards, copy=True)
         for i in np.flatnonzero(dones):
+            if self.time_limit_only and not infos[i].get("TimeLimit.truncated", False):
+                continue
             final = infos[i].get("final_info", infos[i])
             if self.key not in final:
                 raise KeyError(

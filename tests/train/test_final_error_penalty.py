@@ -43,6 +43,36 @@ def test_penalty_charges_the_squared_final_error_at_every_episode_end():
     assert ends["terminated"] > 0 and ends["truncated"] > 0  # both kinds of end were charged
 
 
+def test_time_limit_only_leaves_terminations_uncharged():
+    # a bound that a termination makes small must not pay for breaking the stand-off
+    plain = make_sb3_env(ENV_ID, 16, seed=3, episode_streams=True, **KWARGS)
+    shaped = FinalErrorPenalty(
+        make_sb3_env(ENV_ID, 16, seed=3, episode_streams=True, **KWARGS),
+        weight=1.0,
+        scale=100.0,
+        key="position_bound",
+        time_limit_only=True,
+    )
+    actions = np.tile(np.array([[1.0, 1.0]], dtype=np.float32), (16, 1))
+    charged = spared = 0
+    for (_, r0, d0, i0), (_, r1, _, _) in zip(
+        _steps(plain, actions, 20), _steps(shaped, actions, 20), strict=True
+    ):
+        limit = np.array(
+            [bool(d) and i["TimeLimit.truncated"] for d, i in zip(d0, i0, strict=True)]
+        )
+        bound = np.array(
+            [
+                i["final_info"]["position_bound"] if d else 0.0
+                for d, i in zip(limit, i0, strict=True)
+            ]
+        )
+        np.testing.assert_allclose(r1, r0 - (bound / 100.0) ** 2 * limit, rtol=1e-6, atol=1e-5)
+        charged += int(limit.sum())
+        spared += int(np.sum(d0 & ~limit))
+    assert charged > 0 and spared > 0
+
+
 @pytest.mark.parametrize(
     ("kwargs", "match"),
     [
@@ -52,6 +82,7 @@ def test_penalty_charges_the_squared_final_error_at_every_episode_end():
         ({"scale": 0.0}, "scale must be finite and > 0"),
         ({"scale": "1km"}, "scale must be a number"),
         ({"key": ""}, "key must be an info key"),
+        ({"time_limit_only": 1}, "time_limit_only must be true or false"),
     ],
 )
 def test_penalty_refuses_bad_values(kwargs, match):
