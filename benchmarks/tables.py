@@ -15,7 +15,7 @@ import re
 import sys
 from pathlib import Path
 
-from sensorgym.train.tail import rms
+from sensorgym.train.tail import rms, rms_ratio
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -298,19 +298,30 @@ def _tail_lines(doc: dict, order: list[str]) -> list[str]:
     measures = list(first)
     label = {m: f"{m} ({first[m]['unit']})" if first[m]["unit"] == "m" else m for m in measures}
     metres = [m for m in measures if first[m]["unit"] == "m" and first[m]["lower_is_better"]]
+    best = doc.get("best_rule")
+    reference = doc["results"].get(best, {}).get("tails", {}) if best else {}
+    main = metres[0] if metres and metres[0] in reference else None
     header = "| policy | return p10 | " + " | ".join(
         f"{label[m]} median | {label[m]} p90 | {label[m]} worst 5 %"
         + (f" | {label[m]} RMS" if m in metres else "")
+        + (f" | {m} RMS ÷ `{best}`'s [95 %]" if m == main else "")
         for m in measures
+    )
+    ratio_text = (
+        f"; {main}'s RMS divided by the best rule's, with a 95 % interval that resamples the "
+        "episodes in pairs (`train.tail.rms_ratio`): above 1 means a larger RMS than the rule, "
+        "an interval across 1 a difference within what the draw of episodes moves"
+        if main
+        else ""
     )
     lines = [
         "",
         "The tail, in the units a user of the sensor quotes (theory §11.7): the return's 10th "
         "percentile and, per accuracy measure, its median, 90th percentile and the mean of "
-        "the worst 5 % of episodes (and an error's RMS over the episodes):",
+        f"the worst 5 % of episodes (and an error's RMS over the episodes{ratio_text}):",
         "",
         header + " |",
-        "| --- |" + " ---: |" * (1 + 3 * len(measures) + len(metres)),
+        "| --- |" + " ---: |" * (1 + 3 * len(measures) + len(metres) + (main is not None)),
     ]
 
     def cell(x: float | None) -> str:
@@ -330,6 +341,13 @@ def _tail_lines(doc: dict, order: list[str]) -> list[str]:
                 if value is None and per_episode is not None:
                     value = rms(per_episode)
                 cells.append(cell(value))
+            if m == main:
+                per_episode = doc["results"].get(name, {}).get("tails", {}).get(m)
+                if name == best or per_episode is None:
+                    cells.append("")
+                else:
+                    r, lo, hi = rms_ratio(per_episode, reference[m])
+                    cells.append(f"{r:.2f} [{lo:.2f}, {hi:.2f}]")
         lines.append(f"| `{name}` | " + " | ".join(cells) + " |")
     return lines
 

@@ -178,6 +178,35 @@ def rms(values: Sequence[float]) -> float:
     return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
+def rms_ratio(
+    values: Sequence[float],
+    reference: Sequence[float],
+    resamples: int = 4000,
+    seed: int = 0,
+) -> tuple[float, float, float]:
+    """``(ratio, lo, hi)``: ``rms(values) / rms(reference)`` over the episodes where both are
+    finite, and its 95 % paired percentile-bootstrap interval (episodes resampled together, so
+    the scenario spread both share cancels; a fixed ``seed``, so a table regenerates
+    identically). An RMS over a few hundred episodes is carried by its handful of worst ones: the
+    interval says whether "worse RMS than the rule" is more than which episodes were drawn."""
+    x = np.asarray(values, dtype=np.float64)
+    y = np.asarray(reference, dtype=np.float64)
+    if x.shape != y.shape or x.ndim != 1:
+        raise ValueError(
+            f"values, reference: expected two 1-D arrays of one length, got {x.shape}, {y.shape}"
+        )
+    keep = np.isfinite(x) & np.isfinite(y)
+    x, y = x[keep], y[keep]
+    if x.size == 0 or not np.any(y != 0.0):
+        raise ValueError("reference: no finite, non-zero value to divide by")
+    ratio = float(np.sqrt(np.mean(x**2) / np.mean(y**2)))
+    idx = np.random.default_rng(seed).integers(0, x.size, (resamples, x.size))
+    num, den = np.mean(x[idx] ** 2, axis=1), np.mean(y[idx] ** 2, axis=1)
+    boot = np.sqrt(num[den > 0] / den[den > 0])
+    lo, hi = np.quantile(boot, [0.025, 0.975])
+    return ratio, float(lo), float(hi)
+
+
 def cvar(values: Sequence[float], share: float = CVAR_SHARE, lower_is_better: bool = True) -> float:
     """The mean of the worst ``share`` of ``values`` (worst = largest if ``lower_is_better``,
     else smallest): the ``⌈share · n⌉`` worst values, at least one."""

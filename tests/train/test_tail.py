@@ -179,3 +179,41 @@ def test_scanning_info_gospa_is_that_of_the_confirmed_tracks_and_present_drones(
         want = gospa(tracks, s.drone_position[b, present], params.truth_gate)
         assert infos[b]["gospa"] == pytest.approx(want)
         assert sim.period_gospa(params, s)[b] == pytest.approx(want)
+
+
+def test_rms_ratio_is_exact_on_scaled_errors_and_its_interval_is_paired():
+    from sensorgym.train.tail import rms_ratio
+
+    rng = np.random.default_rng(7)
+    reference = np.abs(rng.standard_cauchy(256)) * 100.0  # heavy-tailed, like final errors
+    ratio, lo, hi = rms_ratio(2.0 * reference, reference)
+    assert (
+        ratio == pytest.approx(2.0, rel=1e-12)
+        and lo == pytest.approx(2.0)
+        and hi == pytest.approx(2.0)
+    )
+    # an independent error of the same (light-tailed) law: the interval holds the ratio and 1
+    other = np.abs(rng.normal(0.0, 100.0, 256))
+    light = np.abs(rng.normal(0.0, 100.0, 256))
+    r, lo, hi = rms_ratio(other, light)
+    assert lo < r < hi and lo < 1.0 < hi and hi - lo < 0.5
+    # a truly larger error of the same law is told apart
+    assert rms_ratio(1.5 * other, light)[1] > 1.0
+    assert rms_ratio(other, light) == (r, lo, hi)  # seeded: a table regenerates identically
+    with_nan = np.append(other, np.nan)
+    assert rms_ratio(with_nan, np.append(light, 5.0)) == (r, lo, hi)  # a pair with a NaN drops
+
+
+@pytest.mark.parametrize(
+    ("values", "reference", "match"),
+    [
+        ([1.0, 2.0], [1.0], "one length"),
+        ([1.0], [0.0], "no finite, non-zero"),
+        ([np.nan], [1.0], "no finite, non-zero"),
+    ],
+)
+def test_rms_ratio_refuses_what_it_cannot_divide(values, reference, match):
+    from sensorgym.train.tail import rms_ratio
+
+    with pytest.raises(ValueError, match=match):
+        rms_ratio(values, reference)
