@@ -117,12 +117,7 @@ def main() -> None:
         result = scored(PolicySpec("model", folder), args.episodes, args.n_envs)
         config = read_config(Path(folder))
         entry = {"summary": summary(result, rule), "result": result}
-        hp = config["hyperparams"]
-        entry["hyperparams"] = {
-            k: hp.get(k)
-            for k in ("n_envs", "n_timesteps", "learning_rate", "training_wrappers", "pretrain")
-        }
-        entry["seed"] = config["seed"]
+        entry["hyperparams"], entry["seed"] = config["hyperparams"], config["seed"]  # all of it
         doc["trained"][name] = entry
         print(name, json.dumps(entry["summary"]))
     doc["rule_summary"] = {RULE: summary(rule)}
