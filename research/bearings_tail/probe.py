@@ -58,12 +58,14 @@ def scored(spec: PolicySpec, episodes: int, n_envs: int) -> dict:
 
 
 def _shaping(w: dict) -> str:
-    """A training wrapper in a few words: ``term 20``, ``err 1.0/1000 m (time limit)``."""
+    """A training wrapper in a few words: ``term 20``, ``err 1/1000 m``, ``bound 1/1000 m (time
+    limit)`` (``bound``: the charge is on the final PCRLB, ``position_bound``)."""
     if w["name"] == "termination-penalty":
         return f"term {w['penalty']:g}"
     if w["name"] == "final-error-penalty":
         where = " (time limit)" if w.get("time_limit_only") else ""
-        return f"err {w['weight']:g}/{w.get('scale', 1000):g} m{where}"
+        what = "bound" if w.get("key") == "position_bound" else "err"
+        return f"{what} {w['weight']:g}/{w.get('scale', 1000):g} m{where}"
     return w["name"]
 
 
