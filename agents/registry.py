@@ -111,7 +111,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
 RULES["sensorgym/StereoPointingCrowded-v0"] = dict(RULES["sensorgym/StereoPointing-v0"])
 # plan-search searching all 81 assignments with the acquisition weight (its "auto" solver
 # searches polynomially above 32, without it): the best rule on the tuning seeds
-# (research/results/pointing_schedule.json); PlanSchedule never forced, exhaustive up to 256
+# (research/stereo_pointing/results/pointing_schedule.json); PlanSchedule never forced, exhaustive up to 256
 # assignments and plan-search beyond; at 4 x 2 it is plan-search itself
 RULES["sensorgym/StereoPointingCrowded-v0"]["plan-search-exhaustive"] = lambda params, _: (
     pointing_schedule.PlanSchedule(params, **_plan_search(), schedule=None)

@@ -15,7 +15,7 @@ planner picks the best assignment that gives it one (which pair hands over, and 
 others watch). A drone already past its deadline is not forced: a pair sent there would
 likely miss it, and the plan's acquisition weight and the epipolar search handle it.
 
-What it measured (tuning seeds 500 and 600, ``research/results/pointing_schedule.json``): the
+What it measured (tuning seeds 500 and 600, ``research/stereo_pointing/results/pointing_schedule.json``): the
 gain over ``plan-search`` is the exhaustive acquisition-weighted search; the schedule on top
 of it costs return (the more hand-overs, the more): a pair sent back to the
 drifting drone leaves a fixed one, and the slew there earns nothing, since the reward counts
@@ -47,8 +47,8 @@ SCHEDULE_ASSIGNMENTS = 256
 @dataclass(frozen=True)
 class Schedule:
     """When a drifting drone gets a pair back. The defaults are the best schedule measured on
-    tuning seeds 500 and 600 (``research/pointing_schedule.py``,
-    ``research/results/pointing_schedule.json``, 128 episodes each, paired to ``plan-search``).
+    tuning seeds 500 and 600 (``research/stereo_pointing/pointing_schedule.py``,
+    ``research/stereo_pointing/results/pointing_schedule.json``, 128 episodes each, paired to ``plan-search``).
     Every schedule measured there forces hand-overs that cost return: the same planner never
     forced (``plan-search-exhaustive``) scored higher, and earlier or more hand-overs (``lead``
     3, ``reach`` 0.5) less than later ones."""

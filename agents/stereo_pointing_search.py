@@ -14,8 +14,8 @@ ray from step to step (range is what one sighting leaves open) and, from sweep t
 it (the drone may sit anywhere in the seeing receiver's cone, up to ``fov · ρ`` off the ray).
 The seeing receiver itself, if it is sent to that drone, holds its line of sight (``anchor``):
 slewing onto the prediction, which is metres off, would carry the drone out of its cone before
-the others find it. Measured on the tuning seeds (``benchmarks/pointing_search.py``,
-``benchmarks/results/pointing_search.json``).
+the others find it. Measured on the tuning seeds (``research/stereo_pointing/pointing_search.py``,
+``research/stereo_pointing/results/pointing_search.json``).
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ MIN_SEARCH_RANGE = 5.0
 class EpipolarSearch:
     """Where the receivers sent to a lost drone look. The default is the best of the settings
     measured on tuning seeds 500 and 600 and confirmed on 700 and 800
-    (``benchmarks/results/pointing_search.json``: first the range sweep alone, +4.5 and +5.5 over
+    (``research/stereo_pointing/results/pointing_search.json``: first the range sweep alone, +4.5 and +5.5 over
     ``plan-fix-first``; then the anchor and the sweep across the ray, +3.6, +3.0, +3.5 and +2.5
     over that, with the drones never fixed from 4, 5, 3, 7 to 0, 1, 0, 4 of 1024; paired, 512
     episodes each)."""

@@ -8,14 +8,14 @@ at the bisector of the two lines of sight, it adds a line of sight to the second
 losing the first, and the reward counts every receiver that sees a drone (its Cramér–Rao bound,
 theory §4.4). :func:`shared_aims` turns an assignment into such aim points; the margin keeps
 both drones inside the field of view despite the tracks' error. Measured on the tuning seeds
-(``benchmarks/pointing_sharing.py``, ``benchmarks/results/pointing_sharing.json``).
+(``research/stereo_pointing/pointing_sharing.py``, ``research/stereo_pointing/results/pointing_sharing.json``).
 
 A learned policy decides per receiver instead (``pointing-plan`` with ``share_bits``): its
 logit is the rule's :func:`share_logits` at the receiver's :func:`share_partner` plus a linear
 term of :func:`share_features`, :func:`share_inputs` collects both and :func:`decided_aims`
 aims by the decisions; zero weights are the rule. Whether a state-dependent decision can beat
 the best static setting at all was probed on the tuning seeds
-(``benchmarks/pointing_sharing_state.py``).
+(``research/stereo_pointing/pointing_sharing_state.py``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ AIM_RANGE = 100.0
 @dataclass(frozen=True)
 class Sharing:
     """When a receiver aims between its drone and another one. The default is the best of the
-    six settings measured on tuning seeds 500 and 600 (``benchmarks/results/pointing_sharing.json``;
+    six settings measured on tuning seeds 500 and 600 (``research/stereo_pointing/results/pointing_sharing.json``;
     the registered rule used ``fraction = 0.97``, the best of the first four, until the finer
     settings measured since scored about 0.2 higher)."""
 

@@ -26,7 +26,7 @@ def _theory_sections() -> set[str]:
 def test_only_the_shells_touch_the_private_simulator_state():
     offenders = [
         str(p.relative_to(ROOT))
-        for p in _sources(*PACKAGES, "tests", "benchmarks")
+        for p in _sources(*PACKAGES, "tests", "benchmarks", "research")
         if "._state" in p.read_text() and "envs/shells" not in p.as_posix()
     ]
     offenders = [o for o in offenders if o != "tests/test_layout.py"]
@@ -34,7 +34,10 @@ def test_only_the_shells_touch_the_private_simulator_state():
 
 
 def test_no_reference_to_a_document_outside_the_repository():
-    files = [*_sources(*PACKAGES, "tests", "benchmarks"), *(ROOT / "docs").rglob("*.md")]
+    files = [
+        *_sources(*PACKAGES, "tests", "benchmarks", "research"),
+        *(ROOT / "docs").rglob("*.md"),
+    ]
     files += [ROOT / "README.md", *(ROOT / "train" / "hyperparams").glob("*.yml")]
     hits = [
         f"{p.relative_to(ROOT)}:{i}"
@@ -49,7 +52,11 @@ def test_no_reference_to_a_document_outside_the_repository():
 def test_every_theory_reference_names_a_section_of_docs_theory():
     sections = _theory_sections()
     assert len(sections) > 20
-    files = [*_sources(*PACKAGES, "benchmarks"), *(ROOT / "docs").rglob("*.md"), ROOT / "README.md"]
+    files = [
+        *_sources(*PACKAGES, "benchmarks", "research"),
+        *(ROOT / "docs").rglob("*.md"),
+        ROOT / "README.md",
+    ]
     missing = []
     for p in files:
         for ref in re.findall(r"theory §(\d+(?:\.\d+)*)(?:[–-](\d+(?:\.\d+)*))?", p.read_text()):

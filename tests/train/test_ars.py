@@ -140,7 +140,7 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
     th.testing.assert_close(x[..., 8], 4.0 * kept)
 
 
-#: the learned sharing's wrappers (the runs of ``benchmarks/results/pointing_share_ars.json``)
+#: the learned sharing's wrappers (the runs of ``research/stereo_pointing/results/pointing_share_ars.json``)
 SHARE_WRAPPERS = [
     {"name": "pointing-plan", "sharing": True, "share_bits": True},
     {"name": "plan-features", "acquisition": True, "sharing": True},

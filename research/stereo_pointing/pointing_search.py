@@ -1,14 +1,14 @@
 """Find the drones the rules of ``sensorgym/StereoPointing-v0`` never fix: search along the line of
 sight of the one receiver that sees them.
 
-``python benchmarks/pointing_search.py [--seeds 500 600] [--episodes 512]`` plays the same
+``python research/stereo_pointing/pointing_search.py [--seeds 500 600] [--episodes 512]`` plays the same
 seeded scenarios with ``plan-fix-first`` and with ``plan-fix-first`` plus the epipolar search of
 :mod:`sensorgym.agents.stereo_pointing_search` at several settings: the other receivers sent to
 a lost drone (track RMS above ``lost_rms``) that exactly one receiver sees aim along that
 receiver's boresight ray, swept in range from step to step. The diagnosis that led here: about
 2 % of ``plan-fix-first``'s episodes have a drone that is never fixed (a return near −400), and
 in 42 % of the drone-steps without a fix one receiver sees the drone. Writes
-``benchmarks/results/pointing_search.json``: per setting the paired difference to
+``research/stereo_pointing/results/pointing_search.json``: per setting the paired difference to
 ``plan-fix-first`` (per episode, the same scenarios and noise), the share of drone-steps without
 a fix and the number of drones never fixed. It chose the ``plan-search`` rule's setting:
 first ``lost_rms`` and ``width`` of the range sweep alone, then the seeing receiver's anchor

@@ -1,6 +1,6 @@
 """Tune the ``plan-schedule`` rule of ``sensorgym/StereoPointingCrowded-v0`` (issue 37, item 1).
 
-``python research/pointing_schedule.py [--seeds 500 600] [--episodes 128] [--jobs 2]`` scores
+``python research/stereo_pointing/pointing_schedule.py [--seeds 500 600] [--episodes 128] [--jobs 2]`` scores
 ``plan-search`` and settings of :class:`~sensorgym.agents.stereo_pointing_schedule.PlanSchedule`
 on the benchmark's own scenarios (:func:`sensorgym.train.benchmark.score`, the episodes of
 ``sensorgym benchmark --seed S --n-envs 64``), each paired episode by episode to
@@ -14,7 +14,7 @@ on the benchmark's own scenarios (:func:`sensorgym.train.benchmark.score`, the e
 * ``reach`` × ``lead`` (:class:`~sensorgym.agents.stereo_pointing_schedule.Schedule`): when a
   drifting drone is handed a pair.
 
-Writes ``research/results/pointing_schedule.json``: per seed and setting the mean return, its
+Writes ``research/stereo_pointing/results/pointing_schedule.json``: per seed and setting the mean return, its
 95 % half-width, the paired difference to ``plan-search`` and the share of drone-steps without
 a fix. Tuning seeds only (a held-out seed, 10000 and up, is refused).
 """

@@ -1,14 +1,14 @@
 """The learned sharing of ``sensorgym/StereoPointing-v0`` on the tuning seeds (issue 13).
 
-``python benchmarks/pointing_share_ars.py RUN [RUN ...] [--seeds 500 600] [--episodes 256]``
+``python research/stereo_pointing/pointing_share_ars.py RUN [RUN ...] [--seeds 500 600] [--episodes 256]``
 scores each ``sensorgym train --algo ars`` run folder of the learned sharing (share bits over
 ``plan-acquire``'s assignment; the hyperparameters each run recorded, the ``ars.yml`` entry it
 was trained with, are written beside its scores) on the tuning
 seeds, paired episode by episode to ``plan-acquire-share`` as registered when the runs were
 trained (fraction 0.97 of the field of view; the rule their zero weights were) and
 to the best static sharing setting of the probe, (0.5, 1.0, 3)
-(``benchmarks/pointing_sharing_state.py``), on the same scenarios. Writes
-``benchmarks/results/pointing_share_ars.json``: per run its share weights by feature name,
+(``research/stereo_pointing/pointing_sharing_state.py``), on the same scenarios. Writes
+``research/stereo_pointing/results/pointing_share_ars.json``: per run its share weights by feature name,
 scenario seeds, and per seed the paired differences with 95 % intervals. Tuning seeds only
 (never 10000 or 31337): the held-out check is ``sensorgym benchmark``'s.
 """

@@ -1,6 +1,6 @@
 """Room the assignment rules of ``sensorgym/StereoPointing-v0`` leave: one receiver, two drones.
 
-``python benchmarks/pointing_sharing.py [--seeds 500 600] [--episodes 256]`` plays the same
+``python research/stereo_pointing/pointing_sharing.py [--seeds 500 600] [--episodes 256]`` plays the same
 seeded scenarios with ``plan-acquire`` and with ``plan-acquire`` whose receivers aim, when they
 can, between the drone they are sent to and another one
 (:func:`sensorgym.agents.stereo_pointing_sharing.shared_aims`; the ``plan-acquire-share``
@@ -10,7 +10,7 @@ default since): a receiver whose lines of sight to two
 predicted drones are closer than the field of view's width (less a margin for the tracks'
 uncertainty) slews onto their bisector instead, so that one receiver fixes both. The
 assignment rules never do this: their slew controller aims at one prediction. Writes
-``benchmarks/results/pointing_sharing.json``: per setting the paired difference to
+``research/stereo_pointing/results/pointing_sharing.json``: per setting the paired difference to
 ``plan-acquire`` (per episode, the same scenarios and noise) and the share of receiver-steps
 that aimed between two drones.
 

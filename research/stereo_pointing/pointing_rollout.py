@@ -1,8 +1,8 @@
 """How much can any choice of pairing still gain over ``plan-search`` on
 ``sensorgym/StereoPointing-v0``? A rollout bound on tuning seeds (issue 13).
 
-``python benchmarks/pointing_rollout.py [--seeds 500 600] [--episodes 128]`` writes
-``benchmarks/results/pointing_rollout.json`` with two measurements.
+``python research/stereo_pointing/pointing_rollout.py [--seeds 500 600] [--episodes 128]`` writes
+``research/stereo_pointing/results/pointing_rollout.json`` with two measurements.
 
 **One-step deviations in hindsight.** At each decision step ``t`` of :data:`DECISION_STEPS`,
 the episodes are branched: every one of the ``mⁿ`` assignments (which drone each receiver is

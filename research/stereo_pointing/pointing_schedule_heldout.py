@@ -1,12 +1,12 @@
 """The frozen ``plan-schedule`` rules of ``sensorgym/StereoPointingCrowded-v0`` on the held-out
-seed, once (issue 37, item 1): evaluation only, after ``research/pointing_schedule.py`` chose
+seed, once (issue 37, item 1): evaluation only, after ``research/stereo_pointing/pointing_schedule.py`` chose
 their settings on tuning seeds.
 
-``python research/pointing_schedule_heldout.py [--episodes 256] [--jobs 2]`` scores
+``python research/stereo_pointing/pointing_schedule_heldout.py [--episodes 256] [--jobs 2]`` scores
 ``plan-search`` and the registered rules named in :data:`RULES` on seed 10000
 (:func:`sensorgym.train.benchmark.score` with 64 scenarios per batch: the benchmark's episodes
 at that batch, not the 16 of ``sensorgym benchmark``'s default, whose streams differ), and writes
-``research/results/pointing_schedule_heldout.json``: each rule's mean, its 95 % half-width,
+``research/stereo_pointing/results/pointing_schedule_heldout.json``: each rule's mean, its 95 % half-width,
 its paired difference to ``plan-search`` and its wall-clock per agent step.
 """
 

@@ -1,7 +1,7 @@
 """When ``sensorgym/StereoPointing-v0``'s planner should re-pair its receivers: at once, after the
 tracks' first fix, or less often.
 
-``python benchmarks/pointing_cue_hold.py [--seeds 500 600] [--episodes 512]`` plays the same
+``python research/stereo_pointing/pointing_cue_hold.py [--seeds 500 600] [--episodes 512]`` plays the same
 seeded scenarios with ``plan-acquire-share`` and with variants of it that change only when
 receivers leave the drone they are aimed at:
 
@@ -13,7 +13,7 @@ receivers leave the drone they are aimed at:
 
 The diagnosis that led here: on the first step ``plan-acquire-share`` leaves 28 % of the
 drone-steps without a fix against 6 % for ``hold-cue`` (seed 500), because it re-pairs on the
-cue, whose tracks are metres off. Writes ``benchmarks/results/pointing_cue_hold.json``: per
+cue, whose tracks are metres off. Writes ``research/stereo_pointing/results/pointing_cue_hold.json``: per
 setting the paired difference to ``plan-acquire-share`` (per episode, the same scenarios and
 noise) and the share of drone-steps without a fix on the first step and over the episode.
 It chose the ``plan-fix-first`` rule's ``cue_steps = 1``. Tuning seeds only.

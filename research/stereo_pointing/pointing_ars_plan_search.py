@@ -1,14 +1,14 @@
 """Direct policy search from the best rule of ``sensorgym/StereoPointing-v0``, on the tuning seeds
 (issue 13).
 
-``python benchmarks/pointing_ars_plan_search.py [RUN ...] [--seeds 500 600] [--episodes 256]``
+``python research/stereo_pointing/pointing_ars_plan_search.py [RUN ...] [--seeds 500 600] [--episodes 256]``
 scores ``sensorgym train --algo ars`` run folders (default: the shipped StereoPointing runs,
 ``train/policies/sensorgym__StereoPointing-v0/ars_seed*``) on the tuning seeds, paired episode by
 episode to ``plan-search``, the best rule, on the same scenarios and noise. Their ``ars.yml`` entry
 aims through ``pointing-plan`` with ``sharing``, ``cue_steps: 1`` and ``search``, so the untrained
 policy *is* ``plan-search`` (tested in ``tests/train/test_ars.py``) and the search moves only
 the linear correction of its planner's values. Writes
-``benchmarks/results/pointing_ars_plan_search.json``: per run its weights by feature name, the
+``research/stereo_pointing/results/pointing_ars_plan_search.json``: per run its weights by feature name, the
 scenario seeds of its iterations, and per seed the mean and the paired difference with its 95 %
 interval and the shares of episodes above and below the rule. Tuning seeds only (never 10000 or
 31337): the held-out check is ``sensorgym benchmark``'s.

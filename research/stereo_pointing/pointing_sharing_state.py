@@ -1,15 +1,15 @@
 """Does a *state-dependent* sharing decision beat the best static one? (issue 13, StereoPointing)
 
-``python benchmarks/pointing_sharing_state.py [--seeds 500] [--episodes 256]`` plays the same
+``python research/stereo_pointing/pointing_sharing_state.py [--seeds 500] [--episodes 256]`` plays the same
 seeded scenarios with ``plan-acquire`` (the assignment) whose receivers share as the best
 static setting of :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` measured on the
-tuning seeds (margin 0.5, fraction 1.0, tracks below 3 m; ``benchmarks/pointing_sharing.py``)
+tuning seeds (margin 0.5, fraction 1.0, tracks below 3 m; ``research/stereo_pointing/pointing_sharing.py``)
 and with hand-made state-dependent variants of it: the static test gated, or widened, by what
 the observation says (:func:`~sensorgym.agents.stereo_pointing_sharing.share_features`: how
 many other receivers the partner drone and the own drone have, whether the receiver sees both,
 the time left). Every variant is a logit rule fed to
 :func:`~sensorgym.agents.stereo_pointing_sharing.aims_between`, the one aiming of the rule.
-Writes ``benchmarks/results/pointing_sharing_state.json``: per variant the paired difference
+Writes ``research/stereo_pointing/results/pointing_sharing_state.json``: per variant the paired difference
 to the static setting (per episode, the same scenarios and noise) with its 95 % interval.
 
 A learned sharing policy (the share bits of ``pointing-plan`` with ``share``) only pays if some

@@ -1,11 +1,11 @@
 """Where the ``plan-horizon`` rule of ``sensorgym/StereoPointing-v0`` loses return (issue 13).
 
-``python benchmarks/pointing_diagnosis.py [--seed 500] [--episodes 128]`` plays the same
+``python research/stereo_pointing/pointing_diagnosis.py [--seed 500] [--episodes 128]`` plays the same
 seeded scenarios with ``plan-horizon``, ``plan-acquire`` (the fix this diagnosis led to),
 ``truth-plan`` and each of the ``m^n`` constant
 assignments (receiver ``k`` held on drone ``c_k`` for the whole episode, slewed onto the
 tracker's prediction by the env's slew controller), and writes
-``benchmarks/results/pointing_diagnosis.json``:
+``research/stereo_pointing/results/pointing_diagnosis.json``:
 
 * per policy the mean return, and per episode the best constant assignment in hindsight;
 * for each run, how the drone-steps without a fix split: the drone had fewer than two receivers

@@ -1,9 +1,9 @@
 """Tuning-seed comparison of StereoPointing's planners and trained runs, paired (issue 13).
 
-``python benchmarks/pointing_tuning.py [--seed 500 --seed 600] [--episodes 256]
+``python research/stereo_pointing/pointing_tuning.py [--seed 500 --seed 600] [--episodes 256]
 [--model RUN_DIR ...]`` scores ``plan-horizon``, ``plan-acquire`` and each ``sensorgym train``
 run folder on the same seeded scenarios (:func:`sensorgym.train.evaluation.evaluate`, 16
-scenarios at a time) and writes ``benchmarks/results/pointing_tuning.json``: every policy's
+scenarios at a time) and writes ``research/stereo_pointing/results/pointing_tuning.json``: every policy's
 mean return and its paired per-episode difference to both rules, with each run's recipe (its
 wrappers, steps and policy settings from ``config.yaml``), runs named by their folder's name. Seeds below 10000 only: these are the
 numbers recipes are chosen on, never the held-out benchmark seeds.

@@ -1,11 +1,11 @@
 """How far is ``plan-search`` from the instantaneous bound when receivers are scarce? A probe
 of ``sensorgym/StereoPointing-v0`` layouts on tuning seeds (issue 13, the owner's option 2).
 
-``python benchmarks/pointing_room.py [--seeds 500 600] [--episodes 128]`` writes
-``benchmarks/results/pointing_room.json``.
+``python research/stereo_pointing/pointing_room.py [--seeds 500 600] [--episodes 128]`` writes
+``research/stereo_pointing/results/pointing_room.json``.
 
 At the defaults (4 receivers, 2 drones: two receivers per drone) no pairing policy can gain much
-over ``plan-search`` (``benchmarks/pointing_rollout.py``). With fewer receivers than two per
+over ``plan-search`` (``research/stereo_pointing/pointing_rollout.py``). With fewer receivers than two per
 drone, pointing becomes a scheduling problem: which drones are fixed now, which wait, and when
 a receiver can hold two drones at once. This probe plays ``plan-search`` at several layouts
 (``n_receivers``, ``n_drones``) and sums, on the same episodes, the instantaneous bound of
