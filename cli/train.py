@@ -26,7 +26,7 @@ from sensorgym.cli.params import (
     params_from,
 )
 
-HELP = "Train an SB3 policy (PPO or SAC) on an environment and score it beside the rules."
+HELP = "Train a policy (PPO, SAC or ARS) on an environment and score it beside the rules."
 
 DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
 

@@ -7,7 +7,7 @@ length is set; the vector and PettingZoo doors read it from there.
 | id | package | PettingZoo |
 |----|---------|------------|
 | ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
-| ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``book.book_parallel_env`` |
+| ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``bearings_maneuver.book_parallel_env`` |
 | ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
 | ``sensorgym/StereoPointingCrowded-v0`` | :mod:`.stereo_pointing.crowded` | ``stereo_pointing.crowded_parallel_env`` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import importlib
 import inspect
+import re
 
 import gymnasium as gym
 import numpy as np
@@ -243,3 +244,21 @@ def test_joint_and_agent_views_come_from_one_state(env_id):
     _, r_joint, *_ = vector.step(action.astype(np.float32))
     _, r_agents, *_ = agents.step(action.reshape(3, n, -1).astype(np.float32))
     np.testing.assert_array_equal(r_joint, r_agents)
+
+
+def test_the_package_docstring_names_each_envs_real_doors():
+    # the table a user reads in ``sensorgym.envs``: id, package, PettingZoo factory
+    import sensorgym.envs as envs
+
+    rows = re.findall(
+        r"^\| ``(sensorgym/[^`]+)`` \| :mod:`\.([\w.]+)` \| ``([\w.]+)`` \|$", envs.__doc__, re.M
+    )
+    assert sorted(r[0] for r in rows) == sorted(ENV_IDS)
+    for env_id, package, factory in rows:
+        module = importlib.import_module(f"sensorgym.envs.{package}")
+        holder, _, name = factory.rpartition(".")
+        assert (
+            getattr(importlib.import_module(f"sensorgym.envs.{holder}"), name)
+            is PARALLEL_ENVS[env_id]
+        )
+        assert gym.spec(env_id).entry_point.split(":")[0].startswith(module.__name__)
