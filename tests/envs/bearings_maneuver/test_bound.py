@@ -81,7 +81,9 @@ def _episode(env_id: str, seed: int) -> tuple:
 
 
 def _replay(env_id: str, seed: int, actions: np.ndarray) -> float:
-    """The return of ``actions (T, 2)`` played through the env (SB3 vector env, seeded)."""
+    """The return of ``actions (T, 2)`` played through the env (SB3 vector env, seeded), in
+    float64: the optimum rides the stand-off (its closest approach can be micrometres above
+    ``min_range``), so rounding its actions to float32 may cross it and end the episode."""
     from sensorgym.train.evaluation import make_sb3_env
 
     env = make_sb3_env(env_id, 1, seed, max_episode_steps=None)
@@ -89,7 +91,7 @@ def _replay(env_id: str, seed: int, actions: np.ndarray) -> float:
     env.reset()
     total = 0.0
     for t in range(actions.shape[0]):
-        _, reward, done, _ = env.step(actions[t][None].astype(np.float32))
+        _, reward, done, _ = env.step(np.asarray(actions[t][None], dtype=np.float64))
         total += float(reward[0])
         if done[0]:
             break
