@@ -26,7 +26,8 @@ COMMANDS: dict[str, str] = {
     "compile": "sensorgym.cli.compile",
 }
 
-#: the main job: what ``sensorgym`` (and ``scripts/run.sh``) runs when given no arguments
+#: the main job: what ``scripts/run.sh`` runs when given no arguments (bare ``sensorgym``, like
+#: any other CLI, prints its help and names it)
 DEFAULT_JOB: list[str] = ["benchmark"]
 
 
@@ -46,7 +47,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``sensorgym ARGS``; with no arguments at all, the main job :data:`DEFAULT_JOB`.
+    """Run ``sensorgym ARGS``; with no arguments at all, print the help and the main job
+    (:data:`DEFAULT_JOB`, which ``scripts/run.sh`` runs) and return 0.
 
     A mistake in the arguments, the environment or a model folder ends in one line and a
     non-zero exit, never a traceback: the parser's errors (status 2), ``SENSORGYM_THREADS``
@@ -55,7 +57,14 @@ def main(argv: list[str] | None = None) -> int:
     """
     if argv is None:
         argv = sys.argv[1:]
-    args = build_parser().parse_args(argv or DEFAULT_JOB)
+    parser = build_parser()
+    if not argv:
+        parser.print_help()
+        print(
+            f"\nThe main job: sensorgym {' '.join(DEFAULT_JOB)} (what `bash scripts/run.sh` runs)."
+        )
+        return 0
+    args = parser.parse_args(argv)
     _check_environment()
     try:
         return int(args._run(args) or 0)

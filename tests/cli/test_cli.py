@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 
@@ -20,18 +21,27 @@ def test_every_subcommand_has_help(capsys):
     assert DEFAULT_JOB[0] in COMMANDS
 
 
-def test_no_arguments_runs_the_main_job_the_benchmark_of_every_env(tmp_path, monkeypatch, capsys):
+def test_no_arguments_prints_the_help_and_names_the_main_job(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main([]) == 0
+    printed = capsys.readouterr().out
+    assert "usage: sensorgym" in printed and "The main job: sensorgym benchmark" in printed
+    assert not any(tmp_path.iterdir())  # nothing ran
+    # run.sh's default is the main job
+    run_sh = (Path(__file__).resolve().parents[2] / "scripts" / "run.sh").read_text()
+    assert f"set -- {' '.join(DEFAULT_JOB)}" in run_sh
+
+
+def test_the_main_job_is_the_benchmark_of_every_env(tmp_path, monkeypatch, capsys):
     from PIL import Image
 
-    import sensorgym.cli.main as cli_main
     from sensorgym.train.benchmark import registered_envs
     from sensorgym.train.shipped import shipped_policies
 
     assert DEFAULT_JOB == ["benchmark"]
     # the main job exactly, on tiny settings (the defaults write under ./results)
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(cli_main, "DEFAULT_JOB", [*DEFAULT_JOB, "--episodes", "2", "--n-envs", "2"])
-    assert main([]) == 0
+    assert main([*DEFAULT_JOB, "--episodes", "2", "--n-envs", "2"]) == 0
     printed = capsys.readouterr().out
     out = tmp_path / "results" / "benchmark"
     summary = json.loads((out / "benchmark.json").read_text())
