@@ -43,7 +43,7 @@ from sensorgym.agents.stereo_pointing import (
     plan_objective,
 )
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
-from sensorgym.agents.stereo_pointing_sharing import Sharing, decided_aims, shared_aims
+from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 
 
@@ -193,23 +193,18 @@ def plan_aims(
     cue_steps: int = 0,
     sharing: Sharing | None = None,
     search: EpipolarSearch | None = None,
-    share_bits: NDArray[np.int64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Aim points ``(N, P, 3)`` and each receiver's point index ``(N, n)`` for
     :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, from the drone each
     receiver is sent to ``target (N, n)`` at episode steps ``t (N,)``: the :func:`cue_hold` on
     the first ``cue_steps`` steps; with ``sharing`` a receiver aims between its drone and
-    another one (:func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`, or as
-    ``share_bits (N, n)`` decide,
-    :func:`~sensorgym.agents.stereo_pointing_sharing.decided_aims`); with ``search`` the
-    receivers of a lost drone search along its one sighting
+    another one (:func:`~sensorgym.agents.stereo_pointing_sharing.shared_aims`); with
+    ``search`` the receivers of a lost drone search along its one sighting
     (:func:`~sensorgym.agents.stereo_pointing_search.search_aims`, appended as points ``P − n``
     onward). The one aiming of the ``plan-*`` rules and the ``pointing-plan`` wrapper."""
     target = cue_hold(view.aimed, target, t, cue_steps)
     points, index = view.position, target
-    if sharing is not None and share_bits is not None:
-        points, index = decided_aims(params, view, target, sharing, share_bits)
-    elif sharing is not None:
+    if sharing is not None:
         points, index = shared_aims(params, view, target, sharing)
     if search is not None:
         found, searching = search_aims(params, view, target, t, search)

@@ -10,25 +10,19 @@ theory §4.4). :func:`shared_aims` turns an assignment into such aim points; the
 both drones inside the field of view despite the tracks' error. Measured on the tuning seeds
 (``research/stereo_pointing/pointing_sharing.py``, ``research/stereo_pointing/results/pointing_sharing.json``).
 
-A learned policy decides per receiver instead (``pointing-plan`` with ``share_bits``): its
-logit is the rule's :func:`share_logits` at the receiver's :func:`share_partner` plus a linear
-term of :func:`share_features`, :func:`share_inputs` collects both and :func:`decided_aims`
-aims by the decisions; zero weights are the rule. Whether a state-dependent decision can beat
-the best static setting at all was probed on the tuning seeds
-(``research/stereo_pointing/pointing_sharing_state.py``).
+A state-dependent decision per receiver found no room beyond this static test on the tuning
+seeds, neither by hand nor learned by ARS (``research/stereo_pointing/README.md``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.stereo_pointing import _View
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
-from sensorgym.trackers.stereo.information import observable, position_information, position_sigma
 
 #: distance along the bisector of the aim point from the receiver, m (any positive value: the
 #: slew controller turns the receiver towards the point's direction)
@@ -67,8 +61,7 @@ def share_logits(
     drone ``j``. The smallest of three slacks, each zero at its threshold: the fit margin
     ``(2 f fov − ∠ − 2 q max(σ̂_j/r_kj, σ̂_t/r_kt)) / (2 fov)`` and, per track, ``(max_rms −
     σ̂) / max_rms``; ``−inf`` for the own drone and a drone on the receiver or with the own drone
-    on it (no line of sight). The one formula of the rule's test; a learned policy adds its
-    term to it (:func:`share_features`)."""
+    on it (no line of sight). The one formula of the rule's test."""
     rows = np.arange(target.shape[0])[:, None]
     _, separation = _separation(view, target)
     angular_rms = view.sigma[:, None, :] / view.ranges  # (N, n, m); 0 for no line of sight
@@ -141,158 +134,3 @@ def shared_aims(
     such drone keeps its own drone's prediction. A drone on the receiver (no line of sight) is
     never shared."""
     return aims_between(params, view, target, share_logits(params, view, target, sharing))
-
-
-#: names of :func:`share_features`' last axis, in order
-SHARE_FEATURES = (
-    "bias",
-    "partner_receivers",
-    "own_receivers",
-    "partner_rms",
-    "own_rms",
-    "slack",
-    "angular_rms",
-    "sees_own",
-    "sees_partner",
-    "time_left",
-    "partner_gain",
-)
-#: cap of the ``partner_gain`` feature (a drone that no receiver fixes without ``k``)
-GAIN_CAP = 5.0
-#: track RMS (m) at which the RMS features saturate at 1
-RMS_SCALE = 10.0
-
-
-def share_features(
-    params: PointingParams, view: _View, target: NDArray[np.int64], time_left: NDArray[Any]
-) -> NDArray[np.float64]:
-    """What a policy may weigh, beside :func:`share_logits`, to decide whether receiver ``k``
-    shares its drone ``t = target[:, k]`` with drone ``j``: ``(N, n, m, F)``, the names in
-    :data:`SHARE_FEATURES`, each of order 1. 1; how many *other* receivers are sent to ``j``,
-    and to ``t``; ``min(σ̂, RMS_SCALE) / RMS_SCALE`` of ``j``'s and of ``t``'s track; the
-    geometric slack ``(2 fov − ∠) / (2 fov)`` (no margin); the larger angular RMS of the two
-    tracks from ``k`` over ``2 fov`` (capped at 10), the unit of the rule's margin; whether
-    ``k`` saw ``t``, and ``j``, on the last step; the fraction ``time_left (N,)`` of the episode
-    left; ``partner_gain``, ``ln(σ_without / σ_with)`` of drone ``j``'s position bound from the
-    other receivers sent to it without and with ``k``'s line of sight (theory §4.4, at the
-    predicted positions; in ``[0, GAIN_CAP]``, the cap where they alone do not fix it): the
-    reward ``k`` adds to ``j`` while it sees both. Read off the observation and the step count
-    only."""
-    N, n, m = target.shape[0], params.n_receivers, params.n_drones
-    left = np.asarray(time_left, dtype=np.float64)
-    if left.shape != (N,):
-        raise ValueError(f"time_left: expected shape ({N},), got {left.shape}")
-    rows, receivers = np.arange(N)[:, None], np.arange(n)[None]
-    sent = (target[..., None] == np.arange(m)[None, None]).astype(np.float64)  # (N, n, m)
-    partner = sent.sum(axis=1, keepdims=True) - sent  # other receivers sent to j
-    own = np.take_along_axis(partner, target[..., None], axis=2)  # other receivers sent to t
-    rms = np.minimum(view.sigma, RMS_SCALE) / RMS_SCALE  # (N, m)
-    _, separation = _separation(view, target)
-    width = 2.0 * params.fov
-    angular = view.sigma[:, None, :] / view.ranges
-    angular = np.maximum(angular, np.take_along_axis(angular, target[..., None], axis=2))
-    sees_own = view.seen[rows, receivers, target]
-    shape = (N, n, m)
-    return np.stack(
-        [
-            np.ones(shape),
-            partner,
-            np.broadcast_to(own, shape),
-            np.broadcast_to(rms[:, None, :], shape),
-            np.broadcast_to(rms[rows, target][..., None], shape),
-            (width - separation) / width,
-            np.minimum(angular / width, 10.0),
-            np.broadcast_to(sees_own[..., None], shape),
-            view.seen,
-            np.broadcast_to(left[:, None, None], shape),
-            _partner_gain(view, target),
-        ],
-        axis=-1,
-    )
-
-
-def _partner_gain(view: _View, target: NDArray[np.int64]) -> NDArray[np.float64]:
-    """``(N, n, m)``: ``ln(σ_without / σ_with)`` of drone ``j``'s position bound (theory §4.4)
-    from the receivers other than ``k`` sent to it, without and with ``k``'s line of sight,
-    in ``[0, GAIN_CAP]``; 0 for ``k``'s own drone."""
-    N, n, m = view.ranges.shape
-    sent = target[..., None] == np.arange(m)[None, None]  # (N, n', m)
-    others = sent.transpose(0, 2, 1)[:, None] & ~np.eye(n, dtype=bool)[None, :, None]
-    receiver = np.broadcast_to(np.eye(n, dtype=bool)[None, :, None], (N, n, m, n))
-    los = view.los.transpose(0, 2, 1, 3)[:, None]  # (N, 1, m, n', 3)
-    ranges = np.where(np.isfinite(view.ranges), view.ranges, 1.0).transpose(0, 2, 1)[:, None]
-    visible = np.isfinite(view.ranges).transpose(0, 2, 1)[:, None]
-
-    def bound(mask: NDArray[np.bool_]) -> NDArray[np.float64]:
-        mask = mask & visible
-        info = position_information(los, ranges, 1.0, mask)
-        return position_sigma(info, observable(info, mask))
-
-    without, with_k = bound(others), bound(others | receiver)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain = np.log(without / with_k)
-    gain = np.where(np.isfinite(with_k), np.nan_to_num(gain, nan=0.0, posinf=GAIN_CAP), 0.0)
-    gain = np.clip(gain, 0.0, GAIN_CAP)
-    return np.where(sent, 0.0, gain)
-
-
-def share_partner(
-    view: _View, target: NDArray[np.int64], logits: NDArray[np.float64]
-) -> NDArray[np.int64]:
-    """The drone ``(N, n)`` receiver ``k`` would share its own with: the one
-    :func:`aims_between` picks for ``logits`` (the nearest with a positive logit) or, when none
-    is positive, the nearest other drone in sight; ``-1`` when no other drone is in sight."""
-    _, separation = _separation(view, target)
-    shareable = _shareable(view, target)
-    fits = shareable & (logits > 0.0)
-    near_fit = np.where(fits, separation, np.inf).argmin(axis=2)
-    near = np.where(shareable, separation, np.inf).argmin(axis=2)
-    partner = np.where(fits.any(axis=2), near_fit, near)
-    return np.where(shareable.any(axis=2), partner, -1)
-
-
-#: per receiver, the inputs of a learned share decision: the rule's logit, then the features
-SHARE_INPUTS = ("rule_logit", *SHARE_FEATURES)
-#: the rule's logit as an input is clipped to ``[LOGIT_FLOOR, 1]`` (its sign kept)
-LOGIT_FLOOR = -10.0
-
-
-def share_inputs(
-    params: PointingParams,
-    view: _View,
-    target: NDArray[np.int64],
-    sharing: Sharing,
-    time_left: NDArray[Any],
-) -> NDArray[np.float64]:
-    """``(N, n, len(SHARE_INPUTS))``: per receiver, the rule's :func:`share_logits` (clipped to
-    ``[LOGIT_FLOOR, 1]``) and :func:`share_features` with its :func:`share_partner`; the floor
-    and zero features where no other drone is in sight. A learned decision shares exactly when
-    the logit plus its term is positive (zero term: the rule of :func:`shared_aims`)."""
-    logits = share_logits(params, view, target, sharing)
-    partner = share_partner(view, target, logits)
-    at = np.maximum(partner, 0)[..., None]
-    rule = np.take_along_axis(logits, at, axis=2)[..., 0]
-    feats = np.take_along_axis(share_features(params, view, target, time_left), at[..., None], 2)
-    none = partner < 0
-    rule = np.where(none, LOGIT_FLOOR, np.clip(rule, LOGIT_FLOOR, 1.0))
-    feats = np.where(none[..., None], 0.0, feats[:, :, 0])
-    return np.concatenate([rule[..., None], feats], axis=-1)
-
-
-def decided_aims(
-    params: PointingParams,
-    view: _View,
-    target: NDArray[np.int64],
-    sharing: Sharing,
-    share: NDArray[Any],
-) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
-    """:func:`aims_between` where receiver ``k`` shares with its :func:`share_partner` exactly
-    when ``share[:, k]`` (``(N, n)``, 0/1): with ``share`` the rule's own decisions (its
-    logit at the partner positive) the aims are :func:`shared_aims`'."""
-    share = np.asarray(share)
-    if share.shape != target.shape:
-        raise ValueError(f"share: expected shape {target.shape}, got {share.shape}")
-    partner = share_partner(view, target, share_logits(params, view, target, sharing))
-    m = params.n_drones
-    chosen = (np.arange(m)[None, None] == partner[..., None]) & (share[..., None] > 0)
-    return aims_between(params, view, target, np.where(chosen, 1.0, -1.0))

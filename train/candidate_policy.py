@@ -39,7 +39,6 @@ from stable_baselines3.common.policies import ActorCriticPolicy
 from torch import nn
 
 from sensorgym.agents.stereo_pointing_schedule import SCHEDULE_FEATURES
-from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS
 
 #: the learned score's forms: an MLP over the candidate's inputs, or linear in named features
 RESIDUALS = ("mlp", "linear")
@@ -61,25 +60,15 @@ class CandidateLayout:
     """Size of the env's own observation (first in the vector)."""
     episode_steps: int
     """Episode length ``T`` (steps): the time feature ``1 − t/T`` gives ``T − t`` steps left."""
-    n_receivers: int = 0
-    """Receivers per candidate in the share block (0: no share block)."""
-    share_inputs: int = 0
-    """Inputs per candidate and receiver in the share block of ``plan-features`` with
-    ``sharing`` (:data:`~sensorgym.agents.stereo_pointing_sharing.SHARE_INPUTS`; 0: none)."""
     schedule_inputs: int = 0
     """Inputs per candidate in the schedule block of ``plan-features`` with ``schedule``
-    (:data:`~sensorgym.agents.stereo_pointing_schedule.SCHEDULE_FEATURES`, after the share
-    block; 0: none)."""
+    (:data:`~sensorgym.agents.stereo_pointing_schedule.SCHEDULE_FEATURES`, after the kept
+    fractions; 0: none)."""
 
     @property
     def blocks(self) -> int:
         """Planning blocks: the fixed horizons and the time left."""
         return len(self.horizons) + 1
-
-    @property
-    def share_size(self) -> int:
-        """Size of the share block."""
-        return self.n_candidates * self.n_receivers * self.share_inputs
 
     @property
     def schedule_size(self) -> int:
@@ -90,19 +79,13 @@ class CandidateLayout:
     def obs_dim(self) -> int:
         """Size of the observation this layout reads."""
         plan = self.n_candidates * (2 * self.blocks + 1)
-        return self.base_dim + plan + self.share_size + self.schedule_size + 1
+        return self.base_dim + plan + self.schedule_size + 1
 
     def schedule_block(self, obs: th.Tensor) -> th.Tensor:
         """The schedule block ``(B, C, schedule_inputs)`` of observations ``(B, obs_dim)``."""
-        start = self.base_dim + self.n_candidates * (2 * self.blocks + 1) + self.share_size
+        start = self.base_dim + self.n_candidates * (2 * self.blocks + 1)
         block = obs[:, start : start + self.schedule_size]
         return block.reshape(obs.shape[0], self.n_candidates, self.schedule_inputs)
-
-    def share_block(self, obs: th.Tensor) -> th.Tensor:
-        """The share block ``(B, C, n, share_inputs)`` of observations ``(B, obs_dim)``."""
-        start = self.base_dim + self.n_candidates * (2 * self.blocks + 1)
-        block = obs[:, start : start + self.share_size]
-        return block.reshape(obs.shape[0], self.n_candidates, self.n_receivers, -1)
 
     def split(self, obs: th.Tensor) -> tuple[th.Tensor, th.Tensor, th.Tensor, th.Tensor, th.Tensor]:
         """``(base (B, base_dim), loss (B, C, H + 1), best (B, C, H + 1), kept (B, C),
@@ -137,11 +120,6 @@ class CandidateNetworks(nn.Module):
         residual: str = "mlp",
     ):
         super().__init__()
-        #: with a share block: the learned share term's weights, one per share feature (the
-        #: rule's logit, the block's first input, enters with weight 1)
-        self.share_weights = (
-            nn.Parameter(th.zeros(layout.share_inputs - 1)) if layout.share_inputs else None
-        )
         if residual not in RESIDUALS:
             raise ValueError(f"residual: must be one of {RESIDUALS}, got {residual!r}")
         self.residual = residual
@@ -173,9 +151,7 @@ class CandidateNetworks(nn.Module):
             nn.Linear(hidden, hidden),
             nn.Tanh(),
         )
-        self.latent_dim_pi = layout.n_candidates + 2 * layout.n_receivers * bool(
-            layout.share_inputs
-        )
+        self.latent_dim_pi = layout.n_candidates
         self.latent_dim_vf = hidden
 
     def zero_residual(self) -> None:
@@ -184,8 +160,6 @@ class CandidateNetworks(nn.Module):
         nn.init.zeros_(self.score_out.bias)
         if self.linear is not None:
             nn.init.zeros_(self.linear.weight)
-        if self.share_weights is not None:
-            nn.init.zeros_(self.share_weights)
 
     def prior(self, loss: th.Tensor, kept: th.Tensor, remaining: th.Tensor) -> th.Tensor:
         """The ``plan-horizon`` objective ``(B, C)``, relative to the best candidate: planned
@@ -242,19 +216,7 @@ class CandidateNetworks(nn.Module):
             residual = self.linear(self.linear_features(obs)).squeeze(-1)
         else:
             residual = self.score_out(self.scorer(x)).squeeze(-1)
-        scores = th.exp(self.log_alpha) * prior + residual
-        if self.share_weights is None:
-            return scores
-        return th.cat([scores, self.share_logits(obs, scores.argmax(dim=1))], dim=1)
-
-    def share_logits(self, obs: th.Tensor, choice: th.Tensor) -> th.Tensor:
-        """The share bits' logits ``(B, 2 n)`` (per receiver: 0 for keeping, ``s`` for
-        sharing) under the candidates ``choice (B,)``: ``s`` is the rule's logit plus the
-        share weights times the features of the share block, so that zero weights share
-        exactly as the rule (``s > 0``)."""
-        block = self.layout.share_block(obs)[th.arange(obs.shape[0]), choice]  # (B, n, S)
-        s = block[..., 0] + block[..., 1:] @ self.share_weights
-        return th.stack([th.zeros_like(s), s], dim=-1).reshape(obs.shape[0], -1)
+        return th.exp(self.log_alpha) * prior + residual
 
     def forward_critic(self, obs: th.Tensor) -> th.Tensor:
         x, _, base, remaining = self.inputs(obs)
@@ -274,11 +236,8 @@ class CandidatePolicy(ActorCriticPolicy):
     (the time feature's ``T``), ``n_receivers`` (the kept fraction's denominator),
     ``prior_horizon`` and ``prior_keep`` (the prior rule's settings), ``hidden`` (width of the
     shared MLPs), ``alpha_init`` (initial weight of the prior, per unit of return) and
-    ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form) and ``share`` (the
-    action also holds a share bit per receiver, ``pointing-plan`` with ``share_bits``, whose
-    logits are the rule's plus a learned linear term of the ``plan-features`` share block:
-    :meth:`CandidateNetworks.share_logits`) and ``schedule`` (the observation holds the
-    ``plan-features`` schedule block, which the linear residual weighs:
+    ``residual`` (``"mlp"`` or ``"linear"``: the learned score's form) and ``schedule`` (the
+    observation holds the ``plan-features`` schedule block, which the linear residual weighs:
     :meth:`CandidateNetworks.linear_features`)."""
 
     def __init__(
@@ -294,38 +253,21 @@ class CandidatePolicy(ActorCriticPolicy):
         hidden: int = 64,
         alpha_init: float = 3.0,
         residual: str = "mlp",
-        share: bool = False,
         schedule: bool = False,
         **kwargs: Any,
     ):
-        if share:
-            bits = [2] * int(n_receivers)
-            if not (
-                isinstance(action_space, spaces.MultiDiscrete)
-                and action_space.nvec.ndim == 1
-                and list(action_space.nvec[1:]) == bits
-            ):
-                raise ValueError(
-                    "CandidatePolicy: share needs a MultiDiscrete([C] + [2] * n_receivers) action "
-                    f"(pointing-plan with share_bits), got {action_space}"
-                )
-            C, S = int(action_space.nvec[0]), len(SHARE_INPUTS)
-        elif isinstance(action_space, spaces.Discrete):
-            C, S = int(action_space.n), 0
-        else:
+        if not isinstance(action_space, spaces.Discrete):
             raise ValueError(f"CandidatePolicy: needs a Discrete action, got {action_space}")
+        C = int(action_space.n)
         if not isinstance(observation_space, spaces.Box) or len(observation_space.shape) != 1:
             raise ValueError(
                 f"CandidatePolicy: needs a flat Box observation, got {observation_space}"
             )
         H = len(horizons) + 1
-        n_share = int(n_receivers) if share else 0
         n_schedule = len(SCHEDULE_FEATURES) if schedule else 0
-        base_dim = (
-            observation_space.shape[0] - C * (2 * H + 1) - C * n_share * S - C * n_schedule - 1
-        )
+        base_dim = observation_space.shape[0] - C * (2 * H + 1) - C * n_schedule - 1
         self.layout = CandidateLayout(
-            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps), n_share, S, n_schedule
+            C, tuple(int(h) for h in horizons), base_dim, int(episode_steps), n_schedule
         )
         if base_dim < 0:
             raise ValueError(
@@ -358,12 +300,8 @@ class CandidatePolicy(ActorCriticPolicy):
         )
 
     def search_parameter(self) -> nn.Parameter:
-        """The vector a direct policy search perturbs, zero the prior rule: with ``share`` the
-        share weights ``(len(SHARE_FEATURES),)`` (the assignment's residual then stays at
-        zero: the search moves the sharing alone, whose paired differences are small);
-        otherwise the linear residual's weights ``(1, 2 H + 1 + S)`` (``residual="linear"``)."""
-        if self.mlp_extractor.share_weights is not None:
-            return self.mlp_extractor.share_weights
+        """The vector a direct policy search perturbs, zero the prior rule: the linear
+        residual's weights ``(1, 2 H + 1 + S)`` (``residual="linear"``)."""
         linear = self.mlp_extractor.linear
         if linear is None:
             raise ValueError("search_parameter: the policy's residual is not linear")

@@ -15,12 +15,11 @@ over the candidate assignments the assignment rules enumerate, in their order.
 :class:`PlanFeatures` (``plan-features``) appends the planner's own evidence to the
 observation: :func:`~sensorgym.agents.stereo_pointing.plan_values` of every candidate on the
 tracker's estimate for a few horizons and for the time left, so that a policy can reproduce the
-``plan-estimate`` rule by an argmax and learn when to deviate from it. With ``sharing`` both
-aim a receiver between two drones as the ``plan-acquire-share`` rule does; with ``share_bits``
-the action also says per receiver whether to share, and ``plan-features`` appends what that
-decision may weigh (issue 13). With ``cue_steps`` (1) ``pointing-plan`` holds each receiver on
-the drone it is cued to for the episode's first step as the ``plan-fix-first`` rule does, so
-that with both the zero point of a learned correction is that rule. Everything it computes
+``plan-estimate`` rule by an argmax and learn when to deviate from it. With ``sharing``
+``pointing-plan`` aims a receiver between two drones as the ``plan-acquire-share`` rule does.
+With ``cue_steps`` (1) ``pointing-plan`` holds each receiver on the drone it is cued to for the
+episode's first step as the ``plan-fix-first`` rule does, so that with both the zero point of a
+learned correction is that rule. Everything it computes
 comes from the observation and the step count of the episode (fieldable), never from the
 simulator state.
 """
@@ -38,7 +37,6 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from sensorgym.agents.stereo_pointing import (
     _assignments,
     _keep_bonus,
-    _View,
     _view,
     acquisition_probability,
     drone_rewards,
@@ -54,11 +52,7 @@ from sensorgym.agents.stereo_pointing_schedule import (
     schedule_features,
 )
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
-from sensorgym.agents.stereo_pointing_sharing import (
-    SHARE_INPUTS,
-    Sharing,
-    share_inputs,
-)
+from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing.simulation import (
     PointingParams,
     assignment_actions,
@@ -123,7 +117,6 @@ class PlanAction(ObservedActionWrapper):
         venv: VecEnv,
         params: PointingParams | None = None,
         sharing: Sharing | None = None,
-        share_bits: bool = False,
         cue_steps: int = 0,
         search: EpipolarSearch | None = None,
     ):
@@ -134,8 +127,6 @@ class PlanAction(ObservedActionWrapper):
         """Where the receivers of a lost drone look; ``None``: at its prediction."""
         if sharing is not None and not isinstance(sharing, Sharing):
             raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
-        if share_bits and sharing is None:
-            raise ValueError("share_bits: needs a sharing setting (whose partner each bit names)")
         self.cue_steps = check_cue_steps(cue_steps)
         """On an episode's first ``cue_steps`` steps every receiver aimed at a drone stays on
         it whatever the candidate says (:func:`~sensorgym.agents.stereo_pointing_horizon.cue_hold`,
@@ -143,11 +134,6 @@ class PlanAction(ObservedActionWrapper):
         self._steps = EpisodeSteps(venv.num_envs)
         self.sharing = sharing
         """When a receiver aims between two drones; ``None``: always at its own drone."""
-        self.share_bits = bool(share_bits)
-        """The action is ``MultiDiscrete([m^n] + [2] * n)``: the candidate, then per receiver
-        whether it shares with its partner
-        (:func:`~sensorgym.agents.stereo_pointing_sharing.decided_aims`) instead of the
-        ``sharing`` rule's own test."""
         if venv.observation_space.shape != (p.obs_dim,):
             raise ValueError(
                 f"venv: expected the joint observation ({p.obs_dim},), got "
@@ -155,11 +141,7 @@ class PlanAction(ObservedActionWrapper):
             )
         self.candidates = _assignments(p)
         """``(m^n, n)``: candidate ``c`` sends receiver ``k`` to drone ``candidates[c, k]``."""
-        C = len(self.candidates)
-        space: spaces.Space = spaces.Discrete(C)
-        if self.share_bits:
-            space = spaces.MultiDiscrete([C] + [2] * p.n_receivers)
-        super().__init__(venv, space)
+        super().__init__(venv, spaces.Discrete(len(self.candidates)))
         self.params = p
 
     def index(self, assignment: NDArray[Any]) -> NDArray[np.int64]:
@@ -169,9 +151,8 @@ class PlanAction(ObservedActionWrapper):
 
     def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
         a = np.asarray(actions, dtype=np.int64).reshape(self.num_envs, -1)
-        width = 1 + self.params.n_receivers if self.share_bits else 1
-        if a.shape[1] != width:
-            raise ValueError(f"actions: expected {width} values per env, got {a.shape[1]}")
+        if a.shape[1] != 1:
+            raise ValueError(f"actions: expected 1 value per env, got {a.shape[1]}")
         choice = a[:, 0]
         if np.any((choice < 0) | (choice >= len(self.candidates))):
             raise ValueError(f"actions: candidate indices must lie in [0, {len(self.candidates)})")
@@ -179,20 +160,8 @@ class PlanAction(ObservedActionWrapper):
         if self.sharing is None and not self.cue_steps and self.search is None:
             return assignment_actions(self.params, obs, target)
         view = _view(self.params, np.asarray(obs, dtype=np.float64))
-        bits = None
-        if self.share_bits:
-            bits = a[:, 1:]
-            if np.any((bits < 0) | (bits > 1)):
-                raise ValueError("actions: share bits must be 0 or 1")
         points, index = plan_aims(
-            self.params,
-            view,
-            target,
-            self._steps.t,
-            self.cue_steps,
-            self.sharing,
-            self.search,
-            bits,
+            self.params, view, target, self._steps.t, self.cue_steps, self.sharing, self.search
         )
         return slew_actions(self.params, view.azimuth, view.elevation, points, index)
 
@@ -209,23 +178,21 @@ class PlanAction(ObservedActionWrapper):
 def plan_wrapper(
     venv: VecEnv,
     sharing: bool | dict[str, float] | None = None,
-    share_bits: bool = False,
     cue_steps: int = 0,
     search: bool | dict[str, Any] | None = None,
 ) -> VecEnv:
     """Factory of the ``pointing-plan`` wrapper (``WRAPPERS`` registry). ``sharing``: ``true``
     for the registered :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing` (the
     ``plan-acquire-share`` rule's), a mapping of its fields (``margin``, ``fraction``,
-    ``max_rms``), or absent/``false``/``null`` for none; ``share_bits``: a share bit per
-    receiver in the action; ``cue_steps``: the episode's first steps on which a receiver aimed
-    at a drone keeps it (absent: 0, none; the ``plan-fix-first`` rule's 1); ``search``: ``true``
-    for the registered :class:`~sensorgym.agents.stereo_pointing_search.EpipolarSearch` (the
-    ``plan-search`` rule's), a mapping of its fields, or absent/``false``/``null`` for none
+    ``max_rms``), or absent/``false``/``null`` for none; ``cue_steps``: the episode's first
+    steps on which a receiver aimed at a drone keeps it (absent: 0, none; the
+    ``plan-fix-first`` rule's 1); ``search``: ``true`` for the registered
+    :class:`~sensorgym.agents.stereo_pointing_search.EpipolarSearch` (the ``plan-search``
+    rule's), a mapping of its fields, or absent/``false``/``null`` for none
     (:class:`PlanAction`)."""
     return PlanAction(
         venv,
         sharing=_sharing(sharing),
-        share_bits=bool(share_bits),
         cue_steps=cue_steps,
         search=_search(search),
     )
@@ -294,14 +261,8 @@ class PlanFeatures(VecEnvWrapper):
     at these horizons, after the ``horizons`` blocks and before the time left, so that a
     policy sees where the two models disagree (``H`` counts them too).
 
-    With ``sharing`` (a :class:`~sensorgym.agents.stereo_pointing_sharing.Sharing`) the share
-    block follows the kept fractions: per candidate and receiver the inputs of a learned share
-    decision, :func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs` (the rule's share
-    logit, then the share features), ``m^n · n · len(SHARE_INPUTS)`` values; a ``pointing-plan``
-    with ``share_bits`` and the same setting acts on them.
-
     With ``schedule`` (a :class:`~sensorgym.agents.stereo_pointing_schedule.Schedule`) the
-    schedule block follows (after the share block): per candidate the re-acquisition evidence
+    schedule block follows the kept fractions: per candidate the re-acquisition evidence
     of :func:`~sensorgym.agents.stereo_pointing_schedule.schedule_features` (the urgency of the
     drones it leaves without a pair, whether it pairs the drone ``plan-schedule`` would force,
     the lost drones it pairs, how far the unpaired drones' errors have grown),
@@ -318,12 +279,9 @@ class PlanFeatures(VecEnvWrapper):
         params: PointingParams | None = None,
         acquisition: bool = False,
         plain_horizons: tuple[int, ...] | list[int] = (),
-        sharing: Sharing | None = None,
         schedule: Schedule | None = None,
     ):
         p = _pointing_params(venv, params)
-        if sharing is not None and not isinstance(sharing, Sharing):
-            raise TypeError(f"sharing: expected a Sharing or None, got {type(sharing)!r}")
         if schedule is not None and not isinstance(schedule, Schedule):
             raise TypeError(f"schedule: expected a Schedule or None, got {type(schedule)!r}")
         if venv.observation_space.shape != (p.obs_dim,):
@@ -344,12 +302,8 @@ class PlanFeatures(VecEnvWrapper):
         if not isinstance(stride, int) or stride < 1:
             raise ValueError(f"plan-features: stride must be an integer >= 1, got {stride!r}")
         limit = max_episode_steps or _time_limit(venv)
-        if (time_left or sharing is not None) and not (
-            isinstance(limit, int | np.integer) and limit >= 1
-        ):
-            raise ValueError(
-                f"plan-features: time_left and sharing need a time limit, got {limit!r}"
-            )
+        if time_left and not (isinstance(limit, int | np.integer) and limit >= 1):
+            raise ValueError(f"plan-features: time_left needs a time limit, got {limit!r}")
         self.params = p
         self.horizons = tuple(int(h) for h in horizons)
         self.time_left = bool(time_left)
@@ -360,22 +314,16 @@ class PlanFeatures(VecEnvWrapper):
         self.candidates = _assignments(p)
         C = len(self.candidates)
         H = len(self.horizons) + len(self.plain_horizons) + int(self.time_left)
-        self.sharing = sharing
-        """With a setting, the share block follows: per candidate and receiver the inputs of a
-        learned share decision
-        (:func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs`)."""
         self.schedule = schedule
-        """With a setting, the schedule block follows the share block: per candidate the
+        """With a setting, the schedule block follows the kept fractions: per candidate the
         :func:`~sensorgym.agents.stereo_pointing_schedule.schedule_features`."""
         extra = C * (2 * H + 1)
-        share = C * p.n_receivers * len(SHARE_INPUTS) if sharing is not None else 0
         sched = C * len(SCHEDULE_FEATURES) if schedule is not None else 0
         box = venv.observation_space
         low = np.concatenate(
             [
                 box.low,
                 np.full(extra, -10.0, np.float32),
-                np.full(share, -20.0, np.float32),
                 np.zeros(sched, np.float32),
             ]
         ).astype(np.float32)
@@ -383,7 +331,6 @@ class PlanFeatures(VecEnvWrapper):
             [
                 box.high,
                 np.ones(extra, np.float32),
-                np.full(share, 20.0, np.float32),
                 np.full(sched, float(p.n_drones), np.float32),
             ]
         ).astype(np.float32)
@@ -417,22 +364,9 @@ class PlanFeatures(VecEnvWrapper):
             parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
             parts.append(np.eye(C)[np.argmax(v, axis=1)])
         parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
-        if self.sharing is not None:
-            parts.append(self.share_block(view, t))
         if self.schedule is not None:
             parts.append(schedule_features(self.params, view, self.schedule).reshape(N, -1))
         return np.concatenate(parts, axis=1).astype(np.float32)
-
-    def share_block(self, view: _View, t: NDArray[np.int64]) -> NDArray[np.float64]:
-        """``(N, m^n · n · len(SHARE_INPUTS))``: per candidate (in order), per receiver, the
-        :func:`~sensorgym.agents.stereo_pointing_sharing.share_inputs` of that assignment,
-        the time left ``(T − t) / T`` as the time feature's."""
-        N, C = len(t), len(self.candidates)
-        every = _View(*(np.repeat(getattr(view, f.name), C, axis=0) for f in fields(_View)))
-        target = np.tile(self.candidates, (N, 1))
-        left = np.repeat((self.max_episode_steps - t) / self.max_episode_steps, C)
-        x = share_inputs(self.params, every, target, self.sharing, left)
-        return x.reshape(N, -1)
 
     def base_observation(self, obs: NDArray[Any]) -> NDArray[Any]:
         """The env's own observation in ``obs`` (the features dropped)."""
@@ -459,15 +393,12 @@ class PlanFeatures(VecEnvWrapper):
 def plan_features(venv: VecEnv, **kwargs: Any) -> VecEnv:
     """Factory of the ``plan-features`` wrapper (``WRAPPERS`` registry); keywords as
     :class:`PlanFeatures` (``horizons``, ``time_left``, ``stride``, ``max_episode_steps``,
-    ``acquisition``, ``plain_horizons``; ``sharing`` as ``pointing-plan``'s: the share
-    block; ``schedule``: ``true`` for the default
+    ``acquisition``, ``plain_horizons``; ``schedule``: ``true`` for the default
     :class:`~sensorgym.agents.stereo_pointing_schedule.Schedule` (``plan-schedule``'s), a
     mapping of its fields, or absent/``false``/``null`` for none: the schedule block)."""
     for key in ("horizons", "plain_horizons"):
         if key in kwargs:
             kwargs[key] = tuple(kwargs[key])
-    if "sharing" in kwargs:
-        kwargs["sharing"] = _sharing(kwargs["sharing"])
     if "schedule" in kwargs:
         kwargs["schedule"] = _setting(
             kwargs["schedule"], Schedule, "schedule", lambda _, v: float(v)

@@ -11,6 +11,11 @@ to the best static sharing setting of the probe, (0.5, 1.0, 3)
 ``research/stereo_pointing/results/pointing_share_ars.json``: per run its share weights by feature name,
 scenario seeds, and per seed the paired differences with 95 % intervals. Tuning seeds only
 (never 10000 or 31337): the held-out check is ``sensorgym benchmark``'s.
+
+The share bits (``pointing-plan`` with ``share_bits``, ``plan-features`` with ``sharing``,
+``CandidatePolicy`` with ``share``) were removed from the product by issue 38: scoring these
+runs needs the product at commit ``be69734``, the last that has them. :func:`ars_run_record`
+still serves ``pointing_ars_plan_search.py``.
 """
 
 from __future__ import annotations
@@ -23,9 +28,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 from pointing_sharing import tuning_args
+from pointing_sharing_state import SHARE_FEATURES
 
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
-from sensorgym.agents.stereo_pointing_sharing import SHARE_FEATURES, Sharing
+from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.train.benchmark import paired_difference
 from sensorgym.train.evaluation import evaluate, make_sb3_env

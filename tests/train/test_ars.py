@@ -13,7 +13,7 @@ import torch as th
 from sensorgym.agents.registry import RULES
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
-from sensorgym.agents.stereo_pointing_sharing import SHARE_INPUTS, Sharing
+from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.envs.stereo_pointing.wrappers import PlanAction, _find
 from sensorgym.train.ars import ARS, SCENARIO_SEEDS
@@ -140,47 +140,15 @@ def test_the_linear_features_are_the_plan_gaps_flags_and_kept_receivers():
     th.testing.assert_close(x[..., 8], 4.0 * kept)
 
 
-#: the learned sharing's wrappers (the runs of ``research/stereo_pointing/results/pointing_share_ars.json``)
-SHARE_WRAPPERS = [
-    {"name": "pointing-plan", "sharing": True, "share_bits": True},
-    {"name": "plan-features", "acquisition": True, "sharing": True},
-    {"name": "time-feature"},
-]
-
-
-def _learned_share(**overrides) -> ARS:
-    """The ARS model of the learned sharing: ``pointing-plan`` with the registered sharing and
-    share bits, ``plan-features`` with the share block, the policy's ``share``."""
-    kwargs = {**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "share": True}
-    return _model(wrappers=SHARE_WRAPPERS, policy_kwargs=kwargs, **overrides)
-
-
-def test_a_learned_sharing_run_reloads_to_the_same_actions(tmp_path):
-    kwargs = {**load_hyperparams("ars", ENV_ID)["policy_kwargs"], "share": True}
-    hp = {"episodes": 2, "n_directions": 1, "noise_std": 0.5, "learning_rate": 1.0}
-    result = _tiny_run(tmp_path, 4, {**hp, "wrappers": SHARE_WRAPPERS, "policy_kwargs": kwargs})
-    loaded = load_model(result.run_dir)
-    assert loaded.theta.shape == (11,) and result.model.theta.any()
-    np.testing.assert_array_equal(loaded.theta, result.model.theta)
-    _same_actions(result.model, loaded, make_sb3_env(ENV_ID, 4, 5, wrappers=SHARE_WRAPPERS), (4, 5))
-
-
-@pytest.mark.parametrize(
-    ("share_bits", "cue_steps", "search"),
-    [(False, 0, False), (True, 0, False), (False, 1, False), (False, 1, True)],
-)
-def test_with_sharing_the_untrained_policy_acts_as_the_rule(share_bits, cue_steps, search):
-    """With ``pointing-plan``'s ``sharing`` (and with the learned share bits at zero weights)
-    the untrained policy's env actions are the plan-acquire-share rule's on every step of two
-    episodes of four seeded scenarios; with ``cue_steps`` 1 as well they are the plan-fix-first
-    rule's, the wrapper's step count restarting with each episode, and with ``search`` too the
-    plan-search rule's. The
+@pytest.mark.parametrize(("cue_steps", "search"), [(0, False), (1, False), (1, True)])
+def test_with_sharing_the_untrained_policy_acts_as_the_rule(cue_steps, search):
+    """With ``pointing-plan``'s ``sharing`` the untrained policy's env actions are the
+    plan-acquire-share rule's on every step of two episodes of four seeded scenarios; with
+    ``cue_steps`` 1 as well they are the plan-fix-first rule's, the wrapper's step count
+    restarting with each episode, and with ``search`` too the plan-search rule's. The
     registered setting shares some receiver-steps (without it the actions differ), and the cue
     hold changes some first steps (without it the actions differ there)."""
-    if share_bits:
-        model = _learned_share(n_envs=4, episodes=4)
-        assert model.action_space.shape == (5,) and np.array_equal(model.theta, np.zeros(11))
-    elif cue_steps:
+    if cue_steps:
         extra = {"search": True} if search else {}
         model = _model(n_envs=4, episodes=4, wrappers=_share_wrappers(True, cue_steps=1, **extra))
     else:
@@ -211,10 +179,9 @@ def test_with_sharing_the_untrained_policy_acts_as_the_rule(share_bits, cue_step
         ours = plan.env_action(action, plan.last_obs).astype(np.float32)
         theirs, state = rule.predict(plan.last_obs, state, start)
         np.testing.assert_array_equal(ours, theirs)
-        candidate = np.asarray(action).reshape(4, -1)[:, 0]
-        differs += int(np.any(ours != straight.env_action(candidate, plan.last_obs)))
+        differs += int(np.any(ours != straight.env_action(action, plan.last_obs)))
         if cue_steps and step % 150 == 0:
-            held += int(np.any(ours != uncued.env_action(candidate, plan.last_obs)))
+            held += int(np.any(ours != uncued.env_action(action, plan.last_obs)))
         obs, _, start, _ = model.env.step(action)
     assert differs > 0
     assert held == (2 if cue_steps else 0)
@@ -233,30 +200,3 @@ def test_bad_sharing_settings_are_refused():
     for bad, match in (({"bogus": 1}, "unknown"), ("yes", "mapping"), ({"lost_rms": -1}, "lost")):
         with pytest.raises(ValueError, match=match):
             _model(wrappers=_share_wrappers(True, search=bad))
-
-
-def test_the_share_weights_decide_the_sharing():
-    """A bias weight of -20 keeps every receiver on its drone (plan-acquire's env actions on
-    every step of a seeded episode); +20 sets the share bit of every receiver."""
-    model = _learned_share(n_envs=4, episodes=4)
-    plan = _find(model.env, PlanAction, "pointing-plan")
-    rule = PlanHorizon(PointingParams(), acquisition=True)
-    bias = SHARE_INPUTS.index("bias") - 1  # the rule's logit has no weight
-    for weight in (-20.0, 20.0):
-        theta = np.zeros(11)
-        theta[bias] = weight
-        model.set_theta(theta)
-        model.env.seed(5)
-        obs = model.env.reset()
-        state, start = None, np.ones(4, dtype=bool)
-        for _ in range(150):
-            action, _ = model.predict(obs, deterministic=True)
-            bits = np.asarray(action).reshape(4, -1)[:, 1:]
-            if weight < 0:
-                assert not bits.any()
-                ours = plan.env_action(action, plan.last_obs).astype(np.float32)
-                theirs, state = rule.predict(plan.last_obs, state, start)
-                np.testing.assert_array_equal(ours, theirs)
-            else:
-                assert bits.all()
-            obs, _, start, _ = model.env.step(action)

@@ -10,14 +10,7 @@ import pytest
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_pointing import _view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
-from sensorgym.agents.stereo_pointing_sharing import (
-    GAIN_CAP,
-    SHARE_FEATURES,
-    Sharing,
-    share_features,
-    share_logits,
-    shared_aims,
-)
+from sensorgym.agents.stereo_pointing_sharing import Sharing, share_logits, shared_aims
 from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, slew_actions
 from sensorgym.trackers.geometry import unit_from_angles
@@ -142,50 +135,3 @@ def test_the_share_logits_are_positive_exactly_where_the_stated_test_holds():
                     np.testing.assert_array_equal(logits[:, k, j] > 0, expect)
                     passed, failed = passed + expect.sum(), failed + (~expect).sum()
     assert passed > 0 and failed > 0
-
-
-def _bound(view, b: int, j: int, receivers: list[int]) -> float:
-    """``√tr G⁻¹`` of drone ``j`` seen by ``receivers`` (inf for fewer than two)."""
-    if len(receivers) < 2:
-        return np.inf
-    u, r = view.los[b, receivers, j], view.ranges[b, receivers, j]
-    info = sum((np.eye(3) - np.outer(a, a)) / d**2 for a, d in zip(u, r, strict=True))
-    return float(np.sqrt(np.trace(np.linalg.inv(info))))
-
-
-def test_the_share_features_count_receivers_and_the_partner_gain():
-    """Per receiver and drone: the other receivers sent to the drone and to the own one, and
-    the partner gain ``ln(σ_without/σ_with)`` of the position bound, recomputed here from the
-    receivers' lines of sight; zero for the own drone."""
-    params = PointingParams()
-    names = {name: i for i, name in enumerate(SHARE_FEATURES)}
-    finite = 0
-    for view, target, t in _scenario_views(params, 11, 4, 30)[::10]:
-        x = share_features(params, view, target, np.full(4, 1.0 - t / 150))
-        assert x.shape == (4, params.n_receivers, params.n_drones, len(SHARE_FEATURES))
-        for b in range(4):
-            for k in range(params.n_receivers):
-                for j in range(params.n_drones):
-                    others = [i for i in range(params.n_receivers) if i != k and target[b, i] == j]
-                    mine = [
-                        i
-                        for i in range(params.n_receivers)
-                        if i != k and target[b, i] == target[b, k]
-                    ]
-                    assert x[b, k, j, names["partner_receivers"]] == len(others)
-                    assert x[b, k, j, names["own_receivers"]] == len(mine)
-                    assert x[b, k, j, names["time_left"]] == pytest.approx(1.0 - t / 150)
-                    gain = x[b, k, j, names["partner_gain"]]
-                    if j == target[b, k]:
-                        assert gain == 0.0
-                        continue
-
-                    without, with_k = _bound(view, b, j, others), _bound(view, b, j, [*others, k])
-                    if np.isinf(with_k):
-                        assert gain == 0.0
-                    elif np.isinf(without):
-                        assert gain == GAIN_CAP
-                    else:
-                        assert gain == pytest.approx(np.log(without / with_k), rel=1e-6)
-                        finite += 1
-    assert finite > 0
