@@ -25,7 +25,9 @@ DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
-    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac"])
+    parser.add_argument(
+        "--algo", default="ppo", choices=["ppo", "sac", "ars"], help="trainer (default ppo)"
+    )
     parser.add_argument(
         "--seeds",
         type=types.seed,

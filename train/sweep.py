@@ -13,8 +13,11 @@ policy's evaluation return with its 95 % interval across seeds (Student t), and 
 configuration — and, with ``benchmark_episodes > 0``, fans the benchmark out as Ray tasks:
 every rule, every shipped policy and every seed's run of the best configuration, the episodes
 split into chunks (chunk ``k`` seeded ``eval_seed + k``, the same scenarios for every policy).
-Ray runs locally by default (``address=None``) or on an existing cluster (``address="auto"``
-or ``"HOST:6379"``); see ``docs/sweeps.md``.
+Ray runs on an instance of its own by default (``address=None`` starts one with
+``address="local"``, so a stale cluster file another Ray head left in Ray's temp folder or a
+``RAY_ADDRESS`` in the environment is never joined by accident) or on an existing cluster
+(``address="auto"`` or ``"HOST:6379"``; with Ray's token auth, ``RAY_AUTH_MODE=token`` and the
+cluster's token in the environment, see ``docs/sweeps.md``).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -42,7 +46,8 @@ class SweepSettings:
     env_id: str
     """The registered env id."""
     algo: str = "ppo"
-    """``"ppo"`` or ``"sac"``."""
+    """A trainer of :data:`~sensorgym.train.config.ALGORITHMS` (``"ppo"``, ``"sac"``, ``"ars"``)
+    with an entry for ``env_id`` in its ``hyperparams/<algo>.yml``."""
     seeds: tuple[int, ...] = (0, 1)
     """Training seeds: every configuration is trained once with each."""
     timesteps: int | None = None
@@ -124,14 +129,23 @@ def config_tag(overrides: dict[str, Any]) -> str:
 
 def _trial(config: dict[str, Any], settings: SweepSettings, out: str) -> None:
     """One Tune trial: an ordinary ``sensorgym train`` run, reporting its training return after
-    every rollout (for ASHA) and at the end its evaluation and run folder."""
+    every rollout (PPO, SAC) or iteration (ARS: the mean return of its perturbed policies) for
+    ASHA, and at the end its evaluation and run folder."""
     from ray import tune
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from sensorgym.train.ars import ARS
     from sensorgym.train.trainer import train
 
     class ReportRollouts(BaseCallback):
         def _on_step(self) -> bool:
+            if isinstance(self.model, ARS) and self.model.history:  # one call per iteration
+                tune.report(
+                    {
+                        TRAIN_METRIC: float(self.model.history[-1]["mean_return"]),
+                        "timesteps": self.num_timesteps,
+                    }
+                )
             return True
 
         def _on_rollout_end(self) -> None:
@@ -163,6 +177,8 @@ def _trial(config: dict[str, Any], settings: SweepSettings, out: str) -> None:
     trained = result.evaluation["trained"]
     buffer = result.model.ep_info_buffer if result.model is not None else []
     final_return = float(np.mean([e["r"] for e in buffer])) if buffer else trained["mean"]
+    if isinstance(result.model, ARS) and result.model.history:
+        final_return = float(result.model.history[-1]["mean_return"])
     tune.report(
         {
             TRAIN_METRIC: final_return,
@@ -214,6 +230,27 @@ def aggregate(trials: list[dict[str, Any]]) -> dict[str, Any]:
     return {"configs": configs, "best": best, "incomplete": incomplete}
 
 
+#: where ``ray start`` (Ray >= 2.59, token auth on by default) writes the token it generates
+RAY_TOKEN_FILE = Path("~/.ray/auth_token")
+
+
+def join_with_token(address: str | None) -> bool:
+    """Before joining the cluster at ``address``, turn Ray's token auth on for this process
+    when a token is at hand and the environment does not choose: ``RAY_AUTH_MODE`` unset,
+    and ``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or :data:`RAY_TOKEN_FILE` present.
+
+    A head started by ``ray start --head`` on Ray >= 2.59 refuses clients without the token
+    (``InvalidAuthToken``), and a client sends it only in token mode; a cluster without auth
+    accepts a client in token mode too. Returns whether the mode was set here."""
+    if address is None or "RAY_AUTH_MODE" in os.environ:
+        return False
+    has_token = bool(os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH"))
+    if not (has_token or RAY_TOKEN_FILE.expanduser().is_file()):
+        return False
+    os.environ["RAY_AUTH_MODE"] = "token"
+    return True
+
+
 def run_sweep(
     settings: SweepSettings,
     out: Path,
@@ -222,8 +259,8 @@ def run_sweep(
     num_cpus: int | None = None,
     verbose: int = 0,
 ) -> dict[str, Any]:
-    """Run the sweep on Ray (a local instance started here with ``num_cpus``, or the cluster at
-    ``address``), write ``OUT/sweep.json`` and the charts, and return the document written.
+    """Run the sweep on Ray (an instance of its own started here with ``num_cpus`` when
+    ``address`` is ``None``, or the cluster at ``address``), write ``OUT/sweep.json`` and the charts, and return the document written.
 
     An instance already initialised in this process is used as it is (and left running);
     one started here is shut down at the end."""
@@ -242,8 +279,9 @@ def run_sweep(
     space = dict(parse_space(f"{k}={v}") for k, v in settings.space.items())
     started = not ray.is_initialized()
     if started:
+        join_with_token(address)
         ray.init(
-            address=address,
+            address="local" if address is None else address,
             num_cpus=num_cpus if address is None else None,
             include_dashboard=False,
             log_to_driver=verbose > 0,

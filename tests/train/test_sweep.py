@@ -3,6 +3,15 @@
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,14 +20,28 @@ from scipy import stats
 from sensorgym.cli.main import main
 from sensorgym.train.benchmark import PolicySpec, pool, score
 from sensorgym.train.models import read_config
-from sensorgym.train.sweep import aggregate, config_tag, parse_space
+from sensorgym.train.sweep import aggregate, config_tag, join_with_token, parse_space
 
 pytest.importorskip("ray")
 
 ENV = "sensorgym/BearingsManeuver-v0"
 
 
-def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys):
+@pytest.fixture
+def short_tmp():
+    """A temp folder with a short path (Ray's socket paths under it must fit 107 bytes)."""
+    path = Path(tempfile.mkdtemp(prefix="sgray"))
+    yield path
+    shutil.rmtree(path, ignore_errors=True)
+
+
+def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys, monkeypatch, short_tmp):
+    # the cluster file a head that has gone left in Ray's temp folder is not joined: a local
+    # sweep starts an instance of its own (Ray's temp folder moved to a short one of this test)
+    (short_tmp / "ray").mkdir()
+    (short_tmp / "ray" / "ray_current_cluster").write_text("127.0.0.1:1")
+    monkeypatch.setenv("RAY_TMPDIR", str(short_tmp))
+    monkeypatch.delenv("RAY_ADDRESS", raising=False)
     args = ["--seeds", "0", "1", "--timesteps", "2048", "--n-envs", "8", "--eval-episodes", "4"]
     args += ["--hyperparam", "pretrain.steps=2000"]  # a small imitation phase, set for every trial
     bench = ["--benchmark-episodes", "8", "--benchmark-chunk", "4"]  # 2 Ray tasks per policy
@@ -119,3 +142,83 @@ def test_pooling_keeps_each_episodes_bound_and_tail_in_order():
     assert pooled["tails"] == {"final_error": [10.0, 20.0, 30.0]}  # only what every part has
     del parts[1]["bounds"]
     assert "bounds" not in pool(parts)
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _processes_naming(text: str) -> list[int]:
+    """pids of the processes whose command line contains ``text``, and of their children."""
+    table = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                cmd = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="ignore")
+                ppid = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except (OSError, ValueError, IndexError):
+                continue
+            table[int(entry.name)] = (cmd, ppid)
+    ours = {pid for pid, (cmd, _) in table.items() if text in cmd}
+    return sorted(ours | {pid for pid, (_, ppid) in table.items() if ppid in ours})
+
+
+@pytest.fixture
+def ray_head(monkeypatch, short_tmp):
+    """A Ray head started by ``ray start --head`` (token auth on, as Ray >= 2.59 starts it) in
+    a temp folder of its own; stopped at the end by its own processes' pids (``ray stop`` would
+    stop every Ray instance on the machine, a parallel test's too)."""
+    if not Path("/proc/self/cmdline").exists():
+        pytest.skip("needs /proc to find the head's processes")
+    port, temp = _free_port(), str(short_tmp)
+    for key in ("RAY_AUTH_MODE", "RAY_ADDRESS"):  # set (so the teardown restores) and remove
+        monkeypatch.setenv(key, "")
+        monkeypatch.delenv(key)
+    ray_cli = Path(sys.executable).parent / "ray"
+    start = [str(ray_cli), "start", "--head", f"--port={port}", "--num-cpus=2"]
+    start += [f"--temp-dir={temp}", "--include-dashboard=false", "--disable-usage-stats"]
+    subprocess.run(start, check=True, capture_output=True, timeout=180)
+    try:
+        yield f"127.0.0.1:{port}"
+    finally:
+        for sig in (signal.SIGTERM, signal.SIGKILL):
+            for pid in _processes_naming(temp):
+                try:
+                    os.kill(pid, sig)
+                except ProcessLookupError:
+                    pass
+            deadline = time.monotonic() + 10
+            while _processes_naming(temp) and time.monotonic() < deadline:
+                time.sleep(0.2)
+
+
+def test_an_ars_sweep_joins_a_head_started_with_token_auth(ray_head, tmp_path):
+    env = "sensorgym/StereoPointing-v0"
+    args = ["--env", env, "--algo", "ars", "--seeds", "0", "--timesteps", "1", "--n-envs", "2"]
+    args += ["--eval-episodes", "2", "--hyperparam", "episodes=2", "--hyperparam", "n_directions=1"]
+    assert main(["sweep", *args, "--address", ray_head, "--out", str(tmp_path)]) == 0
+    assert os.environ.get("RAY_AUTH_MODE") == "token"  # the head's token was sent
+    doc = json.loads((tmp_path / "sweep.json").read_text())
+    assert doc["settings"]["algo"] == "ars" and doc["incomplete"] == 0
+    (config,) = doc["configs"].values()
+    (run_dir,) = config["run_dirs"]
+    assert read_config(run_dir)["algo"] == "ars"
+    evaluation = json.loads((tmp_path / run_dir / "evaluation.json").read_text())
+    assert config["returns"] == [evaluation["results"]["trained"]["mean"]]
+
+
+def test_token_mode_is_set_only_to_join_a_cluster_with_a_token_at_hand(monkeypatch, tmp_path):
+    monkeypatch.setenv("RAY_AUTH_MODE", "")
+    monkeypatch.delenv("RAY_AUTH_MODE")
+    monkeypatch.delenv("RAY_AUTH_TOKEN", raising=False)
+    monkeypatch.delenv("RAY_AUTH_TOKEN_PATH", raising=False)
+    monkeypatch.setattr("sensorgym.train.sweep.RAY_TOKEN_FILE", tmp_path / "none")
+    assert not join_with_token(None)  # a local instance of our own
+    assert not join_with_token("127.0.0.1:6379")  # no token anywhere: as Ray would
+    assert "RAY_AUTH_MODE" not in os.environ
+    monkeypatch.setenv("RAY_AUTH_TOKEN", "secret")
+    assert join_with_token("127.0.0.1:6379") and os.environ["RAY_AUTH_MODE"] == "token"
+    monkeypatch.setenv("RAY_AUTH_MODE", "disabled")  # the user's choice stands
+    assert not join_with_token("auto") and os.environ["RAY_AUTH_MODE"] == "disabled"
