@@ -397,6 +397,32 @@ def spaces(params: ManeuverParams) -> EnvSpaces:
     return EnvSpaces.build("platform", K, K * params.obs_dim, params.obs_dim, 2)
 
 
+def draw_scenario(
+    params: ManeuverParams, rng: np.random.Generator, batch: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Headings ``(B, K)``, target ``(B, 4)`` and platform positions ``(B, K, 2)`` of fresh
+    scenarios (theory §11.2, starting state), drawn in this order: the headings; the target's
+    range ``r₀``, bearing ``β₀`` from platform 1 (at the origin), speed ``v`` and course ``c``;
+    then platforms 2…K uniformly over the disc of ``formation_radius`` around platform 1."""
+    K = params.platforms
+    heading = rng.uniform(*params.initial_heading, (batch, K))
+    r0 = rng.uniform(*params.initial_range, batch)
+    beta0 = rng.uniform(*params.initial_bearing, batch)
+    v = rng.uniform(*params.target_speed, batch)
+    course = rng.uniform(*params.target_course, batch)
+    # x = (r₀ sin β₀, r₀ cos β₀, v sin c, v cos c): angles from North clockwise (§2.5)
+    target = np.stack(
+        [r0 * np.sin(beta0), r0 * np.cos(beta0), v * np.sin(course), v * np.cos(course)], -1
+    )
+    positions = np.zeros((batch, K, 2))
+    if K > 1:
+        # uniform over the disc: ρ = R √u, φ uniform
+        rho = params.formation_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, K - 1)))
+        phi = rng.uniform(-np.pi, np.pi, (batch, K - 1))
+        positions[:, 1:] = np.stack([rho * np.sin(phi), rho * np.cos(phi)], -1)
+    return heading, target, positions
+
+
 def reset(
     params: ManeuverParams,
     rng: np.random.Generator,
@@ -414,25 +440,7 @@ def reset(
     t = 0.0 if like is None else like.bank.t
     K = params.platforms
     # scenario draws, in a fixed order so that a seed fixes every scenario
-    heading = rng.uniform(*params.initial_heading, (batch, K))
-    r0 = rng.uniform(*params.initial_range, batch)
-    beta0 = rng.uniform(*params.initial_bearing, batch)
-    v_t = rng.uniform(*params.target_speed, batch)
-    course = rng.uniform(*params.target_course, batch)
-    target = np.stack(
-        [
-            r0 * np.sin(beta0),
-            r0 * np.cos(beta0),
-            v_t * np.sin(course),
-            v_t * np.cos(course),
-        ],
-        axis=-1,
-    )
-    positions = np.zeros((batch, K, 2))
-    if K > 1:  # uniform over the disc around platform 1
-        rho = params.formation_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, K - 1)))
-        phi = rng.uniform(-np.pi, np.pi, (batch, K - 1))
-        positions[:, 1:] = np.stack([rho * np.sin(phi), rho * np.cos(phi)], -1)
+    heading, target, positions = draw_scenario(params, rng, batch)
     # the first bearings' noise (drawn as noisy_bearings would: z = wrap(β + σ ε))
     eps = rng.standard_normal((batch, K))
     # prior from platform 1's first bearing (Ristic §6.3.1), matched to the draws above: range

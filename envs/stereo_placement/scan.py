@@ -17,7 +17,7 @@ solved for ``(r_1, …, r_n, V)`` by :func:`~sensorgym.trackers.stereo.conjugati
 Covariance mapping. The solver's ``Q = σ_e² (AᵀA)⁻¹`` assumes i.i.d. errors of ``σ_e`` (m) on
 every component of ``e_k`` (the papers' model). A direction error of ``σ_ang`` (rad) displaces
 a point at range ``r`` by about ``r σ_ang`` across the line of sight, so we use
-``σ_e = σ_ang · mean_k r̂_k`` with the *estimated* ranges (the tracker knows no truth). This is
+``σ_e = σ_ang · mean_k |r̂_k|`` with the *estimated* ranges (the tracker knows no truth). This is
 the papers' model, not the angle-noise bound: it is what the tracker reports; the reward uses
 the Cramér–Rao bound instead (:mod:`.simulation`).
 """
@@ -185,7 +185,7 @@ def solve_period(
     if code:  # a zero line of sight: the checked solver raises naming the argument
         solve_conjugation(a1, ak, P, b, dt, order=1)
         raise ValueError("scan: a receiver sits on the drone (no line of sight)")
-    # σ_e = 1 here; the finish rescales Q by σ_e² = (σ_ang · mean r̂)² (module docstring)
+    # σ_e = 1 here; the finish rescales Q by σ_e² = (σ_ang · mean |r̂|)² (module docstring)
     used = _resolve(X, Q, kappa, a1, ak, P, b, dt, DEFAULT_COND_MAX)
     if noisy:  # the same system without noise: is the geometry itself degenerate?
         used_true = _resolve(Xe, Qe, kappa_e, e1, ek, P, b, dt, DEFAULT_COND_MAX)

@@ -350,6 +350,41 @@ def _advance(
 _NO_ACTION = np.zeros((1, 1, 2))
 
 
+def draw_scenario(
+    params: PlacementParams, rng: np.random.Generator, batch: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Receivers ``(B, n, 3)``, drone position and velocity ``(B, 3)`` of ``batch`` fresh
+    scenarios, drawn in this order so that a seed fixes every scenario: receivers uniform in
+    the disc of ``cluster_radius`` (radius ``ρ_c √U``, bearing), then the drone's distance,
+    bearing, height, speed and heading (a straight level line); azimuths from +Z towards +X
+    (theory §2.2)."""
+    n = params.n_receivers
+    radius = params.cluster_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, n)))
+    angle = rng.uniform(-np.pi, np.pi, (batch, n))
+    dist = rng.uniform(*params.start_distance, batch)
+    bearing = rng.uniform(-np.pi, np.pi, batch)
+    height = rng.uniform(*params.start_altitude, batch)
+    speed = rng.uniform(*params.drone_speed, batch)
+    heading = rng.uniform(-np.pi, np.pi, batch)
+    zero = np.zeros_like(radius)
+    o = np.stack([radius * np.sin(angle), zero, radius * np.cos(angle)], -1)
+    p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
+    v = np.stack([speed * np.sin(heading), np.zeros(batch), speed * np.cos(heading)], -1)
+    return o, p, v
+
+
+def draw_cue(
+    params: PlacementParams, p: FloatArray, v: FloatArray, rng: np.random.Generator
+) -> FloatArray:
+    """The tracker's first estimate ``(B, 6)``: the external cue (the drone's position ``p`` and
+    velocity ``v`` plus Gaussian errors ``cue_sigma``, drawn position then velocity) at
+    ``t = 0``, carried back to the start of the first period (``t = −τ``)."""
+    sp, sv = params.cue_sigma
+    cue_p = p + sp * rng.standard_normal(p.shape)
+    cue_v = v + sv * rng.standard_normal(v.shape)
+    return np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
+
+
 def start(
     params: PlacementParams,
     receivers: ArrayLike,
@@ -368,11 +403,7 @@ def start(
     if o.ndim != 3 or p.ndim != 2 or o.shape[0] != B or v.shape != p.shape:
         raise ValueError(f"receivers/drone_position/drone_velocity: batch {B} shapes differ")
     o = in_arena(params, o * np.array([1.0, 0.0, 1.0]))
-    sp, sv = params.cue_sigma
-    cue_p = p + sp * rng.standard_normal(p.shape)
-    cue_v = v + sv * rng.standard_normal(v.shape)
-    # the cue at t = 0, carried back to the start of the first period (t = −τ)
-    before = np.concatenate([cue_p - params.period * cue_v, cue_v], -1)
+    before = draw_cue(params, p, v, rng)
     o, p, v = (np.ascontiguousarray(x) for x in (o, p, v))
     state, _ = _advance(params, np.zeros(B), o, None, p, v, before, rng)
     return state
@@ -388,19 +419,7 @@ def reset(
     Scenarios share nothing: ``like`` is unused."""
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
-    n = params.n_receivers
-    # scenario draws, in a fixed order so that a seed fixes every scenario
-    radius = params.cluster_radius * np.sqrt(rng.uniform(0.0, 1.0, (batch, n)))
-    angle = rng.uniform(-np.pi, np.pi, (batch, n))
-    dist = rng.uniform(*params.start_distance, batch)
-    bearing = rng.uniform(-np.pi, np.pi, batch)
-    height = rng.uniform(*params.start_altitude, batch)
-    speed = rng.uniform(*params.drone_speed, batch)
-    heading = rng.uniform(-np.pi, np.pi, batch)
-    zero = np.zeros_like(radius)
-    o = np.stack([radius * np.sin(angle), zero, radius * np.cos(angle)], -1)
-    p = np.stack([dist * np.sin(bearing), height, dist * np.cos(bearing)], -1)
-    v = np.stack([speed * np.sin(heading), np.zeros(batch), speed * np.cos(heading)], -1)
+    o, p, v = draw_scenario(params, rng, batch)
     return start(params, o, p, v, rng)
 
 

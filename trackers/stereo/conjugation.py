@@ -172,10 +172,13 @@ def _row_weights(weights: FloatArray | None, m: int) -> FloatArray | None:
     return np.repeat(wk, 3, axis=-1).reshape(*wk.shape[:-1], 3 * m)
 
 
-def _solve_svd(
+def solve_svd(
     A: FloatArray, B: FloatArray, row_w: FloatArray | None, sigma_e: float, cond_max: float
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, BoolArray]:
-    """Weighted least squares through the SVD of ``W^½ A``; pseudo-inverse where ill-conditioned."""
+    """Weighted least squares ``A X ≈ B`` through the SVD of ``W^½ A`` (row weights ``row_w``,
+    ``None``: unweighted), the pseudo-inverse where the condition number exceeds ``cond_max``.
+    Returns the solution ``X``, the weighted residual sum of squares ``J``, the covariance
+    ``Q = σ_e² (AᵀWA)⁺``, the condition number ``κ`` and whether the pseudo-inverse was used."""
     if row_w is not None:
         sw = np.sqrt(row_w)
         A = A * sw[..., :, None]
@@ -305,7 +308,7 @@ def _solve_closed_form(
         c = np.einsum("...ij,...j->...i", Pu, aku)
         row_w = None if w is None else np.repeat(extra_u[:, None], 3, axis=-1)
         A, B = build_system(a1u, c, bu, extra_u if order > 0 else None, order)
-        Xu, J[used], Q[used], kappa[used], pinv = _solve_svd(A, B, row_w, sigma_e, cond_max)
+        Xu, J[used], Q[used], kappa[used], pinv = solve_svd(A, B, row_w, sigma_e, cond_max)
         X[used] = Xu
         position[used] = Xu[:, :1] * a1u
         used[used] = pinv
@@ -414,7 +417,7 @@ def solve_conjugation(
     c = ak if P is None else np.einsum("...ij,...j->...i", P, ak)  # receivers 2..n in frame 1
     A, B = build_system(a1, c, b, dt, order)
     try:
-        X, J, cov, kappa, used = _solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
+        X, J, cov, kappa, used = solve_svd(A, B, _row_weights(w, m), sigma_e, cond_max)
     except np.linalg.LinAlgError:
         _check_inputs(a1, ak, P, b, dt)  # an unchecked NaN or inf: raise naming the argument
         raise
