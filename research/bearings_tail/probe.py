@@ -85,6 +85,9 @@ def table(doc: dict) -> str:
     for name, entry in doc["trained"].items():
         s, hp = entry["summary"], entry["hyperparams"]
         shaping = ", ".join(_shaping(w) for w in hp.get("training_wrappers") or [])
+        expert = (hp.get("pretrain") or {}).get("expert")
+        if expert != "rule:lookahead-estimate":  # the recipe's expert: say when another one
+            shaping += f", imitates {expert.removeprefix('rule:')}" if expert else ", no imitation"
         p = s["paired_vs_rule"]
         lines.append(
             f"| {name} ({entry['seed']}) | {shaping or 'none'}; {hp['n_envs']}, "
