@@ -4,14 +4,19 @@ Importing this package registers the environments with Gymnasium (``gym.make`` a
 itself when given ``"sensorgym.envs:ID"``). The registration below is the one place an episode
 length is set; the vector and PettingZoo doors read it from there.
 
-| id | package | PettingZoo |
-|----|---------|------------|
-| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver.parallel_env`` |
-| ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``bearings_maneuver.book_parallel_env`` |
-| ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing.parallel_env`` |
-| ``sensorgym/StereoPointingCrowded-v0`` | :mod:`.stereo_pointing.crowded` | ``stereo_pointing.crowded_parallel_env`` |
-| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement.parallel_env`` |
-| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning.parallel_env`` |
+| id | package | PettingZoo constructors |
+|----|---------|-------------------------|
+| ``sensorgym/BearingsManeuver-v0`` | :mod:`.bearings_maneuver` | ``bearings_maneuver`` |
+| ``sensorgym/BearingsManeuverBook-v0`` | :mod:`.bearings_maneuver.book` | ``bearings_maneuver.book`` |
+| ``sensorgym/StereoPointing-v0`` | :mod:`.stereo_pointing` | ``stereo_pointing`` |
+| ``sensorgym/StereoPointingCrowded-v0`` | :mod:`.stereo_pointing.crowded` | ``stereo_pointing.crowded`` |
+| ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement`` |
+| ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning`` |
+
+Each module of the last column has PettingZoo's three constructors: ``parallel_env`` (the
+native parallel env), ``env`` (the AEC env, agents acting in turn) and ``raw_env`` (the AEC
+env without PettingZoo's order checks), e.g. ``stereo_pointing.env(render_mode="rgb_array")``;
+all take the params fields, ``max_episode_steps`` and ``render_mode`` as keywords.
 
 :mod:`.shells` holds the contract every simulation follows and the shells over it;
 :mod:`.worlds` the simulated worlds and sensors that are not envs (reproductions, benchmarks).
@@ -22,8 +27,8 @@ from gymnasium.envs.registration import register, registry
 _ENVS = [
     {
         "id": "sensorgym/BearingsManeuver-v0",
-        "entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverEnv",
-        "vector_entry_point": "sensorgym.envs.bearings_maneuver.env:BearingsManeuverVectorEnv",
+        "entry_point": "sensorgym.envs.bearings_maneuver.bearings_maneuver:BearingsManeuverEnv",
+        "vector_entry_point": "sensorgym.envs.bearings_maneuver.bearings_maneuver:BearingsManeuverVectorEnv",
         "max_episode_steps": 30,
     },
     {
@@ -34,8 +39,8 @@ _ENVS = [
     },
     {
         "id": "sensorgym/StereoPointing-v0",
-        "entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingEnv",
-        "vector_entry_point": "sensorgym.envs.stereo_pointing.env:StereoPointingVectorEnv",
+        "entry_point": "sensorgym.envs.stereo_pointing.stereo_pointing:StereoPointingEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_pointing.stereo_pointing:StereoPointingVectorEnv",
         "max_episode_steps": 150,
     },
     {
@@ -48,14 +53,14 @@ _ENVS = [
     },
     {
         "id": "sensorgym/StereoPlacement-v0",
-        "entry_point": "sensorgym.envs.stereo_placement.env:StereoPlacementEnv",
-        "vector_entry_point": "sensorgym.envs.stereo_placement.env:StereoPlacementVectorEnv",
+        "entry_point": "sensorgym.envs.stereo_placement.stereo_placement:StereoPlacementEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_placement.stereo_placement:StereoPlacementVectorEnv",
         "max_episode_steps": 60,
     },
     {
         "id": "sensorgym/StereoScanning-v0",
-        "entry_point": "sensorgym.envs.stereo_scanning.env:StereoScanningEnv",
-        "vector_entry_point": "sensorgym.envs.stereo_scanning.env:StereoScanningVectorEnv",
+        "entry_point": "sensorgym.envs.stereo_scanning.stereo_scanning:StereoScanningEnv",
+        "vector_entry_point": "sensorgym.envs.stereo_scanning.stereo_scanning:StereoScanningVectorEnv",
         "max_episode_steps": 40,
     },
 ]

@@ -17,12 +17,13 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from sensorgym.envs.bearings_maneuver.env import (
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import (
     BearingsManeuverEnv,
     BearingsManeuverParallelEnv,
     BearingsManeuverVectorEnv,
 )
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
+from sensorgym.envs.shells import aec_constructors
 from sensorgym.envs.worlds.platform import PlatformWorldParams
 from sensorgym.trackers.bearings.models import KNOT
 
@@ -117,7 +118,10 @@ class BearingsManeuverBookParallelEnv(BearingsManeuverParallelEnv):
     """The textbook scenario as a PettingZoo env: one observer unless ``platforms`` says
     otherwise (platforms 2… start within ``formation_radius`` of the first)."""
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "bearings_maneuver_book_v0", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {
+        **BearingsManeuverParallelEnv.metadata,
+        "name": "bearings_maneuver_book_v0",
+    }
     params_type = BookManeuverParams
     env_id = BOOK_ENV_ID
     default_fields: ClassVar[dict[str, Any]] = {}
@@ -127,3 +131,7 @@ def parallel_env(**kwargs: Any) -> BearingsManeuverBookParallelEnv:
     """PettingZoo constructor of :class:`BearingsManeuverBookParallelEnv` (``params`` fields as
     keywords and ``max_episode_steps``)."""
     return BearingsManeuverBookParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)

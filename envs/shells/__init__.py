@@ -11,7 +11,7 @@ from sensorgym.envs.shells.contract import (
     tree_where,
 )
 from sensorgym.envs.shells.gym_env import CoreEnv
-from sensorgym.envs.shells.parallel_env import CoreParallelEnv
+from sensorgym.envs.shells.parallel_env import CoreParallelEnv, aec_constructors
 from sensorgym.envs.shells.vector_env import CoreVectorEnv
 
 __all__ = [
@@ -22,6 +22,7 @@ __all__ = [
     "CoreVectorEnv",
     "EnvSpaces",
     "Simulation",
+    "aec_constructors",
     "tree_scatter",
     "tree_where",
 ]

@@ -1,7 +1,7 @@
 """The Gymnasium shell every sensorgym env shares: one scenario of a batched simulation.
 
 An env package subclasses :class:`CoreEnv` with its simulation module, params type, id and
-renderer; episode bookkeeping, action checks, seeding and the params-as-keywords door live
+renderer module (:mod:`.rendering`); episode bookkeeping, action checks, seeding and the params-as-keywords door live
 here once (the time limit is the ``TimeLimit`` wrapper ``gym.make`` adds from the
 registration).
 """
@@ -16,30 +16,33 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.envs.shells.contract import Core, check_action, resolve_params
+from sensorgym.envs.shells.rendering import RENDER_MODES, Frames, check_render_mode
 
 
 class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     """One scenario of a batched simulation (batch of one). Subclasses set ``simulation``,
-    ``params_type``, ``env_id``, ``metadata`` and :meth:`draw` (for ``render_mode="rgb_array"``).
+    ``params_type``, ``env_id``, ``renderer`` (the module that draws its frames, see
+    :mod:`.rendering`) and ``metadata["render_fps"]``.
 
     Construct with ``params=`` a params instance and/or its fields as keywords.
     """
 
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
     simulation: ClassVar[ModuleType]
     params_type: ClassVar[type]
     env_id: ClassVar[str]
+    renderer: ClassVar[str | None] = None
 
     def __init__(self, params: Any = None, render_mode: str | None = None, **fields: Any):
-        modes = self.metadata.get("render_modes", [])
-        if render_mode not in (None, *modes):
-            raise ValueError(f"render_mode: one of {modes}, got {render_mode!r}")
+        modes = self.metadata.get("render_modes", []) if self.renderer else []
+        check_render_mode(render_mode, modes)
         self.core = Core(self.simulation, resolve_params(self.params_type, params, **fields))
         self.params = self.core.params
         self.render_mode = render_mode
         self.observation_space = self.core.spaces.observation
         self.action_space = self.core.spaces.action
         self._state: Any = None
-        self._history: list[Any] = []
+        self._frames = Frames(self.renderer, render_mode, self.metadata.get("render_fps", 4))
 
     @property
     def simulator_state(self) -> Any:
@@ -54,7 +57,7 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
     ) -> tuple[NDArray[np.float32], dict[str, Any]]:
         super().reset(seed=seed)
         self._state = self.core.reset(self.np_random, 1)
-        self._history = [self._state]
+        self._frames.start(self._state)
         return self.core.observe(self._state)[0], self._info()
 
     def step(
@@ -64,8 +67,7 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             raise RuntimeError("step: call reset() first")
         a = check_action(action, self.action_space.shape)
         self._state, reward, terminated = self.core.step(self._state, a[None], self.np_random)
-        if self.render_mode is not None:
-            self._history.append(self._state)
+        self._frames.add(self._state)
         # truncation=False: the time limit is the TimeLimit wrapper added by gym.make
         obs = self.core.observe(self._state)[0]
         return obs, float(reward[0]), bool(terminated[0]), False, self._info()
@@ -74,13 +76,14 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
         return {k: float(v[0]) for k, v in self.core.info(self._state).items()}
 
     def render(self) -> NDArray[np.uint8] | None:
+        """The frame of scenario 0 (``"rgb_array"``) or ``None`` after showing it (``"human"``)."""
         if self.render_mode is None:
             gym.logger.warn("render: no render_mode was given to the environment")
             return None
         if self._state is None:
             raise RuntimeError("render: call reset() first")
-        return self.draw(self._history)
+        return self._frames.render(self.params)
 
-    def draw(self, history: list[Any]) -> NDArray[np.uint8]:
-        """An RGB image of scenario 0 of the states in ``history`` (oldest first)."""
-        raise NotImplementedError(f"{type(self).__name__} does not render")
+    def close(self) -> None:
+        self._frames.close()
+        super().close()

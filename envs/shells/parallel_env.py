@@ -8,20 +8,27 @@ together (the scenarios are cooperative: receivers or platforms serving one trac
 (PettingZoo's convention; there is no default action); each action passes the Gymnasium door's
 own check (:func:`~sensorgym.envs.shells.contract.check_action`), so a wrong shape, a NaN or an
 inf gets the same one-line ``ValueError``, prefixed with the agent's name.
+
+Every env module offers PettingZoo's three constructors: ``parallel_env(**kwargs)`` (the native
+parallel env), ``env(**kwargs)`` (the AEC env, agents acting in turn, through PettingZoo's
+``parallel_to_aec`` with its order checks) and ``raw_env(**kwargs)`` (the same AEC env without
+the order checks), made by :func:`aec_constructors`.
 """
 
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import ModuleType
 from typing import Any, ClassVar
 
+import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 from numpy.typing import NDArray
-from pettingzoo import ParallelEnv
+from pettingzoo import AECEnv, ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec, parallel_to_aec_wrapper
 
 from sensorgym.envs.shells.contract import (
     REGISTERED,
@@ -30,19 +37,23 @@ from sensorgym.envs.shells.contract import (
     registered_episode_steps,
     resolve_params,
 )
+from sensorgym.envs.shells.rendering import RENDER_MODES, Frames, check_render_mode
 from sensorgym.trackers.validation import count
 
 
 class CoreParallelEnv(ParallelEnv):
     """Cooperative agents over a batched simulation (PettingZoo Parallel API). Subclasses set
-    ``simulation``, ``params_type``, ``env_id``, ``metadata`` and, optionally,
+    ``simulation``, ``params_type``, ``env_id``, ``metadata`` (``name``, ``render_fps``),
+    ``renderer`` (the module that draws the frames, :mod:`.rendering`) and, optionally,
     ``default_fields`` (params fields that differ from the params defaults for this door).
-    ``state()`` concatenates every agent's observation."""
+    ``state()`` concatenates every agent's observation; ``render()`` draws the scenario as the
+    Gymnasium env does."""
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "sensorgym", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {"name": "sensorgym", "render_modes": RENDER_MODES}
     simulation: ClassVar[ModuleType]
     params_type: ClassVar[type]
     env_id: ClassVar[str]
+    renderer: ClassVar[str | None] = None
     default_fields: ClassVar[dict[str, Any]] = {}
 
     def __init__(
@@ -55,8 +66,9 @@ class CoreParallelEnv(ParallelEnv):
         if max_episode_steps == REGISTERED:
             max_episode_steps = registered_episode_steps(self.env_id)
         max_episode_steps = count(max_episode_steps, "max_episode_steps")
-        if render_mode is not None:
-            raise ValueError("render_mode: the PettingZoo envs do not render (use the single env)")
+        check_render_mode(
+            render_mode, self.metadata.get("render_modes", []) if self.renderer else []
+        )
         if params is None:
             fields = {**self.default_fields, **fields}
         self.core = Core(self.simulation, resolve_params(self.params_type, params, **fields))
@@ -70,6 +82,7 @@ class CoreParallelEnv(ParallelEnv):
         self._rng, _ = seeding.np_random(None)
         self._state: Any = None
         self._steps = 0
+        self._frames = Frames(self.renderer, render_mode, self.metadata.get("render_fps", 4))
 
     @property
     def simulator_state(self) -> Any:
@@ -94,6 +107,7 @@ class CoreParallelEnv(ParallelEnv):
             self._rng, _ = seeding.np_random(seed)
         self.agents = list(self.possible_agents)
         self._state = self.core.reset(self._rng, 1)
+        self._frames.start(self._state)
         self._steps = 0
         return self._observations(), self._infos()
 
@@ -131,6 +145,7 @@ class CoreParallelEnv(ParallelEnv):
                 raise ValueError(f"actions[{agent!r}]: {exc}") from None
         joint = np.stack(rows)
         self._state, reward, terminated = self.core.step(self._state, joint[None], self._rng)
+        self._frames.add(self._state)
         self._steps += 1
         ended, timed_out = bool(terminated[0]), self._steps >= self.max_episode_steps
         rewards = {agent: float(reward[0]) for agent in self.agents}
@@ -140,6 +155,19 @@ class CoreParallelEnv(ParallelEnv):
         if ended or timed_out:
             self.agents = []
         return obs, rewards, terminations, truncations, infos
+
+    def render(self) -> NDArray[np.uint8] | None:
+        """The frame of the scenario (``"rgb_array"``) or ``None`` after showing it
+        (``"human"``); ``None`` with a warning when no ``render_mode`` was given."""
+        if self.render_mode is None:
+            gymnasium.logger.warn("render: no render_mode was given to the environment")
+            return None
+        if self._state is None:
+            raise RuntimeError("render: call reset() first")
+        return self._frames.render(self.params)
+
+    def close(self) -> None:
+        self._frames.close()
 
     def state(self) -> NDArray[np.float32]:
         """Every agent's observation, concatenated in agent order (a centralised critic's view)."""
@@ -154,3 +182,24 @@ class CoreParallelEnv(ParallelEnv):
     def _infos(self) -> dict[str, dict[str, Any]]:
         shared = {k: float(v[0]) for k, v in self.core.info(self._state).items()}
         return {agent: dict(shared) for agent in self.possible_agents}
+
+
+def aec_constructors(
+    parallel_env: Callable[..., CoreParallelEnv],
+) -> tuple[Callable[..., AECEnv], Callable[..., AECEnv]]:
+    """PettingZoo's ``env`` and ``raw_env`` for an env module whose native constructor is
+    ``parallel_env``: the AEC view of the parallel env (PettingZoo's
+    ``parallel_to_aec``, which steps the parallel env once every agent has acted), with and
+    without PettingZoo's order-enforcing wrapper. Both take ``parallel_env``'s keywords."""
+
+    def env(**kwargs: Any) -> AECEnv:
+        return parallel_to_aec(parallel_env(**kwargs))
+
+    def raw_env(**kwargs: Any) -> AECEnv:
+        return parallel_to_aec_wrapper(parallel_env(**kwargs))
+
+    name = parallel_env.__module__
+    env.__module__ = raw_env.__module__ = name
+    env.__doc__ = f"PettingZoo's AEC env of :func:`{name}.parallel_env` (agents act in turn)."
+    raw_env.__doc__ = f"The AEC env of :func:`{name}.parallel_env` without order checks."
+    return env, raw_env

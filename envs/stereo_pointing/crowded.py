@@ -15,12 +15,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from sensorgym.envs.stereo_pointing.env import (
+from sensorgym.envs.shells import aec_constructors
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.envs.stereo_pointing.stereo_pointing import (
     StereoPointingEnv,
     StereoPointingParallelEnv,
     StereoPointingVectorEnv,
 )
-from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 CROWDED_ENV_ID = "sensorgym/StereoPointingCrowded-v0"
 
@@ -39,7 +40,7 @@ class StereoPointingCrowdedEnv(StereoPointingEnv):
 
     ## Description
 
-    :class:`~sensorgym.envs.stereo_pointing.env.StereoPointingEnv` (its docstring is the spec)
+    :class:`~sensorgym.envs.stereo_pointing.stereo_pointing.StereoPointingEnv` (its docstring is the spec)
     with :class:`CrowdedPointingParams`: ``n = 4`` receivers on the circle, ``m = 3`` drones.
     A drone is fixed only while two receivers see it, so at most two of the three are fixed at
     any step unless a receiver holds two drones in its field of view at once; the others'
@@ -110,7 +111,7 @@ class StereoPointingCrowdedVectorEnv(StereoPointingVectorEnv):
 
 class StereoPointingCrowdedParallelEnv(StereoPointingParallelEnv):
     """The crowded scenario as a PettingZoo env: ``"receiver_0"`` … ``"receiver_3"`` share three
-    drones (spaces as :class:`~sensorgym.envs.stereo_pointing.env.StereoPointingParallelEnv`,
+    drones (spaces as :class:`~sensorgym.envs.stereo_pointing.stereo_pointing.StereoPointingParallelEnv`,
     per-agent observation 72 + 4 entries).
 
     ## Version History
@@ -119,8 +120,8 @@ class StereoPointingCrowdedParallelEnv(StereoPointingParallelEnv):
     """
 
     metadata: ClassVar[dict[str, Any]] = {
+        **StereoPointingParallelEnv.metadata,
         "name": "stereo_pointing_crowded_v0",
-        "render_modes": [],
     }
     params_type = CrowdedPointingParams
     env_id = CROWDED_ENV_ID
@@ -130,3 +131,7 @@ def parallel_env(**kwargs: Any) -> StereoPointingCrowdedParallelEnv:
     """PettingZoo constructor of :class:`StereoPointingCrowdedParallelEnv` (``params`` fields as
     keywords and ``max_episode_steps``)."""
     return StereoPointingCrowdedParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)

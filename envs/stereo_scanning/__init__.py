@@ -2,17 +2,19 @@
 finds and locates close, moving, unlabelled drones.
 
 :mod:`.simulation` (params, state and the contract's functions), :mod:`.kernels` (the compiled
-period: rasters, fixes, candidates, association, reward), :mod:`.env` (Gymnasium, native vector
+period: rasters, fixes, candidates, association, reward), :mod:`.stereo_scanning` (Gymnasium, native vector
 and PettingZoo envs) and :mod:`.render`.
 """
 
-from sensorgym.envs.stereo_scanning.env import (
+from sensorgym.envs.stereo_scanning.simulation import ScanningParams, ScanningState
+from sensorgym.envs.stereo_scanning.stereo_scanning import (
     StereoScanningEnv,
     StereoScanningParallelEnv,
     StereoScanningVectorEnv,
+    env,
     parallel_env,
+    raw_env,
 )
-from sensorgym.envs.stereo_scanning.simulation import ScanningParams, ScanningState
 
 __all__ = [
     "ScanningParams",
@@ -20,5 +22,7 @@ __all__ = [
     "StereoScanningEnv",
     "StereoScanningParallelEnv",
     "StereoScanningVectorEnv",
+    "env",
     "parallel_env",
+    "raw_env",
 ]

@@ -247,18 +247,16 @@ def test_joint_and_agent_views_come_from_one_state(env_id):
 
 
 def test_the_package_docstring_names_each_envs_real_doors():
-    # the table a user reads in ``sensorgym.envs``: id, package, PettingZoo factory
+    # the table a user reads in ``sensorgym.envs``: id, package, PettingZoo constructors' module
     import sensorgym.envs as envs
 
     rows = re.findall(
         r"^\| ``(sensorgym/[^`]+)`` \| :mod:`\.([\w.]+)` \| ``([\w.]+)`` \|$", envs.__doc__, re.M
     )
     assert sorted(r[0] for r in rows) == sorted(ENV_IDS)
-    for env_id, package, factory in rows:
+    for env_id, package, constructors in rows:
         module = importlib.import_module(f"sensorgym.envs.{package}")
-        holder, _, name = factory.rpartition(".")
-        assert (
-            getattr(importlib.import_module(f"sensorgym.envs.{holder}"), name)
-            is PARALLEL_ENVS[env_id]
-        )
+        holder = importlib.import_module(f"sensorgym.envs.{constructors}")
+        assert holder.parallel_env is PARALLEL_ENVS[env_id]
+        assert callable(holder.env) and callable(holder.raw_env)
         assert gym.spec(env_id).entry_point.split(":")[0].startswith(module.__name__)

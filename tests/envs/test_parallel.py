@@ -6,7 +6,9 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
-from pettingzoo.test import parallel_api_test, parallel_seed_test
+from pettingzoo import AECEnv
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test, render_test
+from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 
 from sensorgym.envs import (
     ENV_IDS,
@@ -14,10 +16,13 @@ from sensorgym.envs import (
     bearings_maneuver,
     stereo_placement,
     stereo_pointing,
+    stereo_scanning,
 )
+from sensorgym.envs.bearings_maneuver import book
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM, ManeuverParams
 from sensorgym.envs.shells.contract import check_action
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
+from sensorgym.envs.stereo_pointing import crowded
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 
@@ -198,3 +203,38 @@ def test_a_bad_agent_action_gets_the_gymnasium_doors_error(env_id):
     assert str(caught.value).endswith(str(gym_door.value))
     obs, *_ = env.step(actions)
     assert set(obs) == set(env.possible_agents)
+
+
+ENV_MODULES = [bearings_maneuver, book, stereo_pointing, crowded, stereo_placement, stereo_scanning]
+
+
+@pytest.mark.parametrize("module", ENV_MODULES, ids=lambda m: m.__name__.rsplit(".", 1)[1])
+def test_every_env_module_has_pettingzoos_three_constructors(module):
+    """``env()`` (AEC, order-checked), ``raw_env()`` (AEC) and ``parallel_env()`` of every env
+    pass PettingZoo's own tests, rendering included (``human`` draws and returns ``None``)."""
+    api_test(module.env(), num_cycles=20)
+    render_test(module.env)
+    parallel_api_test(module.parallel_env(render_mode="rgb_array"), num_cycles=20)
+    parallel_seed_test(module.parallel_env)
+    raw = module.raw_env()
+    assert isinstance(raw, AECEnv) and not isinstance(raw, OrderEnforcingWrapper)
+    assert isinstance(module.env(), OrderEnforcingWrapper)
+    assert type(module.parallel_env()).metadata["name"].endswith("_v0")
+
+
+def test_the_parallel_frame_is_the_gymnasium_frame():
+    """Same core, seed and actions: the PettingZoo env draws the Gymnasium env's frame."""
+    pz = bearings_maneuver.parallel_env(platforms=1, render_mode="rgb_array")
+    env = gym.make("sensorgym/BearingsManeuver-v0", render_mode="rgb_array")
+    pz.reset(seed=5)
+    env.reset(seed=5)
+    np.testing.assert_array_equal(pz.render(), env.render())
+    for a in np.random.default_rng(1).uniform(-1, 1, (3, 2)).astype(np.float32):
+        pz.step({"platform_0": a})
+        env.step(a)
+    frame = pz.render()
+    assert frame.ndim == 3 and frame.shape[2] == 3 and frame.dtype == np.uint8
+    np.testing.assert_array_equal(frame, env.render())
+    with pytest.raises(ValueError, match="render_mode"):
+        bearings_maneuver.parallel_env(render_mode="ansi")
+    assert bearings_maneuver.parallel_env().render() is None  # no mode: a warning, no frame

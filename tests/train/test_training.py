@@ -13,7 +13,7 @@ from gymnasium.vector import AutoresetMode
 
 from sensorgym.agents.bearings_maneuver import StraightCourse
 from sensorgym.cli.main import main
-from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import BearingsManeuverVectorEnv
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.config import (
     apply_overrides,

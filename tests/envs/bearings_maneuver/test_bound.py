@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from sensorgym.envs.bearings_maneuver import bound
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import ENV_ID
 from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID
-from sensorgym.envs.bearings_maneuver.env import ENV_ID
 
 ENVS = (ENV_ID, BOOK_ENV_ID)
 

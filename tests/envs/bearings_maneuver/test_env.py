@@ -14,7 +14,10 @@ import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.bearings_maneuver import GreedyManeuver, Paper002Maneuver, StraightCourse
 from sensorgym.agents.protocol import PolicyPredictor
 from sensorgym.envs.bearings_maneuver import simulation as core
-from sensorgym.envs.bearings_maneuver.env import BearingsManeuverEnv, BearingsManeuverVectorEnv
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import (
+    BearingsManeuverEnv,
+    BearingsManeuverVectorEnv,
+)
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.worlds.platform import PlatformWorldParams
 

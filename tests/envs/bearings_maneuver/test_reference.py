@@ -38,8 +38,8 @@ import numpy as np
 import pytest
 
 from sensorgym.envs.bearings_maneuver import reference, simulation
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import ENV_ID
 from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID, BookManeuverParams
-from sensorgym.envs.bearings_maneuver.env import ENV_ID
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
 from sensorgym.envs.shells.contract import Core, registered_episode_steps
 from sensorgym.trackers.geometry import wrap_angle

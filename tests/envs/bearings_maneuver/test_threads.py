@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorgym.envs.bearings_maneuver.env import BearingsManeuverVectorEnv
+from sensorgym.envs.bearings_maneuver.bearings_maneuver import BearingsManeuverVectorEnv
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD
 from sensorgym.envs.worlds.platform import PlatformWorldParams

@@ -20,9 +20,9 @@ from sensorgym.envs import stereo_placement
 from sensorgym.envs.shells import tree_where
 from sensorgym.envs.stereo_placement import kernels
 from sensorgym.envs.stereo_placement import simulation as core
-from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
 from sensorgym.envs.stereo_placement.scan import scan_period
 from sensorgym.envs.stereo_placement.simulation import PlacementParams
+from sensorgym.envs.stereo_placement.stereo_placement import StereoPlacementVectorEnv
 from sensorgym.trackers.stereo.accuracy import position_crlb
 from sensorgym.trackers.stereo.information import position_information
 

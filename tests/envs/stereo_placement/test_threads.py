@@ -8,7 +8,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 from sensorgym.envs.shells import rows
-from sensorgym.envs.stereo_placement.env import StereoPlacementVectorEnv
+from sensorgym.envs.stereo_placement.stereo_placement import StereoPlacementVectorEnv
 from tests.conftest import assert_same_tree
 
 B = 320  # two chunks of at least rows.MIN_ROWS_PER_THREAD

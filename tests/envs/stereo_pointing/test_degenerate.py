@@ -20,8 +20,8 @@ from sensorgym.agents.stereo_pointing import (
     TrackNearest,
 )
 from sensorgym.envs.stereo_pointing import simulation as core
-from sensorgym.envs.stereo_pointing.env import StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.envs.stereo_pointing.stereo_pointing import StereoPointingVectorEnv
 from sensorgym.envs.worlds.stereo_scene import perturb_directions
 from sensorgym.trackers.geometry import angles_from_unit
 from sensorgym.trackers.stereo.kalman import CVTrack

@@ -21,8 +21,11 @@ from sensorgym.agents.stereo_pointing import (
 )
 from sensorgym.envs.shells import tree_scatter, tree_where
 from sensorgym.envs.stereo_pointing import simulation as core
-from sensorgym.envs.stereo_pointing.env import StereoPointingEnv, StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.envs.stereo_pointing.stereo_pointing import (
+    StereoPointingEnv,
+    StereoPointingVectorEnv,
+)
 from sensorgym.trackers.geometry import angles_from_unit
 from sensorgym.trackers.stereo.accuracy import position_crlb, triangulate_ml
 from sensorgym.trackers.stereo.information import weighted_fix
@@ -298,7 +301,7 @@ def test_params_are_validated():
     with pytest.raises(ValueError, match="num_envs"):
         StereoPointingVectorEnv(num_envs=0)
     with pytest.raises(ValueError, match="render_mode"):
-        StereoPointingEnv(render_mode="human")
+        StereoPointingEnv(render_mode="ansi")
 
 
 def test_observation_holds_no_ground_truth():

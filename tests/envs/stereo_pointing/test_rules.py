@@ -13,8 +13,8 @@ from sensorgym.agents.stereo_pointing import (
     _keep_bonus,
     _view,
 )
-from sensorgym.envs.stereo_pointing.env import StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
+from sensorgym.envs.stereo_pointing.stereo_pointing import StereoPointingVectorEnv
 from sensorgym.trackers.stereo.information import position_information
 
 

@@ -38,8 +38,8 @@ from sensorgym.agents.stereo_pointing import (
     plan_values,
 )
 from sensorgym.envs import stereo_pointing
-from sensorgym.envs.stereo_pointing.env import StereoPointingVectorEnv
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, lines_of_sight
+from sensorgym.envs.stereo_pointing.stereo_pointing import StereoPointingVectorEnv
 from sensorgym.trackers.stereo import kernels
 
 ENV_ID = "sensorgym/StereoPointing-v0"

@@ -8,8 +8,8 @@ import pytest
 
 from sensorgym.envs.shells import rows
 from sensorgym.envs.stereo_scanning import kernels
-from sensorgym.envs.stereo_scanning.env import StereoScanningVectorEnv
 from sensorgym.envs.stereo_scanning.simulation import ScanningParams
+from sensorgym.envs.stereo_scanning.stereo_scanning import StereoScanningVectorEnv
 from tests.conftest import assert_same_tree, random_play
 from tests.kernel_signatures import kernel_signatures
 

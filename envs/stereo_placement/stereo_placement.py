@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
-from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv, aec_constructors
+from sensorgym.envs.shells.rendering import RENDER_MODES
 from sensorgym.envs.stereo_placement import simulation
-from sensorgym.envs.stereo_placement.simulation import PlacementParams, PlacementState
+from sensorgym.envs.stereo_placement.simulation import PlacementParams
 
+#: the module that draws the frames (:mod:`sensorgym.envs.shells.rendering`)
+RENDERER = "sensorgym.envs.stereo_placement.render"
 ENV_ID = "sensorgym/StereoPlacement-v0"
 
 
@@ -111,15 +111,11 @@ class StereoPlacementEnv(CoreEnv):
       the receivers' order around the circle beyond 6 receivers.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
+    renderer = RENDERER
     simulation = simulation
     params_type = PlacementParams
     env_id = ENV_ID
-
-    def draw(self, history: list[PlacementState]) -> NDArray[np.uint8]:
-        from sensorgym.envs.stereo_placement.render import draw
-
-        return draw(self.params, history)
 
 
 class StereoPlacementVectorEnv(CoreVectorEnv):
@@ -178,7 +174,12 @@ class StereoPlacementParallelEnv(CoreParallelEnv):
     * v0: initial version; issue 11 as for :class:`StereoPlacementEnv`.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "stereo_placement_v0", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "stereo_placement_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": 4,
+    }
+    renderer = RENDERER
     simulation = simulation
     params_type = PlacementParams
     env_id = ENV_ID
@@ -188,3 +189,7 @@ def parallel_env(**kwargs: Any) -> StereoPlacementParallelEnv:
     """PettingZoo's conventional constructor: :class:`StereoPlacementParallelEnv` (``params``
     fields as keywords, and ``max_episode_steps``)."""
     return StereoPlacementParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)

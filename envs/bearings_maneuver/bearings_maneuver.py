@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
 from sensorgym.envs.bearings_maneuver import simulation
-from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
-from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv, aec_constructors
+from sensorgym.envs.shells.rendering import RENDER_MODES
 
+#: the module that draws the frames (:mod:`sensorgym.envs.shells.rendering`)
+RENDERER = "sensorgym.envs.bearings_maneuver.render"
 ENV_ID = "sensorgym/BearingsManeuver-v0"
 
 
@@ -121,15 +121,11 @@ class BearingsManeuverEnv(CoreEnv):
       ones not retrained).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
+    renderer = RENDERER
     simulation = simulation
     params_type = ManeuverParams
     env_id = ENV_ID
-
-    def draw(self, history: list[ManeuverState]) -> NDArray[np.uint8]:
-        from sensorgym.envs.bearings_maneuver.render import draw
-
-        return draw(self.params, history)
 
 
 class BearingsManeuverVectorEnv(CoreVectorEnv):
@@ -196,7 +192,12 @@ class BearingsManeuverParallelEnv(CoreParallelEnv):
       each view; other platforms from entry 13) as for :class:`BearingsManeuverEnv`.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "bearings_maneuver_v0", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "bearings_maneuver_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": 4,
+    }
+    renderer = RENDERER
     simulation = simulation
     params_type = ManeuverParams
     env_id = ENV_ID
@@ -207,3 +208,7 @@ def parallel_env(**kwargs: Any) -> BearingsManeuverParallelEnv:
     """PettingZoo's conventional constructor: :class:`BearingsManeuverParallelEnv` (``params``
     fields as keywords, e.g. ``platforms=K``, and ``max_episode_steps``)."""
     return BearingsManeuverParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
-from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv, aec_constructors
+from sensorgym.envs.shells.rendering import RENDER_MODES
 from sensorgym.envs.stereo_pointing import simulation
-from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingState
+from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
+#: the module that draws the frames (:mod:`sensorgym.envs.shells.rendering`)
+RENDERER = "sensorgym.envs.stereo_pointing.render"
 ENV_ID = "sensorgym/StereoPointing-v0"
 
 
@@ -125,15 +125,11 @@ class StereoPointingEnv(CoreEnv):
       also sweeps across that line of sight, and the seeing receiver holds it.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 5}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 5}
+    renderer = RENDERER
     simulation = simulation
     params_type = PointingParams
     env_id = ENV_ID
-
-    def draw(self, history: list[PointingState]) -> NDArray[np.uint8]:
-        from sensorgym.envs.stereo_pointing.render import draw
-
-        return draw(self.params, history)
 
 
 class StereoPointingVectorEnv(CoreVectorEnv):
@@ -194,7 +190,12 @@ class StereoPointingParallelEnv(CoreParallelEnv):
       :class:`StereoPointingEnv`.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "stereo_pointing_v0", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "stereo_pointing_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": 5,
+    }
+    renderer = RENDERER
     simulation = simulation
     params_type = PointingParams
     env_id = ENV_ID
@@ -204,3 +205,7 @@ def parallel_env(**kwargs: Any) -> StereoPointingParallelEnv:
     """PettingZoo's conventional constructor: :class:`StereoPointingParallelEnv` (``params``
     fields as keywords, e.g. ``n_receivers=n``, and ``max_episode_steps``)."""
     return StereoPointingParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)

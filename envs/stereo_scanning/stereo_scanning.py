@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-import numpy as np
-from numpy.typing import NDArray
-
-from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv
+from sensorgym.envs.shells import CoreEnv, CoreParallelEnv, CoreVectorEnv, aec_constructors
+from sensorgym.envs.shells.rendering import RENDER_MODES
 from sensorgym.envs.stereo_scanning import simulation
-from sensorgym.envs.stereo_scanning.simulation import ScanningParams, ScanningState
+from sensorgym.envs.stereo_scanning.simulation import ScanningParams
 
+#: the module that draws the frames (:mod:`sensorgym.envs.shells.rendering`)
+RENDERER = "sensorgym.envs.stereo_scanning.render"
 ENV_ID = "sensorgym/StereoScanning-v0"
 
 
@@ -210,15 +210,11 @@ class StereoScanningEnv(CoreEnv):
       every fieldable rule (``docs/environments.md``).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 4}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
+    renderer = RENDERER
     simulation = simulation
     params_type = ScanningParams
     env_id = ENV_ID
-
-    def draw(self, history: list[ScanningState]) -> NDArray[np.uint8]:
-        from sensorgym.envs.stereo_scanning.render import draw
-
-        return draw(self.params, history)
 
 
 class StereoScanningVectorEnv(CoreVectorEnv):
@@ -276,7 +272,12 @@ class StereoScanningParallelEnv(CoreParallelEnv):
     * v0: initial version (issue 12).
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"name": "stereo_scanning_v0", "render_modes": []}
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "stereo_scanning_v0",
+        "render_modes": RENDER_MODES,
+        "render_fps": 4,
+    }
+    renderer = RENDERER
     simulation = simulation
     params_type = ScanningParams
     env_id = ENV_ID
@@ -286,3 +287,7 @@ def parallel_env(**kwargs: Any) -> StereoScanningParallelEnv:
     """PettingZoo's conventional constructor: :class:`StereoScanningParallelEnv` (``params``
     fields as keywords, and ``max_episode_steps``)."""
     return StereoScanningParallelEnv(**kwargs)
+
+
+#: PettingZoo's AEC constructors: ``env`` (order-checked) and ``raw_env``
+env, raw_env = aec_constructors(parallel_env)
