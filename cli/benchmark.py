@@ -33,7 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from sensorgym.cli import args as types
-from sensorgym.cli.console import make_console, print_written
+from sensorgym.cli.console import Steps, make_console, print_written
 from sensorgym.cli.params import add_param_argument, params_from
 
 HELP = "Score every rule and trained policy on every env (seeded, same scenarios), with a chart."
@@ -230,8 +230,9 @@ def _benchmark(
         console.print(f"{env_id}: no rule registered and no trained policy: skipped")
         return None
     results = {}
-    with console.status(f"evaluating {len(specs)} policies on {env_id}"):
+    with Steps(console, env_id, len(specs)) as steps:
         for name, spec in specs.items():
+            steps.start(name)
             try:
                 results[name] = score(
                     env_id,

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -39,7 +40,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=None,
         help="processes at once (default: the CPUs this process may use)",
     )
-    parser.add_argument("--quiet", action="store_true", help="print nothing on success")
+    parser.add_argument(
+        "--quiet",
+        action="store_true",
+        help="print nothing on success (default: a progress bar per env package on a terminal, "
+        "a line per package as it finishes in a log)",
+    )
     parser.add_argument(
         "--stamp",
         type=Path,
@@ -88,16 +94,18 @@ def groups(env_ids: list[str]) -> list[list[str]]:
     return list(out.values())
 
 
-def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
+def warm(env_ids: list[str], events: Any = None) -> tuple[list[str], float, int]:
     """Compile (or load) what ``env_ids`` use: the compiled normal draws of large batches
     (:mod:`sensorgym.envs.shells.normals`), the Gymnasium env, stepped once, then one episode
     of each registered rule on the native vector env of two scenarios (as ``sensorgym
     benchmark`` scores it); then, at each params variant the env's simulation module lists in
     ``COMPILE_VARIANTS`` (sizes or settings whose episodes take other compiled paths), two
     decisions of each rule that applies there (:func:`decide`). Returns the ids, the seconds
-    taken and the number of rules played at the defaults."""
-    import time
+    taken and the number of rules played at the defaults.
 
+    ``events`` (a queue, or ``None``) receives ``(first id, total, done, what)`` as the work
+    goes: ``total`` the units of work (an env, a rule, a params variant), ``done`` those
+    finished, ``what`` the one that comes next."""
     import gymnasium as gym
     import numpy as np
 
@@ -107,22 +115,41 @@ def warm(env_ids: list[str]) -> tuple[list[str], float, int]:
 
     t0 = time.perf_counter()
     played = 0
+    specs = {env_id: policies_for(env_id, shipped=False) for env_id in env_ids}
+    variants = {
+        env_id: getattr(gym.spec(env_id).make().unwrapped.simulation, "COMPILE_VARIANTS", ())
+        for env_id in env_ids
+    }
+    total = sum(1 + len(specs[e]) + len(variants[e]) for e in env_ids)
+    done = 0
+
+    def report(what: str) -> None:
+        if events is not None:
+            events.put((env_ids[0], total, done, what))
+
     # the compiled normal draws, which only batches of many draws take
+    report(f"{env_ids[0]}: normal draws")
     standard_normal_rows(np.random.default_rng(0), np.empty((1, COMPILED_MIN_DRAWS)), 0, 1)
     for env_id in env_ids:
+        report(f"{env_id}: env step")
         env = gym.make(env_id)
         env.reset(seed=0)
         env.step(np.zeros(env.action_space.shape, env.action_space.dtype))
-        variants = getattr(env.unwrapped.simulation, "COMPILE_VARIANTS", ())
         env.close()
-        for spec in policies_for(env_id, shipped=False).values():
+        done += 1
+        for name, spec in specs[env_id].items():
+            report(f"{env_id}: {name}")
             try:
                 score(env_id, spec, episodes=1, n_envs=2, seed=0)
+                played += 1
             except NotApplicable:
-                continue
-            played += 1
-        for fields in variants:
+                pass
+            done += 1
+        for fields in variants[env_id]:
+            report(f"{env_id}: rules at {fields}")
             decide(env_id, fields)
+            done += 1
+    report("done")
     return env_ids, time.perf_counter() - t0, played
 
 
@@ -151,11 +178,94 @@ def decide(env_id: str, fields: dict[str, Any], steps: int = 2) -> list[str]:
     return decided
 
 
-def run(args: argparse.Namespace) -> int:
+def _compile_all(
+    tasks: list[list[str]], jobs: int, show: bool
+) -> list[tuple[list[str], float, int]]:
+    """:func:`warm` every task, ``jobs`` processes at once (spawned: a fresh interpreter per
+    worker, no forked numba or torch state). With ``show``: on a terminal a progress bar per
+    task (what it compiles now), in a log a line per task as it finishes."""
     import multiprocessing
-    import time
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    import queue
+    import sys
+    from concurrent.futures import Future, ProcessPoolExecutor
 
+    from sensorgym.cli.console import make_console
+
+    console = make_console()
+    live = show and console.is_terminal
+    bars = _Bars(console, tasks) if live else None
+    results: list[tuple[list[str], float, int]] = []
+
+    def finished(ids: list[str], seconds: float, played: int) -> None:
+        results.append((ids, seconds, played))
+        if show and not live:
+            print(f"{seconds:7.1f} s  {', '.join(ids)} (and {played} rules)", flush=True)
+
+    try:
+        if jobs == 1 or len(tasks) == 1:  # in this process, one task after the other
+            for task in tasks:
+                finished(*warm(task, bars))
+        else:
+            context = multiprocessing.get_context("spawn")
+            with (
+                context.Manager() as manager,
+                ProcessPoolExecutor(min(jobs, len(tasks)), mp_context=context) as pool,
+            ):
+                events = manager.Queue() if live else None
+                pending: set[Future] = {pool.submit(warm, task, events) for task in tasks}
+                while pending:
+                    done = {f for f in pending if f.done()}
+                    for f in done:
+                        finished(*f.result())  # a worker's exception surfaces here
+                    pending -= done
+                    if events is None:
+                        time.sleep(0.2)
+                        continue
+                    try:
+                        while True:
+                            bars.put(events.get(timeout=0.1))
+                    except queue.Empty:
+                        pass
+    finally:
+        if bars is not None:
+            bars.stop()
+    if live:
+        for ids, seconds, played in sorted(results, key=lambda d: -d[1]):
+            print(f"{seconds:7.1f} s  {', '.join(ids)} (and {played} rules)")
+    sys.stdout.flush()
+    return results
+
+
+class _Bars:
+    """One rich progress bar per task of :func:`_compile_all`, keyed by its first env id."""
+
+    def __init__(self, console: Any, tasks: list[list[str]]):
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
+
+        self.progress = Progress(
+            TextColumn("{task.fields[label]:<32}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TextColumn("{task.description}"),
+            console=console,
+        )
+        self.ids = {
+            t[0]: self.progress.add_task("waiting", total=None, label=t[0].split("/")[-1])
+            for t in tasks
+        }
+        self.progress.start()
+
+    def put(self, event: tuple[str, int, int, str]) -> None:
+        """Show one of :func:`warm`'s events (the queue's ``put``, so that :func:`warm` in this
+        process reports to the bars directly)."""
+        first_id, total, done, what = event
+        self.progress.update(self.ids[first_id], total=total, completed=done, description=what)
+
+    def stop(self) -> None:
+        self.progress.stop()
+
+
+def run(args: argparse.Namespace) -> int:
     if args.stamp is not None:
         digest = source_digest()
         if args.stamp.is_file() and args.stamp.read_text().strip() == digest:
@@ -174,19 +284,9 @@ def run(args: argparse.Namespace) -> int:
     if jobs < 1:
         raise SystemExit(f"--jobs: expected at least 1, got {jobs}")
     t0 = time.perf_counter()
-    done: list[tuple[list[str], float, int]] = []
-    if jobs == 1 or len(tasks) == 1:
-        done = [warm(task) for task in tasks]
-    else:
-        # spawn: a fresh interpreter per worker (no forked numba or torch state)
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(min(jobs, len(tasks)), mp_context=context) as pool:
-            futures = [pool.submit(warm, task) for task in tasks]
-            done = [f.result() for f in as_completed(futures)]
+    _compile_all(tasks, jobs, show=not args.quiet)
     wall = time.perf_counter() - t0
     if not args.quiet:
-        for ids, seconds, played in sorted(done, key=lambda d: -d[1]):
-            print(f"{seconds:7.1f} s  {', '.join(ids)} (and {played} rules)")
         print(f"{wall:7.1f} s  wall, {min(jobs, len(tasks))} processes")
     if args.stamp is not None:
         args.stamp.write_text(digest + "\n")

@@ -9,9 +9,10 @@ hold ``[`` and ``]``), so that it can be copied from the output.
 from __future__ import annotations
 
 import sys
+import time
 from collections.abc import Iterable
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -37,3 +38,68 @@ def print_written(console: Console, paths: Iterable[Path | str]) -> None:
     console.print("wrote:")
     for path in paths:
         print_path(console, "  ", path)
+
+
+class Steps:
+    """Progress through ``total`` named steps of a long command: a rich progress bar on a
+    terminal (what runs now, how many are done), a line per finished step with its seconds in
+    a log, so that a first run never looks hung.
+
+    ``with Steps(console, "StereoPointing-v0", 12) as steps:`` then ``steps.start(name)``
+    before each step; a step ends when the next starts or the block ends."""
+
+    def __init__(self, console: Console, title: str, total: int):
+        self.console, self.title, self.total = console, title, total
+        self.done, self._name, self._t0 = 0, None, 0.0
+        self._progress: Any = None
+        self._task: Any = None
+
+    def __enter__(self) -> Steps:
+        if self.console.is_terminal:
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+            )
+
+            self._progress = Progress(
+                TextColumn("{task.description}"),
+                BarColumn(),
+                MofNCompleteColumn(),
+                TimeElapsedColumn(),
+                console=self.console,
+                transient=True,
+            )
+            self._task = self._progress.add_task(self.title, total=self.total)
+            self._progress.start()
+        return self
+
+    def start(self, name: str) -> None:
+        """Step ``name`` begins (and the one before it has ended)."""
+        self._finish()
+        self._name, self._t0 = name, time.perf_counter()
+        if self._progress is not None:
+            self._progress.update(self._task, description=f"{self.title}: {name}")
+
+    def _finish(self) -> None:
+        if self._name is None:
+            return
+        self.done += 1
+        if self._progress is not None:
+            self._progress.update(self._task, completed=self.done)
+        else:
+            seconds = time.perf_counter() - self._t0
+            self.console.print(
+                f"{self.title}: {self._name} ({self.done}/{self.total}, {seconds:.1f} s)",
+                markup=False,
+                highlight=False,
+            )
+        self._name = None
+
+    def __exit__(self, *exc: object) -> None:
+        if exc[0] is None:
+            self._finish()
+        if self._progress is not None:
+            self._progress.stop()

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import queue
+
 import pytest
 
 from sensorgym.cli.compile import decide, groups, warm
@@ -23,9 +25,16 @@ def test_warm_steps_the_env_and_plays_every_registered_rule():
     from sensorgym.envs.bearings_maneuver import kernels
 
     env_id = "sensorgym/BearingsManeuver-v0"
-    ids, seconds, played = warm([env_id])
+    events = queue.Queue()
+    ids, seconds, played = warm([env_id], events)
     assert ids == [env_id] and seconds > 0.0
     assert played == len(RULES[env_id])
+    # the progress it reports: the env, each rule by name, then done, counting up to the total
+    reported = [events.get() for _ in range(events.qsize())]
+    assert {e[:2] for e in reported} == {(env_id, 1 + len(RULES[env_id]))}
+    assert [e[2] for e in reported] == sorted(e[2] for e in reported)
+    assert reported[-1][2:] == (1 + len(RULES[env_id]), "done")
+    assert {f"{env_id}: {name}" for name in RULES[env_id]} <= {e[3] for e in reported}
     # the env's kernels are compiled (or loaded from the cache) in this process
     assert kernels.step_kernel.signatures and kernels.reset_kernel.signatures
 
