@@ -150,16 +150,18 @@ def boresight_rotations(origins: FloatArray, aim: FloatArray, max_elevation: flo
     return np.stack([X, Y, Z], axis=-1)
 
 
-def noisy_directions(los: FloatArray, normals: FloatArray, sigma_ang: float) -> FloatArray:
-    """The directions the receivers fix, world frame (theory §4.1, angle-noise model):
+def noisy_directions(los: FloatArray, normals: FloatArray, sigma_ang: ArrayLike) -> FloatArray:
+    """The directions the receivers fix (theory §4.1, angle-noise model):
     ``z_k = (u_k + δ_k)/‖u_k + δ_k‖``, ``δ_k = σ_ang (I − u_k u_kᵀ) n_k`` with ``n_k`` the
-    standard normal draws ``normals (B, n, 3)`` (the error lies across the line of sight).
-    Noise-free (``σ_ang = 0``): ``z_k = u_k``."""
-    if sigma_ang == 0.0:
+    standard normal draws ``normals (..., 3)`` (the error lies across the line of sight), in
+    whatever frame ``los (..., 3)`` is given. ``σ_ang`` is one value or one per direction
+    (broadcast against ``los[..., 0]``); noise-free (``σ_ang = 0``): ``z_k = u_k``."""
+    sigma = np.asarray(sigma_ang, dtype=np.float64)
+    if not np.any(sigma > 0.0):
         return los
     along = np.sum(normals * los, axis=-1, keepdims=True)
-    z = los + (normals - along * los) * sigma_ang
-    return z / np.linalg.norm(z, axis=-1, keepdims=True)
+    z = los + (normals - along * los) * sigma[..., None]
+    return np.where(sigma[..., None] > 0.0, z / np.linalg.norm(z, axis=-1, keepdims=True), los)
 
 
 def own_frame(R: FloatArray, directions: FloatArray) -> FloatArray:

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -359,6 +359,47 @@ def _start(
     )
 
 
+class ScenarioDraws(NamedTuple):
+    """The random draws of fresh scenarios (:func:`draw_scenario`): per drone ``(B, m)``, per
+    receiver ``(B, n)``."""
+
+    distance: FloatArray
+    """Horizontal distance ``d`` of a drone's start from the circle centre, m."""
+    bearing: FloatArray
+    """Bearing ``β`` of the start from the centre, rad (from ``+Z`` towards ``+X``)."""
+    height: FloatArray
+    """Height ``h`` of the start, m."""
+    speed: FloatArray
+    """Horizontal speed ``s``, m/s."""
+    heading: FloatArray
+    """Heading ``ψ``, rad."""
+    climb: FloatArray
+    """Vertical speed, m/s."""
+    azimuth: FloatArray
+    """Initial boresight azimuths ``(B, n)``, rad (used as drawn unless ``cued_start``)."""
+    elevation: FloatArray
+    """Initial boresight elevations ``(B, n)``, rad."""
+
+
+def draw_scenario(params: PointingParams, rng: np.random.Generator, batch: int) -> ScenarioDraws:
+    """The draws of ``batch`` fresh scenarios, in a fixed order so that a seed fixes every
+    scenario: each drone's distance, bearing, height, speed, heading and climb (uniform in their
+    params ranges, the angles over the full circle), then each receiver's azimuth (full circle)
+    and elevation (``initial_elevation``). The random initial pointing is drawn even when the
+    start is cued (it stays where a cue gives no direction, :func:`aim_at`)."""
+    n, m = params.n_receivers, params.n_drones
+    return ScenarioDraws(
+        distance=rng.uniform(*params.start_distance, (batch, m)),
+        bearing=rng.uniform(-np.pi, np.pi, (batch, m)),
+        height=rng.uniform(*params.start_altitude, (batch, m)),
+        speed=rng.uniform(*params.drone_speed, (batch, m)),
+        heading=rng.uniform(-np.pi, np.pi, (batch, m)),
+        climb=rng.uniform(*params.climb_rate, (batch, m)),
+        azimuth=rng.uniform(-np.pi, np.pi, (batch, n)),
+        elevation=rng.uniform(*params.initial_elevation, (batch, n)),
+    )
+
+
 def reset(
     params: PointingParams,
     rng: np.random.Generator,
@@ -369,21 +410,13 @@ def reset(
     random azimuths), the tracker on its cue. Scenarios share nothing: ``like`` is unused."""
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
-    n, m = params.n_receivers, params.n_drones
-    # scenario draws, in a fixed order so that a seed fixes every scenario
-    dist = rng.uniform(*params.start_distance, (batch, m))
-    bearing = rng.uniform(-np.pi, np.pi, (batch, m))
-    height = rng.uniform(*params.start_altitude, (batch, m))
-    speed = rng.uniform(*params.drone_speed, (batch, m))
-    heading = rng.uniform(-np.pi, np.pi, (batch, m))
-    climb = rng.uniform(*params.climb_rate, (batch, m))
-    az = rng.uniform(-np.pi, np.pi, (batch, n))
-    el = rng.uniform(*params.initial_elevation, (batch, n))
+    m = params.n_drones
+    d = draw_scenario(params, rng, batch)
     # p = (d sin β, h, d cos β),  v = (s sin ψ, climb, s cos ψ)
     p, v = np.empty((batch, m, 3)), np.empty((batch, m, 3))
-    kernels.drones_kernel(dist, bearing, height, speed, heading, climb, p, v)
+    kernels.drones_kernel(d.distance, d.bearing, d.height, d.speed, d.heading, d.climb, p, v)
     # the tracker on its cue; receiver k on drone k mod m's cued position
-    return _start(params, p, v, az, el, rng, cued=params.cued_start)
+    return _start(params, p, v, d.azimuth, d.elevation, rng, cued=params.cued_start)
 
 
 def aim_at(
@@ -585,12 +618,21 @@ def info(params: PointingParams, state: PointingState) -> dict[str, FloatArray]:
     fixed drones with a finite bound, the sum and count of their CRLB ``σ_pos`` (m, the
     reward's :attr:`PointingState.bound`)."""
     diag = _derived(params, state)[2]
-    sigma = state.bound
-    counted = state.fixed & np.isfinite(sigma)
     return {
         "position_error": diag[kernels.I_ERROR],
         "drones_fixed": diag[kernels.I_FIXED],
         "views": diag[kernels.I_VIEWS],
+        **tail_info(state),
+    }
+
+
+def tail_info(state: PointingState) -> dict[str, FloatArray]:
+    """The entries of :func:`info` for the tail measures, read off the state: the share of
+    drones without a fix and, over the fixed drones with a finite bound, the sum and count of
+    their CRLB ``σ_pos`` (m)."""
+    sigma = state.bound
+    counted = state.fixed & np.isfinite(sigma)
+    return {
         "unfixed_share": (~state.fixed).mean(axis=1),
         "fixed_sigma_sum": np.where(counted, sigma, 0.0).sum(axis=1),
         "fixed_sigma_count": counted.sum(axis=1).astype(np.float64),
@@ -651,6 +693,6 @@ def assignment_actions(params: PointingParams, obs: ArrayLike, target: ArrayLike
     """:func:`slew_actions` read off observations ``(N, obs_dim)``: receiver ``k`` slews at the
     tracker's predicted position of drone ``target[:, k]`` — the one slew controller the
     assignment rules and the assignment action
-    (:class:`~sensorgym.envs.stereo_pointing.wrappers.AssignmentAction`) share."""
+    (:class:`~sensorgym.train.env_wrappers.stereo_pointing.AssignmentAction`) share."""
     azimuth, elevation, points = observed_pointing(params, obs)
     return slew_actions(params, azimuth, elevation, points, target)

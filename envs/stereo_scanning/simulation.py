@@ -24,9 +24,11 @@ looking at the scene centre ``(0, h_aim, 0)``. Per period:
    4 … n refine each triple by least squares over all their fixes (proposed only), associates
    candidates to tracks over periods, initiates and confirms tracks (:mod:`.kernels`);
 4. the reward: per present drone ``clip(ln(σ_ref/σ_pos), −R, R)`` for the confirmed track
-   assigned to it (nearest within ``truth_gate`` at the period end), ``σ_pos`` the track's own
-   ``σ_e √([(AᵀA)⁻¹]_11 + 2)`` predicted to the period end; ``−R`` without a track; averaged
-   over the present drones, less ``false_track_penalty`` per unassigned confirmed track.
+   assigned to it (nearest within ``truth_gate``, at the track's own time if it took a
+   candidate in the period, else at the period end), ``σ_pos`` the track's own (a triple's
+   exact first-order one, theory §3.5; a joint fit's ``σ_e √([(AᵀA)⁻¹]_11 + 2)``) grown by
+   ``σ_vel`` over the time since its latest member; ``−R`` without a track; averaged over the
+   present drones, less ``false_track_penalty`` per unassigned confirmed track.
 """
 
 from __future__ import annotations
@@ -477,7 +479,8 @@ class ScanningState:
     fix_count: IntArray = field(repr=False)
     """(B, n) number of fixes per receiver in the last period."""
     fix_drone: IntArray = field(repr=False)
-    """(B, n, F) which drone each fix is of (−1: false detection; ground truth)."""
+    """(B, n, F) which drone each fix is of (−1: false detection; ground truth); the unused
+    rows hold −1 after a reset, 0 after a step."""
     tracks: FloatArray = field(repr=False)
     """(B, T, 19) the tracker's table, per row: position (m) at its time and velocity (m/s),
     world frame (0–5); time of the latest member, s (6); ``σ_pos`` (m) and ``σ_vel`` (m/s), the
@@ -485,7 +488,8 @@ class ScanningState:
     sums ``(S0, Σt, Σt², ΣM, ΣtM)``, t from the latest member (10–18). Views: ``track_*``."""
     track_int: IntArray = field(repr=False)
     """(B, T, 4) per row: periods with a member, consecutive misses, status (0 empty,
-    1 tentative, 2 confirmed) and the identity given at confirmation."""
+    1 tentative, 2 confirmed) and the identity given at confirmation (a row not confirmed may
+    keep an earlier track's). A freed row keeps its last values until it is reused."""
     next_id: IntArray = field(repr=False)
     """(B,) the next identity."""
     assigned: IntArray = field(repr=False)
@@ -557,7 +561,8 @@ class ScanningState:
 
     @property
     def track_id(self) -> IntArray:
-        """(B, T) identity given at confirmation (−1: none)."""
+        """(B, T) identity given at confirmation (−1: never confirmed in this row; meaningful
+        for confirmed rows only)."""
         return self.track_int[..., 3]
 
 
@@ -652,18 +657,16 @@ def with_observation(params: ScanningParams, state: ScanningState) -> ScanningSt
     return dataclasses.replace(state, observation=obs)
 
 
-def reset(
-    params: ScanningParams,
-    rng: np.random.Generator,
-    batch: int,
-    like: ScanningState | None = None,
-) -> ScanningState:
-    """``batch`` fresh scenarios: drones over the scene centre, one close group, late entries.
-    Scenarios share nothing: ``like`` is unused."""
-    if batch < 1:
-        raise ValueError(f"batch: must be >= 1, got {batch}")
+def draw_scenario(
+    params: ScanningParams, rng: np.random.Generator, batch: int
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The drones of ``batch`` fresh scenarios (theory §11.5): positions ``(B, m, 3)`` at their
+    entry times, velocities and constant accelerations ``(B, m, 3)`` and entry times
+    ``(B, m)``, s. Drawn in a fixed order, so that a seed fixes every scenario: start places
+    (X, Z), heights, horizontal speeds, headings, climb rates, acceleration magnitudes and
+    directions, close-drone spacings, their offset directions and speed jitters, then the late
+    drones' entry times (every draw is taken for all ``m`` drones, used or not)."""
     m = params.n_drones
-    # scenario draws, in a fixed order so that a seed fixes every scenario
     xz = rng.uniform(-params.start_spread, params.start_spread, (batch, m, 2))
     height = rng.uniform(*params.start_altitude, (batch, m))
     speed = rng.uniform(*params.drone_speed, (batch, m))
@@ -692,7 +695,20 @@ def reset(
         k = m - params.late_drones
         enter[:, k:] = np.ceil(late[:, k:] / params.period - 1e-9) * params.period
     p[..., 1] = np.clip(p[..., 1], params.scene_floor, params.scene_height)
-    return start(params, p, v, a, enter)
+    return p, v, a, enter
+
+
+def reset(
+    params: ScanningParams,
+    rng: np.random.Generator,
+    batch: int,
+    like: ScanningState | None = None,
+) -> ScanningState:
+    """``batch`` fresh scenarios: drones over the scene centre, one close group, late entries
+    (:func:`draw_scenario`). Scenarios share nothing: ``like`` is unused."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    return start(params, *draw_scenario(params, rng, batch))
 
 
 def step(
