@@ -7,7 +7,7 @@ env's params, and implements SB3's ``predict``, so
 assignment rules enumerate every map of receivers to drones (``m^n`` of them) and slew each
 receiver straight at the predicted position of its drone (the env's one slew controller,
 :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, which the assignment action
-:class:`~sensorgym.envs.stereo_pointing.wrappers.AssignmentAction` uses too); the scores of all candidates are the
+:class:`~sensorgym.train.env_wrappers.stereo_pointing.AssignmentAction` uses too); the scores of all candidates are the
 compiled :func:`~sensorgym.trackers.stereo.kernels.assignment_orthogonality_batch` and
 :func:`~sensorgym.trackers.stereo.kernels.assignment_log_det_batch`, the lines of sight and
 pointing offsets the env's compiled ones.
@@ -70,7 +70,7 @@ FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
-class _View:
+class RuleView:
     """What a rule knows at one step: decoded observation and the geometry it implies."""
 
     azimuth: FloatArray
@@ -96,7 +96,7 @@ class _View:
     """(N, m) velocity RMS of the tracks, m/s (``None``: not decoded)."""
 
 
-def _view(params: PointingParams, obs: FloatArray) -> _View:
+def rule_view(params: PointingParams, obs: FloatArray) -> RuleView:
     """Decode ``obs``. A drone predicted on a receiver (the zero line of sight, which that
     receiver never sees) is at infinite range from it: it adds no information there and is
     never the nearest."""
@@ -104,7 +104,7 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
     azimuth, elevation, position = observed_pointing(params, obs)
     los, r = lines_of_sight(params, position)
     inside = np.einsum("nkjc,nkc->nkj", los, boresights(azimuth, elevation)) >= np.cos(params.fov)
-    return _View(
+    return RuleView(
         azimuth=azimuth,
         elevation=elevation,
         seen=pairs[..., 2],
@@ -118,7 +118,7 @@ def _view(params: PointingParams, obs: FloatArray) -> _View:
     )
 
 
-def _assignments(params: PointingParams) -> NDArray[np.int64]:
+def all_assignments(params: PointingParams) -> NDArray[np.int64]:
     """Every map of the ``n`` receivers to the ``m`` drones, ``(m^n, n)``."""
     return assignments(params.n_receivers, params.n_drones)
 
@@ -156,7 +156,7 @@ def information_seed(
     aimed: FloatArray | None = None,
 ) -> NDArray[np.int64]:
     """The polynomial solvers' start ``(N, n)``: each receiver aimed at a drone (``aimed
-    (N, n, m)``, :attr:`_View.aimed`; the first such drone) stays on it — the search starts
+    (N, n, m)``, :attr:`RuleView.aimed`; the first such drone) stays on it — the search starts
     from the current pointing, so that re-planning every step does not jump between equally
     good assignments — and the others follow the sequential greedy
     (:func:`~sensorgym.agents.assignment_solver.sequential_greedy`) on the information gain
@@ -174,13 +174,13 @@ def information_seed(
 
 
 def aimed_drone(aimed: ArrayLike) -> NDArray[np.int64]:
-    """The drone each receiver is aimed at ``(N, n)`` from :attr:`_View.aimed` ``(N, n, m)``:
+    """The drone each receiver is aimed at ``(N, n)`` from :attr:`RuleView.aimed` ``(N, n, m)``:
     the first drone it saw or has inside its field of view, ``-1`` for none (in transit)."""
     aimed = np.asarray(aimed) > 0.0
     return np.where(aimed.any(axis=-1), np.argmax(aimed, axis=-1), -1)
 
 
-def _starts(params: PointingParams, view: _View) -> list[NDArray[np.int64]]:
+def search_starts(params: PointingParams, view: RuleView) -> list[NDArray[np.int64]]:
     """The polynomial search's two starts at the tracker's predictions: the
     :func:`information_seed` from the current pointing, and from nothing (a coordinate-wise
     ascent cannot exchange two receivers' drones: from the current pairs alone it would
@@ -189,9 +189,9 @@ def _starts(params: PointingParams, view: _View) -> list[NDArray[np.int64]]:
     return [information_seed(params, view.los, view.ranges, view.sigma, a) for a in (aimed, None)]
 
 
-def _keep_bonus(view: _View, cand: NDArray[np.int64], bonus: float) -> FloatArray:
+def hysteresis_bonus(view: RuleView, cand: NDArray[np.int64], bonus: float) -> FloatArray:
     """``bonus`` times the number of receivers each candidate leaves on a drone they are aimed
-    at (:attr:`_View.aimed`) ``(N, C)``: hysteresis, so that near-ties do not make receivers
+    at (:attr:`RuleView.aimed`) ``(N, C)``: hysteresis, so that near-ties do not make receivers
     slew back and forth. Counting the aim and not only the last step's sightings matters at the
     start: nothing has been seen yet, and a near-tie would otherwise send receivers off the cue."""
     n = cand.shape[1]
@@ -205,18 +205,18 @@ class _AssignAndSlew(MemorylessRule):
     params: PointingParams
 
     @abstractmethod
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
 
     def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
         obs, single = as_batch(observation, self.params.obs_dim)
-        choice = self.choose(_view(self.params, obs))
+        choice = self.choose(rule_view(self.params, obs))
         return choice[0] if single else choice
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
-        view = _view(self.params, obs)
+        view = rule_view(self.params, obs)
         return slew_actions(
             self.params, view.azimuth, view.elevation, view.position, self.choose(view)
         )
@@ -243,7 +243,7 @@ class HoldCue(_AssignAndSlew):
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (receiver layout, slew limit, observation layout)."""
 
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``: ``k mod m``."""
         n, m = self.params.n_receivers, self.params.n_drones
         return np.broadcast_to(np.arange(n) % m, (view.azimuth.shape[0], n)).copy()
@@ -257,7 +257,7 @@ class TrackNearest(_AssignAndSlew):
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (receiver layout, slew limit, observation layout)."""
 
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         return np.argmin(view.ranges, axis=-1)
 
@@ -285,7 +285,7 @@ class OrthogonalPairs(_AssignAndSlew):
     def __post_init__(self) -> None:
         check_solver(self.solver)
 
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         p = self.params
         if not exhaustive(self.solver, p.n_receivers, p.n_drones):
@@ -293,12 +293,12 @@ class OrthogonalPairs(_AssignAndSlew):
             objective = _one_step(
                 kernels.ORTHOGONALITY, view.los, np.ones((N, n, m)), np.zeros((N, m)), ()
             )
-            return best_of(objective, _starts(p, view), self.keep_bonus * view.aimed)
-        cand = _assignments(p)  # (C, n)
+            return best_of(objective, search_starts(p, view), self.keep_bonus * view.aimed)
+        cand = all_assignments(p)  # (C, n)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ½ ln max_{k∈S_j} Σ_{l∈S_j} sin²γ_kl, compiled
         kernels.assignment_orthogonality_batch(view.los, cand, objective)
-        objective += _keep_bonus(view, cand, self.keep_bonus)
+        objective += hysteresis_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
 
@@ -328,7 +328,7 @@ class GreedyPointing(_AssignAndSlew):
     def __post_init__(self) -> None:
         check_solver(self.solver)
 
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         p = self.params
         if not exhaustive(self.solver, p.n_receivers, p.n_drones):
@@ -336,8 +336,8 @@ class GreedyPointing(_AssignAndSlew):
             w = _weights(p.sigma_ang, view.ranges)
             consts = (float(self.no_fix_cost),)
             objective = _one_step(kernels.LOG_DET, view.los, w, np.zeros((N, m)), consts)
-            return best_of(objective, _starts(p, view), self.keep_bonus * view.aimed)
-        cand = _assignments(self.params)
+            return best_of(objective, search_starts(p, view), self.keep_bonus * view.aimed)
+        cand = all_assignments(self.params)
         objective = np.empty((view.los.shape[0], cand.shape[0]))
         # Σ_j ln det I_j of the receivers each candidate assigns to drone j, compiled
         kernels.assignment_log_det_batch(
@@ -348,7 +348,7 @@ class GreedyPointing(_AssignAndSlew):
             float(self.no_fix_cost),
             objective,
         )
-        objective += _keep_bonus(view, cand, self.keep_bonus)
+        objective += hysteresis_bonus(view, cand, self.keep_bonus)
         return cand[np.argmax(objective, axis=-1)]
 
 
@@ -395,27 +395,29 @@ class TruthPlan(MemorylessRule):
     def assign(self, observation: NDArray[Any]) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``."""
         obs, single = as_batch(observation, self.params.obs_dim)
-        choice = self.choose(self.state_fn(), obs.shape[0], _view(self.params, obs))
+        choice = self.choose(self.state_fn(), obs.shape[0], rule_view(self.params, obs))
         return choice[0] if single else choice
 
     def act(self, obs: FloatArray) -> FloatArray:
         """Actions ``(N, action size)`` for observations ``(N, obs_dim)``."""
-        view = _view(self.params, obs)
+        view = rule_view(self.params, obs)
         target = self.choose(self.state_fn(), obs.shape[0], view)
         return slew_actions(self.params, view.azimuth, view.elevation, view.position, target)
 
-    def choose(self, state: PointingState, N: int, view: _View | None = None) -> NDArray[np.int64]:
+    def choose(
+        self, state: PointingState, N: int, view: RuleView | None = None
+    ) -> NDArray[np.int64]:
         """The best held assignment ``(N, n)`` of every scenario of ``state`` (the polynomial
         search starts from the pointing of ``view``, if given)."""
         if state.batch_size != N:
             raise ValueError(f"observation: {N} envs, but the simulator holds {state.batch_size}")
         p = self.params
         if exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
-            return _assignments(p)[np.argmax(self.values(state), axis=-1)]
+            return all_assignments(p)[np.argmax(self.values(state), axis=-1)]
         los, r = lines_of_sight(p, state.drone_position)
         sigma = state.track.position_sigma
         starts = [information_seed(p, los, r, sigma, None if view is None else view.aimed > 0.0)]
-        if view is not None:  # and from nothing (see _starts)
+        if view is not None:  # and from nothing (see search_starts)
             starts.append(information_seed(p, los, r, sigma))
         return best_of(plan_objective(p, self.geometry(state)), starts)
 
@@ -433,7 +435,7 @@ class TruthPlan(MemorylessRule):
         )
 
     def values(self, state: PointingState) -> FloatArray:
-        """Planned return ``(B, C)`` of every candidate of :func:`_assignments` from ``state``."""
+        """Planned return ``(B, C)`` of every candidate of :func:`all_assignments` from ``state``."""
         return geometry_values(self.params, self.geometry(state))
 
 
@@ -493,7 +495,7 @@ def slew_steps(
 
 
 def plan_values(params: PointingParams, *flight: Any) -> FloatArray:
-    """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` for the
+    """Planned return ``(B, C)`` of holding each assignment of :func:`all_assignments` for the
     next ``left (B,)`` steps, ``flight = (azimuth, elevation, position, velocity, left,
     stride)`` as for :func:`plan_geometry`: the env's reward of the receivers assigned to each
     drone, each counted from the step its gimbal, slewing at full rate, is within half a field
@@ -502,7 +504,7 @@ def plan_values(params: PointingParams, *flight: Any) -> FloatArray:
 
 
 def geometry_values(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
-    """Planned return ``(B, C)`` of holding each assignment of :func:`_assignments` over
+    """Planned return ``(B, C)`` of holding each assignment of :func:`all_assignments` over
     ``geometry``: the env's reward of the receivers assigned to each drone, each counted from
     the step it is ready, averaged over the drones and summed with the steps' weights."""
     return rewards_values(drone_rewards(params, geometry), geometry.weight)
@@ -531,9 +533,9 @@ def grid_prefix(
 
 def drone_rewards(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
     """The env's per-drone reward ``(B, C, S, m)`` on each grid step of the plan of each
-    candidate of :func:`_assignments`, each receiver counted from the step it is ready."""
+    candidate of :func:`all_assignments`, each receiver counted from the step it is ready."""
     p, g = params, geometry
-    cand = _assignments(p)  # (C, n)
+    cand = all_assignments(p)  # (C, n)
     # candidate c sends receiver k to drone c_k
     sent = cand[:, None, :] == np.arange(p.n_drones)[None, :, None]  # (C, m, n)
     # (B, S, m, n) views of the geometry, receivers last
@@ -545,7 +547,7 @@ def drone_rewards(params: PointingParams, geometry: PlanGeometry) -> FloatArray:
     return log_ratio_reward(sigma, p.sigma_ref, p.reward_clip)
 
 
-def acquisition_probability(params: PointingParams, view: _View) -> FloatArray:
+def acquisition_probability(params: PointingParams, view: RuleView) -> FloatArray:
     """Probability ``(N, n, m)`` that receiver ``k``, slewed onto the tracker's prediction of
     drone ``j``, finds the drone inside its field of view: 1 where it saw the drone on the last
     step, else ``1 − exp(−(fov r_kj)² / (2 s_j²))``, the chance that an isotropic Gaussian
@@ -579,7 +581,7 @@ def rewards_acquired(
     """:func:`acquired_values` of the per-drone rewards ``(B, C, S, m)`` of
     :func:`drone_rewards` on a grid weighted by ``weight (B, S)``."""
     p = params
-    cand = _assignments(p)  # (C, n)
+    cand = all_assignments(p)  # (C, n)
     n, m = cand.shape[1], p.n_drones
     sent = cand[:, None, :] == np.arange(m)[None, :, None]  # (C, m, n)
     planned = np.einsum("bcsj,bs->bcj", rewards, weight)  # (B, C, m)
@@ -631,7 +633,7 @@ class PlanEstimate(_AssignAndSlew):
     def __post_init__(self) -> None:
         check_solver(self.solver)
 
-    def choose(self, view: _View) -> NDArray[np.int64]:
+    def choose(self, view: RuleView) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)``."""
         p, N = self.params, view.azimuth.shape[0]
         geometry = plan_geometry(
@@ -644,5 +646,5 @@ class PlanEstimate(_AssignAndSlew):
             self.stride,
         )
         if not exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
-            return best_of(plan_objective(p, geometry), _starts(p, view))
-        return _assignments(p)[np.argmax(geometry_values(p, geometry), axis=-1)]
+            return best_of(plan_objective(p, geometry), search_starts(p, view))
+        return all_assignments(p)[np.argmax(geometry_values(p, geometry), axis=-1)]

@@ -12,7 +12,7 @@ counts the steps of its episode and plans over ``min(horizon, steps left)``, and
 The observation carries no clock: the rule keeps its own step count as its ``state`` (an int
 array per env, restarted by ``episode_start``), as SB3 does for recurrent policies, and reads
 the episode length from the registration (``max_episode_steps``, :data:`EPISODE_STEPS`). Its
-decisions are the argmax of the :class:`~sensorgym.envs.stereo_pointing.wrappers.PlanFeatures`
+decisions are the argmax of the :class:`~sensorgym.train.env_wrappers.stereo_pointing.PlanFeatures`
 evidence at that horizon plus the hysteresis count (the wrapper counts the steps the same way).
 """
 
@@ -30,17 +30,17 @@ from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
     PLAN_ASSIGNMENTS,
     PlanGeometry,
-    _assignments,
-    _keep_bonus,
-    _starts,
-    _View,
-    _view,
+    RuleView,
     acquired_values,
     acquisition_probability,
     aimed_drone,
+    all_assignments,
     geometry_values,
+    hysteresis_bonus,
     plan_geometry,
     plan_objective,
+    rule_view,
+    search_starts,
 )
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
@@ -112,7 +112,7 @@ class PlanHorizon:
         left = self.episode_steps - np.asarray(t, dtype=np.int64)
         return np.clip(left, 1, self.horizon).astype(np.float64)
 
-    def geometry(self, view: _View, t: NDArray[Any]) -> PlanGeometry:
+    def geometry(self, view: RuleView, t: NDArray[Any]) -> PlanGeometry:
         """The plan's :class:`~sensorgym.agents.stereo_pointing.PlanGeometry` at episode steps
         ``t (N,)``."""
         return plan_geometry(
@@ -125,33 +125,33 @@ class PlanHorizon:
             self.stride,
         )
 
-    def values(self, view: _View, geometry: PlanGeometry) -> NDArray[np.float64]:
+    def values(self, view: RuleView, geometry: PlanGeometry) -> NDArray[np.float64]:
         """The exhaustive search's value ``(N, C)`` of every candidate of
-        :func:`~sensorgym.agents.stereo_pointing._assignments`: its planned return (with
+        :func:`~sensorgym.agents.stereo_pointing.all_assignments`: its planned return (with
         ``acquisition``, weighted by the chance of a fix) plus the hysteresis bonus."""
         p = self.params
         if self.acquisition:
             values = acquired_values(p, geometry, acquisition_probability(p, view))
         else:
             values = geometry_values(p, geometry)
-        return values + _keep_bonus(view, _assignments(p), self.keep_bonus)
+        return values + hysteresis_bonus(view, all_assignments(p), self.keep_bonus)
 
-    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
+    def choose(self, view: RuleView, t: NDArray[Any]) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``."""
         p = self.params
         geometry = self.geometry(view, t)
         if not exhaustive(self.solver, p.n_receivers, p.n_drones, PLAN_ASSIGNMENTS):
             return best_of(
-                plan_objective(p, geometry), _starts(p, view), self.keep_bonus * view.aimed
+                plan_objective(p, geometry), search_starts(p, view), self.keep_bonus * view.aimed
             )
-        return _assignments(p)[np.argmax(self.values(view, geometry), axis=-1)]
+        return all_assignments(p)[np.argmax(self.values(view, geometry), axis=-1)]
 
     def assign(self, observation: NDArray[Any], t: NDArray[Any] | int = 0) -> NDArray[np.int64]:
         """The drone each receiver is sent to, ``(n,)`` or ``(n_envs, n)``, at episode step(s)
         ``t`` (default: the episode's first)."""
         obs, single = as_batch(observation, self.obs_dim)
         steps = np.broadcast_to(np.asarray(t, dtype=np.int64), (obs.shape[0],))
-        choice = self.choose(_view(self.params, obs), steps)
+        choice = self.choose(rule_view(self.params, obs), steps)
         return choice[0] if single else choice
 
     def steps(
@@ -175,7 +175,7 @@ class PlanHorizon:
     ) -> tuple[NDArray[np.float32], NDArray[np.int64]]:
         obs, single = as_batch(observation, self.obs_dim)
         t = self.steps(obs.shape[0], state, episode_start)
-        view = _view(self.params, obs)
+        view = rule_view(self.params, obs)
         target = self.choose(view, t)
         points, index = plan_aims(
             self.params, view, target, t, self.cue_steps, self.sharing, self.search
@@ -187,7 +187,7 @@ class PlanHorizon:
 
 def plan_aims(
     params: PointingParams,
-    view: _View,
+    view: RuleView,
     target: NDArray[np.int64],
     t: NDArray[np.int64],
     cue_steps: int = 0,
@@ -226,7 +226,7 @@ def cue_hold(
 ) -> NDArray[np.int64]:
     """The drone per receiver ``(N, n)``: ``target``'s, except that on an episode's first
     ``cue_steps`` steps (``t (N,) < cue_steps``) a receiver aimed at a drone
-    (:func:`~sensorgym.agents.stereo_pointing.aimed_drone` of :attr:`_View.aimed`
+    (:func:`~sensorgym.agents.stereo_pointing.aimed_drone` of :attr:`RuleView.aimed`
     ``(N, n, m)``) stays on it (:attr:`PlanHorizon.cue_steps`; the ``pointing-plan`` wrapper's
     ``cue_steps`` holds the same)."""
     target = np.asarray(target, dtype=np.int64)

@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.assignment_solver import exhaustive
-from sensorgym.agents.stereo_pointing import _assignments, _View, slew_steps
+from sensorgym.agents.stereo_pointing import RuleView, all_assignments, slew_steps
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
@@ -68,7 +68,7 @@ class Schedule:
             raise ValueError(f"lead: must be >= 0, got {self.lead!r}")
 
 
-def reacquire_steps(params: PointingParams, view: _View, reach: float) -> NDArray[np.float64]:
+def reacquire_steps(params: PointingParams, view: RuleView, reach: float) -> NDArray[np.float64]:
     """Steps ``(N, m)`` until drone ``j``'s predicted RMS error exceeds ``reach · fov · r̄_j``
     (``r̄_j`` its mean range from the receivers): the track predicts without a fix, ``σ̂²(τ) =
     σ̂² + σ̂_v² τ² + q τ³`` (``τ`` in s, the CV filter's growth of ``tr P_pp`` without the
@@ -87,7 +87,7 @@ def reacquire_steps(params: PointingParams, view: _View, reach: float) -> NDArra
     return np.where(past.any(axis=-1), np.argmax(past, axis=-1), MAX_DEADLINE).astype(np.float64)
 
 
-def forced_drone(params: PointingParams, view: _View, schedule: Schedule) -> NDArray[np.int64]:
+def forced_drone(params: PointingParams, view: RuleView, schedule: Schedule) -> NDArray[np.int64]:
     """The drone ``(N,)`` that must get a pair now, ``-1`` for none: among the drones whose
     :func:`reacquire_steps` deadline is positive and at most the fastest pair's transit
     (the second-smallest :func:`~sensorgym.agents.stereo_pointing.slew_steps` over the
@@ -119,7 +119,7 @@ class PlanSchedule(PlanHorizon):
         if self.schedule is not None and not isinstance(self.schedule, Schedule):
             raise ValueError(f"schedule: must be a Schedule or None, got {self.schedule!r}")
 
-    def choose(self, view: _View, t: NDArray[Any]) -> NDArray[np.int64]:
+    def choose(self, view: RuleView, t: NDArray[Any]) -> NDArray[np.int64]:
         """Drone index per receiver ``(N, n)`` at episode steps ``t (N,)``: with ``solver``
         ``"auto"`` the schedule constrains the exhaustive search up to
         :data:`SCHEDULE_ASSIGNMENTS` assignments (4 × 3's 81, 4 × 4's 256), beyond that (and
@@ -127,7 +127,7 @@ class PlanSchedule(PlanHorizon):
         p = self.params
         if not exhaustive(self.solver, p.n_receivers, p.n_drones, SCHEDULE_ASSIGNMENTS):
             return super().choose(view, t)
-        cand = _assignments(p)  # (C, n)
+        cand = all_assignments(p)  # (C, n)
         values = self.values(view, self.geometry(view, t))  # (N, C)
         if self.schedule is None:
             return cand[np.argmax(values, axis=-1)]
@@ -149,9 +149,9 @@ GROWTH_SPAN = 6.0
 
 
 def schedule_features(
-    params: PointingParams, view: _View, schedule: Schedule = Schedule()
+    params: PointingParams, view: RuleView, schedule: Schedule = Schedule()
 ) -> NDArray[np.float64]:
-    """Per candidate assignment of :func:`~sensorgym.agents.stereo_pointing._assignments`
+    """Per candidate assignment of :func:`~sensorgym.agents.stereo_pointing.all_assignments`
     the schedule's evidence ``(N, C, len(SCHEDULE_FEATURES))``, each O(1), for a policy that
     learns when to hand a pair back to a drifting drone (the ``plan-features`` wrapper with
     ``schedule``). A drone is *paired* by a candidate that sends at least two receivers to it;
@@ -171,7 +171,7 @@ def schedule_features(
     The track's RMS integrates the steps since the drone's last fix, so the features need no
     memory: they are a function of the observation, like the plan's."""
     p = params
-    cand = _assignments(p)  # (C, n)
+    cand = all_assignments(p)  # (C, n)
     paired = (cand[:, :, None] == np.arange(p.n_drones)).sum(axis=1) >= 2  # (C, m)
     deadline = reacquire_steps(p, view, schedule.reach)  # (N, m)
     steps = slew_steps(p, view.azimuth, view.elevation, view.position)  # (N, n, m)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.agents.stereo_pointing import _View
+from sensorgym.agents.stereo_pointing import RuleView
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, boresights
 
 #: nearest range along the seeing receiver's ray searched, m
@@ -78,7 +78,7 @@ class EpipolarSearch:
 
 def search_aims(
     params: PointingParams,
-    view: _View,
+    view: RuleView,
     target: NDArray[np.int64],
     t: NDArray[np.int64],
     search: EpipolarSearch,

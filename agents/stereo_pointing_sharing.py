@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.agents.stereo_pointing import _View
+from sensorgym.agents.stereo_pointing import RuleView
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 
 #: distance along the bisector of the aim point from the receiver, m (any positive value: the
@@ -54,7 +54,7 @@ class Sharing:
 
 
 def share_logits(
-    params: PointingParams, view: _View, target: NDArray[np.int64], sharing: Sharing
+    params: PointingParams, view: RuleView, target: NDArray[np.int64], sharing: Sharing
 ) -> NDArray[np.float64]:
     """How well each drone fits beside each receiver's own one, ``(N, n, m)``: positive exactly
     when the rule of :func:`shared_aims` may share receiver ``k``'s drone ``target[:, k]`` with
@@ -80,7 +80,7 @@ def share_logits(
 
 
 def _separation(
-    view: _View, target: NDArray[np.int64]
+    view: RuleView, target: NDArray[np.int64]
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Each receiver's line of sight to its own drone ``(N, n, 3)`` and its angle to the line
     of sight to every drone ``(N, n, m)``, rad."""
@@ -89,7 +89,7 @@ def _separation(
     return own, np.arccos(np.clip(np.einsum("nkc,nkjc->nkj", own, view.los), -1.0, 1.0))
 
 
-def _shareable(view: _View, target: NDArray[np.int64]) -> NDArray[np.bool_]:
+def _shareable(view: RuleView, target: NDArray[np.int64]) -> NDArray[np.bool_]:
     """``(N, n, m)``: drone ``j`` is another drone than receiver ``k``'s own, and the receiver
     has a line of sight to both (neither predicted on it)."""
     m = view.ranges.shape[2]
@@ -102,7 +102,7 @@ def _shareable(view: _View, target: NDArray[np.int64]) -> NDArray[np.bool_]:
 
 
 def aims_between(
-    params: PointingParams, view: _View, target: NDArray[np.int64], logits: NDArray[np.float64]
+    params: PointingParams, view: RuleView, target: NDArray[np.int64], logits: NDArray[np.float64]
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Aim points ``(N, m + n, 3)`` and each receiver's point index ``(N, n)`` for
     :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`: the drones' predictions,
@@ -124,7 +124,7 @@ def aims_between(
 
 
 def shared_aims(
-    params: PointingParams, view: _View, target: NDArray[np.int64], sharing: Sharing
+    params: PointingParams, view: RuleView, target: NDArray[np.int64], sharing: Sharing
 ) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
     """Aim points ``(N, m + n, 3)`` and the index of each receiver's point ``(N, n)`` for
     :func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`: the drones' predictions,

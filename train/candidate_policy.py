@@ -1,6 +1,6 @@
 """A candidate-scoring actor-critic for a choice among candidates described by their own
 features: StereoPointing's candidate assignments under the ``plan-features`` and
-``time-feature`` wrappers (:class:`~sensorgym.envs.stereo_pointing.wrappers.PlanFeatures`).
+``time-feature`` wrappers (:class:`~sensorgym.train.env_wrappers.stereo_pointing.PlanFeatures`).
 
 The actor is permutation-equivariant: one small MLP, shared by every candidate, scores each
 candidate from its own features (its per-step plan loss and best-plan flag at every horizon of

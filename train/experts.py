@@ -51,13 +51,13 @@ from sensorgym.train.wrappers import base_env, base_observation
 
 #: expert name → ``"sensorgym.<module>:<factory>"``, factory ``(env: VecEnv) -> predictor``
 EXPERTS: dict[str, str] = {
-    "pointing-truth-plan": "sensorgym.envs.stereo_pointing.wrappers:truth_plan_expert",
-    "pointing-plan-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_estimate_expert",
-    "pointing-orthogonal-pairs": "sensorgym.envs.stereo_pointing.wrappers:orthogonal_pairs_expert",
-    "plan-choice-estimate": "sensorgym.envs.stereo_pointing.wrappers:plan_choice_expert",
-    "plan-horizon-choice": "sensorgym.envs.stereo_pointing.wrappers:PlanHorizonExpert",
-    "placement-truth-target": "sensorgym.envs.stereo_placement.wrappers:truth_target",
-    "scan-entry-search": "sensorgym.envs.stereo_scanning.wrappers:entry_search_expert",
+    "pointing-truth-plan": "sensorgym.train.env_wrappers.stereo_pointing:truth_plan_expert",
+    "pointing-plan-estimate": "sensorgym.train.env_wrappers.stereo_pointing:plan_estimate_expert",
+    "pointing-orthogonal-pairs": "sensorgym.train.env_wrappers.stereo_pointing:orthogonal_pairs_expert",
+    "plan-choice-estimate": "sensorgym.train.env_wrappers.stereo_pointing:plan_choice_expert",
+    "plan-horizon-choice": "sensorgym.train.env_wrappers.stereo_pointing:PlanHorizonExpert",
+    "placement-truth-target": "sensorgym.train.env_wrappers.stereo_placement:truth_target",
+    "scan-entry-search": "sensorgym.train.env_wrappers.stereo_scanning:entry_search_expert",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

@@ -29,11 +29,11 @@ WRAPPERS: dict[str, str] = {
     "time-feature": "sensorgym.train.wrappers:TimeFeature",
     "termination-penalty": "sensorgym.train.wrappers:TerminationPenalty",
     "final-error-penalty": "sensorgym.train.wrappers:FinalErrorPenalty",
-    "pointing-assignment": "sensorgym.envs.stereo_pointing.wrappers:assignment_wrapper",
-    "pointing-plan": "sensorgym.envs.stereo_pointing.wrappers:plan_wrapper",
-    "plan-features": "sensorgym.envs.stereo_pointing.wrappers:plan_features",
-    "placement-target": "sensorgym.envs.stereo_placement.wrappers:plan_target",
-    "scan-modes": "sensorgym.envs.stereo_scanning.wrappers:scan_modes",
+    "pointing-assignment": "sensorgym.train.env_wrappers.stereo_pointing:assignment_wrapper",
+    "pointing-plan": "sensorgym.train.env_wrappers.stereo_pointing:plan_wrapper",
+    "plan-features": "sensorgym.train.env_wrappers.stereo_pointing:plan_features",
+    "placement-target": "sensorgym.train.env_wrappers.stereo_placement:plan_target",
+    "scan-modes": "sensorgym.train.env_wrappers.stereo_scanning:scan_modes",
 }
 
 
@@ -119,7 +119,7 @@ class TimeFeature(VecEnvWrapper):
     """
 
     def __init__(self, venv: VecEnv, max_episode_steps: int | None = None):
-        horizon = max_episode_steps or _time_limit(venv)
+        horizon = max_episode_steps or time_limit_of(venv)
         if not isinstance(horizon, int | np.integer) or horizon < 1:
             raise ValueError(
                 "time-feature: needs an env with a time limit or max_episode_steps >= 1, "
@@ -253,7 +253,7 @@ class FinalErrorPenalty(VecEnvWrapper):
         return obs, rewards, dones, infos
 
 
-def _time_limit(venv: VecEnv) -> int | None:
+def time_limit_of(venv: VecEnv) -> int | None:
     """The time limit of the env under ``venv``: the native vector env's ``max_episode_steps``,
     or the registration's for single Gymnasium envs (SB3's ``DummyVecEnv``)."""
     try:
@@ -290,8 +290,8 @@ def base_env(env: VecEnv) -> VecEnv:
 
 #: the class whose keywords a factory that takes ``**kwargs`` passes them on to
 KEYWORDS_OF: dict[str, str] = {
-    "plan-features": "sensorgym.envs.stereo_pointing.wrappers:PlanFeatures",
-    "placement-target": "sensorgym.envs.stereo_placement.wrappers:PlanTargetAction",
+    "plan-features": "sensorgym.train.env_wrappers.stereo_pointing:PlanFeatures",
+    "placement-target": "sensorgym.train.env_wrappers.stereo_placement:PlanTargetAction",
 }
 
 

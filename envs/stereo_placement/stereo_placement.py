@@ -99,7 +99,7 @@ class StereoPlacementEnv(CoreEnv):
       ahead instead of ``ln det`` of the information; ``lookahead-information`` (its sum over
       3 periods) and ``truth-lookahead`` (the same on the true drone: truth-informed) are
       registered. Trained policies act through
-      :class:`~sensorgym.envs.stereo_placement.wrappers.PlanTargetAction` (a correction of
+      :class:`~sensorgym.train.env_wrappers.stereo_placement.PlanTargetAction` (a correction of
       the tracker's one-period prediction that the greedy search plans on) with 8 stacked
       observations, imitating the truth-informed target before PPO.
     * v0, issue 15 (in place; the registered 3-receiver env, its rules and golden episodes

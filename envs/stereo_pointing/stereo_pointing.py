@@ -50,7 +50,7 @@ class StereoPointingEnv(CoreEnv):
     whether the receiver saw it; per drone the predicted position and its log RMS error, the
     estimated velocity and its log RMS error.
 
-    For training, :class:`~sensorgym.envs.stereo_pointing.wrappers.AssignmentAction` (SB3
+    For training, :class:`~sensorgym.train.env_wrappers.stereo_pointing.AssignmentAction` (SB3
     wrapper ``pointing-assignment``) replaces the gimbal rates by an assignment,
     ``MultiDiscrete([m] * n)``: which drone each receiver watches, slewed onto by the env's
     slew controller (:func:`~sensorgym.envs.stereo_pointing.simulation.slew_actions`, the one

@@ -148,7 +148,7 @@ class StereoScanningEnv(CoreEnv):
       period continues it); ``cue-entry-search`` (cue-following searching with sectors on the
       region where drones enter, 53° instead of the 90° sweep) and ``cue-no-search`` are
       registered rules; the ``scan-modes`` wrapper
-      (:mod:`sensorgym.envs.stereo_scanning.wrappers`) lets a policy choose per period between
+      (:mod:`sensorgym.train.env_wrappers.stereo_scanning`) lets a policy choose per period between
       a sweep, an entry search and the rules' sectors on the tracks; PPO policies trained
       through it (behaviour cloning of ``cue-entry-search``, then RL; training seeds 0, 1, 2)
       are shipped and beat every fieldable rule (``docs/environments.md``). Issue 11 (episodes

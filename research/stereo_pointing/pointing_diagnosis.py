@@ -38,9 +38,9 @@ import numpy as np
 from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
     TruthPlan,
-    _assignments,
-    _view,
+    all_assignments,
     plan_values,
+    rule_view,
 )
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.envs.stereo_pointing import simulation
@@ -133,7 +133,7 @@ def main() -> None:
     args = ap.parse_args()
     params = PointingParams()
     B, T = args.episodes, EPISODE_STEPS
-    cands = _assignments(params)
+    cands = all_assignments(params)
     start = time.perf_counter()
 
     rule = PlanHorizon(params)
@@ -142,7 +142,7 @@ def main() -> None:
     def horizon_rule(obs: np.ndarray, t: int, state: Any) -> np.ndarray:
         steps = np.full(obs.shape[0], t)
         choice = rule.assign(obs, steps)
-        view = _view(params, obs.astype(np.float64))
+        view = rule_view(params, obs.astype(np.float64))
         h = rule.planning_horizon(steps)
         v = plan_values(
             params, view.azimuth, view.elevation, view.position, view.velocity, h, rule.stride
@@ -187,7 +187,7 @@ def main() -> None:
     # step-0 plan values of every constant assignment: on the estimate and on the truth
     rng = np.random.default_rng(args.seed)
     s0 = simulation.reset(params, rng, B)
-    v0 = _view(params, simulation.observe(params, s0).astype(np.float64))
+    v0 = rule_view(params, simulation.observe(params, s0).astype(np.float64))
     est0 = plan_values(
         params, v0.azimuth, v0.elevation, v0.position, v0.velocity, np.full(B, float(T)), 3
     )

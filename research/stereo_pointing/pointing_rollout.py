@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from pointing_sharing import paired_fields, tuning_args, write_rows
 
-from sensorgym.agents.stereo_pointing import _assignments, _view
+from sensorgym.agents.stereo_pointing import all_assignments, rule_view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon, plan_aims
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import Sharing
@@ -68,7 +68,7 @@ def act(rule: PlanHorizon, obs: np.ndarray, t: int, target: np.ndarray | None = 
     """The rule's gimbal rates at episode step ``t``; with ``target (B, n)`` the drone each
     receiver is sent to is that one instead of the plan's (aimed as the rule aims)."""
     p = rule.params
-    view = _view(p, obs.astype(np.float64))
+    view = rule_view(p, obs.astype(np.float64))
     steps = np.full(obs.shape[0], t)
     target = rule.choose(view, steps) if target is None else target
     points, index = plan_aims(p, view, target, steps, rule.cue_steps, rule.sharing, rule.search)
@@ -106,7 +106,7 @@ def deviations(rule: PlanHorizon, seed: int, batch: int) -> list[dict[str, Any]]
     p = rule.params
     rng = np.random.default_rng(seed)
     state = simulation.reset(p, rng, batch)
-    cands, rows, played = _assignments(p), [], 0
+    cands, rows, played = all_assignments(p), [], 0
     for t_dec in DECISION_STEPS:
         for t in range(played, t_dec):
             obs = simulation.observe(p, state)
@@ -177,7 +177,7 @@ def main() -> None:
         "episodes": args.episodes,
         "rule": "plan-search",
         "decision_steps": list(DECISION_STEPS),
-        "assignments_per_step": len(_assignments(rule.params)),
+        "assignments_per_step": len(all_assignments(rule.params)),
         "instant_bound": bounds,
     }
     write_rows(args.out, settings, rows, start)

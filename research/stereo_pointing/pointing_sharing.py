@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sensorgym.agents.stereo_pointing import _view
+from sensorgym.agents.stereo_pointing import rule_view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing import simulation
@@ -56,7 +56,7 @@ def play(params: PointingParams, seed: int, batch: int, aim: Callable | None) ->
     obs = simulation.observe(params, state)
     total, shared = np.zeros(batch), 0
     for t in range(EPISODE_STEPS):
-        view = _view(params, obs.astype(np.float64))
+        view = rule_view(params, obs.astype(np.float64))
         target = rule.choose(view, np.full(batch, t))
         points = view.position
         if aim is not None:

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 from pointing_sharing import EPISODE_STEPS, paired_fields, play, tuning_args, write_rows
 
-from sensorgym.agents.stereo_pointing import _View
+from sensorgym.agents.stereo_pointing import RuleView
 from sensorgym.agents.stereo_pointing_sharing import (
     Sharing,
     _separation,
@@ -60,7 +60,7 @@ RMS_SCALE = 10.0
 
 
 def share_features(
-    params: PointingParams, view: _View, target: NDArray[np.int64], time_left: NDArray[Any]
+    params: PointingParams, view: RuleView, target: NDArray[np.int64], time_left: NDArray[Any]
 ) -> NDArray[np.float64]:
     """What a policy may weigh, beside
     :func:`~sensorgym.agents.stereo_pointing_sharing.share_logits`, to decide whether receiver
@@ -108,7 +108,7 @@ def share_features(
     )
 
 
-def _partner_gain(view: _View, target: NDArray[np.int64]) -> NDArray[np.float64]:
+def _partner_gain(view: RuleView, target: NDArray[np.int64]) -> NDArray[np.float64]:
     """``(N, n, m)``: ``ln(σ_without / σ_with)`` of drone ``j``'s position bound (theory §4.4)
     from the receivers other than ``k`` sent to it, without and with ``k``'s line of sight,
     in ``[0, GAIN_CAP]``; 0 for ``k``'s own drone."""

@@ -15,10 +15,10 @@ from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch
 from sensorgym.agents.stereo_pointing_sharing import Sharing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
-from sensorgym.envs.stereo_pointing.wrappers import PlanAction, _find
 from sensorgym.train.ars import ARS, SCENARIO_SEEDS
 from sensorgym.train.candidate_policy import CandidatePolicy
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
+from sensorgym.train.env_wrappers.stereo_pointing import PlanAction, _find
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.models import load_model
 from sensorgym.train.trainer import SEARCH_FILE, train

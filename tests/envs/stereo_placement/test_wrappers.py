@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.stereo_placement import GreedyPlacement
-from sensorgym.envs.stereo_placement.wrappers import PlanTargetAction, truth_target
+from sensorgym.train.env_wrappers.stereo_placement import PlanTargetAction, truth_target
 from sensorgym.train.evaluation import env_params, make_sb3_env
 
 ENV_ID = "sensorgym/StereoPlacement-v0"

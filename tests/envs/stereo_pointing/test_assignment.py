@@ -9,7 +9,7 @@ import pytest
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_pointing import HoldCue, OrthogonalPairs, PlanEstimate, TruthPlan
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, assignment_actions
-from sensorgym.envs.stereo_pointing.wrappers import (
+from sensorgym.train.env_wrappers.stereo_pointing import (
     AssignmentAction,
     hold_cue_expert,
     orthogonal_pairs_expert,

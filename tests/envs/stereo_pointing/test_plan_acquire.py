@@ -15,17 +15,17 @@ import pytest
 from sensorgym.agents.registry import rules_for
 from sensorgym.agents.stereo_pointing import (
     EPISODE_STEPS,
-    _assignments,
-    _view,
     acquired_values,
     acquisition_probability,
+    all_assignments,
     geometry_values,
     plan_geometry,
+    rule_view,
 )
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
-from sensorgym.envs.stereo_pointing.wrappers import PlanFeatures
+from sensorgym.train.env_wrappers.stereo_pointing import PlanFeatures
 from sensorgym.train.evaluation import make_sb3_env
 
 ENV_ID = "sensorgym/StereoPointing-v0"
@@ -33,7 +33,7 @@ ENV_ID = "sensorgym/StereoPointing-v0"
 
 def _cue_view(params: PointingParams, seed: int, batch: int):
     state = simulation.reset(params, np.random.default_rng(seed), batch)
-    return state, _view(params, simulation.observe(params, state).astype(np.float64))
+    return state, rule_view(params, simulation.observe(params, state).astype(np.float64))
 
 
 def test_certain_acquisition_is_the_plain_plan_and_doubt_costs_the_floor():
@@ -51,7 +51,7 @@ def test_certain_acquisition_is_the_plain_plan_and_doubt_costs_the_floor():
     p_see = np.ones((6, 4, 2))
     p_see[:, 1, 0] = 0.5
     v = acquired_values(params, g, p_see)
-    uses = _assignments(params)[:, 1] == 0
+    uses = all_assignments(params)[:, 1] == 0
     np.testing.assert_allclose(v[:, ~uses], plain[:, ~uses], atol=1e-9)
     assert np.all(v[:, uses] <= plain[:, uses] + 1e-9)
 
@@ -82,7 +82,7 @@ def test_decisions_are_the_argmax_of_the_acquisition_features():
     env.seed(3)
     obs = env.reset()
     base, C, n = params.obs_dim, 16, params.n_receivers
-    cand = _assignments(params)
+    cand = all_assignments(params)
     state, start = None, np.ones(8, dtype=bool)
     for t in range(60):
         f = obs[:, base:].astype(np.float64)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import _view, aimed_drone
+from sensorgym.agents.stereo_pointing import aimed_drone, rule_view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import Sharing, shared_aims
 from sensorgym.envs.stereo_pointing import simulation
@@ -30,7 +30,7 @@ def test_the_first_step_holds_the_cue_pairs_and_later_steps_are_plan_acquire_sha
     rng = np.random.default_rng(500)
     state = simulation.reset(params, rng, B)
     obs = simulation.observe(params, state)
-    view = _view(params, obs.astype(np.float64))
+    view = rule_view(params, obs.astype(np.float64))
     cue = np.broadcast_to(np.arange(params.n_receivers) % params.n_drones, (B, params.n_receivers))
     held = aimed_drone(view.aimed)
     both = view.aimed.all(axis=-1)
@@ -57,7 +57,7 @@ def test_a_receiver_aimed_at_no_drone_follows_the_plan_while_the_cue_is_held():
     first = PlanHorizon(params, acquisition=True, sharing=Sharing(), cue_steps=1)
     share = PlanHorizon(params, acquisition=True, sharing=Sharing())
     obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(3), 32))
-    view = _view(params, obs.astype(np.float64))
+    view = rule_view(params, obs.astype(np.float64))
     free = np.all(aimed_drone(view.aimed) < 0, axis=1)
     assert free.sum() >= 8
     start = np.ones(32, dtype=bool)

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import _assignments
+from sensorgym.agents.stereo_pointing import all_assignments
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
-from sensorgym.envs.stereo_pointing.wrappers import PlanFeatures
+from sensorgym.train.env_wrappers.stereo_pointing import PlanFeatures
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.experts import expert_factory
 
@@ -39,7 +39,7 @@ def test_decisions_are_the_argmax_of_the_plan_features(seed):
     obs = env.reset()
     base, C, n = params.obs_dim, 16, params.n_receivers
     state, start = None, np.ones(8, dtype=bool)
-    cand = _assignments(params)
+    cand = all_assignments(params)
     for t in range(150):
         if t % 7 == 0 or t >= 45:
             want = cand[_feature_argmax(obs[:, base:], t, C, n, rule.keep_bonus)]

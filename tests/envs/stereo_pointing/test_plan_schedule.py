@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import RULES, rules_for
-from sensorgym.agents.stereo_pointing import _view
+from sensorgym.agents.stereo_pointing import rule_view
 from sensorgym.agents.stereo_pointing_schedule import (
     MAX_DEADLINE,
     PlanSchedule,
@@ -102,7 +102,7 @@ def test_a_drone_near_its_deadline_is_forced_and_gets_a_pair():
     to it; with ``reach`` so small that every drone is already past, it names none."""
     params = CrowdedPointingParams()
     obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(7), 32))
-    view = _view(params, obs.astype(np.float64))
+    view = rule_view(params, obs.astype(np.float64))
     rule = _rule(params)
     deadline = reacquire_steps(params, view, rule.schedule.reach)
     assert np.all((deadline >= 0) & (deadline <= MAX_DEADLINE))

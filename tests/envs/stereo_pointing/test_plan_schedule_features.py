@@ -9,7 +9,7 @@ import numpy as np
 import torch as th
 
 from sensorgym.agents.registry import RULES
-from sensorgym.agents.stereo_pointing import _assignments, _view, slew_steps
+from sensorgym.agents.stereo_pointing import all_assignments, rule_view, slew_steps
 from sensorgym.agents.stereo_pointing_schedule import (
     MAX_DEADLINE,
     SCHEDULE_FEATURES,
@@ -21,9 +21,9 @@ from sensorgym.agents.stereo_pointing_schedule import (
 )
 from sensorgym.envs.stereo_pointing import simulation
 from sensorgym.envs.stereo_pointing.crowded import CROWDED_ENV_ID, CrowdedPointingParams
-from sensorgym.envs.stereo_pointing.wrappers import PlanFeatures
 from sensorgym.train.candidate_policy import LINEAR_FLAG_SCALE, CandidatePolicy
 from sensorgym.train.config import ALGORITHMS, load_hyperparams, split_run_settings
+from sensorgym.train.env_wrappers.stereo_pointing import PlanFeatures
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 
 S = len(SCHEDULE_FEATURES)
@@ -37,10 +37,10 @@ def test_a_candidate_leaving_the_urgent_drone_unpaired_shows_it():
     ones; a lost drone is never urgent; every feature lies in ``[0, m]``."""
     params = CrowdedPointingParams()
     obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(7), 16))
-    view = _view(params, obs.astype(np.float64))
+    view = rule_view(params, obs.astype(np.float64))
     schedule = Schedule(lead=MAX_DEADLINE)
     f = schedule_features(params, view, schedule)
-    cand = _assignments(params)
+    cand = all_assignments(params)
     assert f.shape == (16, 81, S) and SCHEDULE_FEATURES[1] == "urgent_paired"
     assert np.all((f >= 0.0) & (f <= params.n_drones))
     deadline = reacquire_steps(params, view, schedule.reach)
@@ -88,7 +88,7 @@ def test_schedule_off_leaves_the_observation_as_today_and_on_appends_the_block()
             obs <= env.observation_space.high
         )
     params = CrowdedPointingParams()
-    view = _view(params, on[-1, :, : params.obs_dim].astype(np.float64))
+    view = rule_view(params, on[-1, :, : params.obs_dim].astype(np.float64))
     want = schedule_features(params, view).reshape(4, -1)
     np.testing.assert_allclose(on[-1, :, off.shape[-1] :], want, rtol=1e-6)
 

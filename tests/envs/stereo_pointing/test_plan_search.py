@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import _View, _view
+from sensorgym.agents.stereo_pointing import RuleView, rule_view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_search import EpipolarSearch, search_aims
 from sensorgym.agents.stereo_pointing_sharing import Sharing
@@ -18,7 +18,7 @@ from sensorgym.envs.stereo_pointing.simulation import PointingParams, boresights
 ENV_ID = "sensorgym/StereoPointing-v0"
 
 
-def _lost_view(params: PointingParams, sigma: float, seen_by: tuple[int, ...]) -> _View:
+def _lost_view(params: PointingParams, sigma: float, seen_by: tuple[int, ...]) -> RuleView:
     """One scenario: drone 0 predicted at ``x̂``, every receiver's boresight through a point 9 m
     from it (so the prediction is off), seen on the last step by the receivers ``seen_by``;
     drone 1 elsewhere, tracked to 5 cm."""
@@ -32,7 +32,7 @@ def _lost_view(params: PointingParams, sigma: float, seen_by: tuple[int, ...]) -
     ranges = np.linalg.norm(los, axis=-1)
     seen = np.zeros((params.n_receivers, params.n_drones))
     seen[list(seen_by), 0] = 1.0
-    return _View(
+    return RuleView(
         azimuth=azimuth[None], elevation=elevation[None], seen=seen[None], aimed=seen[None],
         position=x_hat[None], sigma=np.array([[sigma, 0.05]]), velocity=np.zeros((1, 2, 3)),
         los=(los / ranges[..., None])[None], ranges=ranges[None],
@@ -89,7 +89,7 @@ def test_the_seeing_receiver_holds_its_ray_advanced_by_the_estimated_velocity():
     params = PointingParams()
     view = _lost_view(params, sigma=10.0, seen_by=(1,))
     velocity = np.array([[[3.0, -1.0, 4.0], [0.0, 0.0, 0.0]]])
-    view = _View(**{**view.__dict__, "velocity": velocity})
+    view = RuleView(**{**view.__dict__, "velocity": velocity})
     target = np.array([[1, 0, 1, 0]])
     origin = params.receiver_positions[1]
     ray = boresights(view.azimuth, view.elevation)[0, 1]
@@ -137,7 +137,7 @@ def test_a_searching_receiver_on_the_seeing_receivers_ray_is_not_shifted_across(
     azimuth, elevation = view.azimuth.copy(), view.elevation.copy()
     azimuth[0, 1] = np.arctan2(d[0], d[2])
     elevation[0, 1] = np.arctan2(d[1], np.hypot(d[0], d[2]))
-    view = _View(**{**view.__dict__, "azimuth": azimuth, "elevation": elevation})
+    view = RuleView(**{**view.__dict__, "azimuth": azimuth, "elevation": elevation})
     search = EpipolarSearch(sweep=(0,), across=(0.0, 0.7))
     target = np.array([[1, 0, 1, 0]])
     on_ray, _ = search_aims(params, view, target, np.array([0]), search)
@@ -194,7 +194,7 @@ def test_a_view_of_the_env_decodes_for_the_search():
     """The search runs on real observations (shapes and finite points)."""
     params = PointingParams()
     obs = simulation.observe(params, simulation.reset(params, np.random.default_rng(2), 8))
-    view = _view(params, obs.astype(np.float64))
+    view = rule_view(params, obs.astype(np.float64))
     target = np.tile(np.arange(4) % 2, (8, 1))
     points, searching = search_aims(params, view, target, np.zeros(8, np.int64), EpipolarSearch())
     assert points.shape == (8, 4, 3) and searching.shape == (8, 4)
@@ -204,7 +204,7 @@ def test_a_view_of_the_env_decodes_for_the_search():
 def test_the_wrappers_search_keyword_takes_every_field_as_yaml_gives_it():
     """``pointing-plan``'s ``search:`` mapping (lists and ints, as YAML gives them) builds the
     same :class:`EpipolarSearch`; a non-bool anchor is refused."""
-    from sensorgym.envs.stereo_pointing.wrappers import _search
+    from sensorgym.train.env_wrappers.stereo_pointing import _search
 
     given = {"lost_rms": 2, "width": 1, "sweep": [0, 1], "across": [0, 0.5], "anchor": False}
     want = EpipolarSearch(lost_rms=2.0, width=1.0, sweep=(0, 1), across=(0.0, 0.5), anchor=False)

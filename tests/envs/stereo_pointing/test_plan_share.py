@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sensorgym.agents.registry import rules_for
-from sensorgym.agents.stereo_pointing import _view
+from sensorgym.agents.stereo_pointing import rule_view
 from sensorgym.agents.stereo_pointing_horizon import PlanHorizon
 from sensorgym.agents.stereo_pointing_sharing import Sharing, share_logits, shared_aims
 from sensorgym.envs.stereo_pointing import simulation
@@ -32,7 +32,7 @@ def _two_drones(params: PointingParams, separation_deg: float):
     elevation = np.arctan2(los[:, 1], np.hypot(los[:, 0], los[:, 2]))[None]
     state = simulation.start(params, drones, np.zeros((1, 2, 3)), azimuth, elevation,
                              np.random.default_rng(1))  # fmt: skip
-    return state, _view(params, simulation.observe(params, state).astype(np.float64))
+    return state, rule_view(params, simulation.observe(params, state).astype(np.float64))
 
 
 @pytest.mark.parametrize("separation", [4.0, 12.0, 25.0])
@@ -47,7 +47,7 @@ def test_a_receiver_holds_two_drones_exactly_when_they_fit(separation):
     for _ in range(8):
         action = slew_actions(params, view.azimuth, view.elevation, points, index)
         state, _, _ = simulation.step(params, state, action, np.random.default_rng(2))
-        view = _view(params, simulation.observe(params, state).astype(np.float64))
+        view = rule_view(params, simulation.observe(params, state).astype(np.float64))
         points, index = shared_aims(params, view, target, Sharing())
     assert state.seen[0, 0, 0]
     assert state.seen[0, 0, 1] == fits  # the second drone only when shared
@@ -101,7 +101,7 @@ def _scenario_views(params: PointingParams, seed: int, batch: int, steps: int):
     out, t = [], None
     for k in range(steps):
         obs = simulation.observe(params, state)
-        view = _view(params, obs.astype(np.float64))
+        view = rule_view(params, obs.astype(np.float64))
         out.append((view, rule.choose(view, np.full(batch, k)), k))
         action, t = rule.predict(obs, t, np.full(batch, k == 0))
         state, _, _ = simulation.step(params, state, action, rng)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sensorgym.agents.stereo_pointing import PlanEstimate, _assignments
+from sensorgym.agents.stereo_pointing import PlanEstimate, all_assignments
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
-from sensorgym.envs.stereo_pointing.wrappers import PlanAction, PlanFeatures
+from sensorgym.train.env_wrappers.stereo_pointing import PlanAction, PlanFeatures
 from sensorgym.train.evaluation import evaluate, make_sb3_env
 from sensorgym.train.experts import expert_factory
 from sensorgym.train.wrappers import base_observation
@@ -22,7 +22,7 @@ def test_the_plan_action_indexes_the_rules_candidates():
     env = PlanAction(make_sb3_env(ENV_ID, 4, 0))
     params = PointingParams()
     assert env.action_space.n == 16
-    np.testing.assert_array_equal(env.candidates, _assignments(params))
+    np.testing.assert_array_equal(env.candidates, all_assignments(params))
     assert (env.index(env.candidates) == np.arange(16)).all()
     env.reset()
     with pytest.raises(ValueError, match="candidate"):
@@ -43,11 +43,11 @@ def test_the_features_hold_the_planners_values_and_choice():
     for t in range(6):
         f = obs[:, base:]
         best100 = np.argmax(f[:, 3 * C : 4 * C], axis=1)  # horizon 100's one-hot
-        np.testing.assert_array_equal(_assignments(params)[best100], rule.assign(obs[:, :base]))
+        np.testing.assert_array_equal(all_assignments(params)[best100], rule.assign(obs[:, :base]))
         if t == 0:  # at the start the time left is the whole episode
             best_left = np.argmax(f[:, 5 * C : 6 * C], axis=1)
             want = zero.assign(obs[:, :base])
-            np.testing.assert_array_equal(_assignments(params)[best_left], want)
+            np.testing.assert_array_equal(all_assignments(params)[best_left], want)
         assert (f[:, 3 * C : 4 * C].sum(axis=1) == 1).all()
         assert np.all(obs >= env.observation_space.low) and np.all(
             obs <= env.observation_space.high

@@ -9,9 +9,9 @@ import pytest
 from sensorgym.agents.stereo_pointing import (
     GreedyPointing,
     OrthogonalPairs,
-    _assignments,
-    _keep_bonus,
-    _view,
+    all_assignments,
+    hysteresis_bonus,
+    rule_view,
 )
 from sensorgym.envs.stereo_pointing.simulation import PointingParams
 from sensorgym.envs.stereo_pointing.stereo_pointing import StereoPointingVectorEnv
@@ -19,7 +19,7 @@ from sensorgym.trackers.stereo.information import position_information
 
 
 def _orthogonal_numpy(rule: OrthogonalPairs, view) -> np.ndarray:
-    cand = _assignments(rule.params)
+    cand = all_assignments(rule.params)
     m = rule.params.n_drones
     member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)
     cos = np.einsum("Nkji,Nlji->Njkl", view.los, view.los)
@@ -27,12 +27,12 @@ def _orthogonal_numpy(rule: OrthogonalPairs, view) -> np.ndarray:
     total = np.einsum("cjl,Njkl->Ncjk", member, sin2)
     total = np.where(member[None] > 0.0, total, 0.0).max(axis=-1)
     objective = 0.5 * np.log(np.maximum(total, 1e-300)).sum(axis=-1)
-    objective = objective + _keep_bonus(view, cand, rule.keep_bonus)
+    objective = objective + hysteresis_bonus(view, cand, rule.keep_bonus)
     return cand[np.argmax(objective, axis=-1)]
 
 
 def _greedy_numpy(rule: GreedyPointing, view) -> np.ndarray:
-    cand = _assignments(rule.params)
+    cand = all_assignments(rule.params)
     m = rule.params.n_drones
     member = (cand[:, None, :] == np.arange(m)[None, :, None]).astype(np.float64)
     sigma = max(rule.params.sigma_ang, 1e-9)
@@ -42,7 +42,7 @@ def _greedy_numpy(rule: GreedyPointing, view) -> np.ndarray:
     pair = (member.sum(axis=-1) >= 2.0)[None]
     sign, logdet = np.linalg.slogdet(np.where(pair[..., None, None], info, np.eye(3)))
     logdet = np.where(pair & (sign > 0.0), logdet, -rule.no_fix_cost)
-    objective = logdet.sum(axis=-1) + _keep_bonus(view, cand, rule.keep_bonus)
+    objective = logdet.sum(axis=-1) + hysteresis_bonus(view, cand, rule.keep_bonus)
     return cand[np.argmax(objective, axis=-1)]
 
 
@@ -73,7 +73,7 @@ def _observations(params: PointingParams, seed: int) -> np.ndarray:
 )
 def test_compiled_assignment_scores_choose_as_the_numpy_forms(params):
     obs = _observations(params, seed=params.n_receivers)
-    view = _view(params, obs)
+    view = rule_view(params, obs)
     orthogonal, greedy = OrthogonalPairs(params), GreedyPointing(params)
     np.testing.assert_array_equal(orthogonal.choose(view), _orthogonal_numpy(orthogonal, view))
     np.testing.assert_array_equal(greedy.choose(view), _greedy_numpy(greedy, view))

@@ -32,10 +32,10 @@ from sensorgym.agents.stereo_pointing import (
     OrthogonalPairs,
     PlanEstimate,
     TruthPlan,
-    _keep_bonus,
     _one_step,
-    _view,
+    hysteresis_bonus,
     plan_values,
+    rule_view,
 )
 from sensorgym.envs import stereo_pointing
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, lines_of_sight
@@ -220,18 +220,18 @@ def _states(params: PointingParams, seed: int, N: int = 48):
 
 def _rule_objective(rule, params: PointingParams, obs: np.ndarray, venv) -> np.ndarray:
     """The rule's own objective of every assignment ``(N, C)``, from the exhaustive scores."""
-    view = _view(params, obs)
+    view = rule_view(params, obs)
     cand = assignments(params.n_receivers, params.n_drones)
     out = np.empty((len(obs), len(cand)))
     if isinstance(rule, OrthogonalPairs):
         kernels.assignment_orthogonality_batch(view.los, cand, out)
-        return out + _keep_bonus(view, cand, rule.keep_bonus)
+        return out + hysteresis_bonus(view, cand, rule.keep_bonus)
     if isinstance(rule, GreedyPointing):
         sigma = max(params.sigma_ang, 1e-9)
         kernels.assignment_log_det_batch(
             view.los, view.ranges, sigma, cand, float(rule.no_fix_cost), out
         )
-        return out + _keep_bonus(view, cand, rule.keep_bonus)
+        return out + hysteresis_bonus(view, cand, rule.keep_bonus)
     if isinstance(rule, PlanEstimate):
         left = np.full(len(obs), float(rule.horizon))
         return plan_values(

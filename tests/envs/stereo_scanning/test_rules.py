@@ -13,7 +13,7 @@ from sensorgym.envs.stereo_scanning.simulation import (
     sector_action,
     split_observation,
 )
-from sensorgym.envs.stereo_scanning.wrappers import (
+from sensorgym.train.env_wrappers.stereo_scanning import (
     MODES,
     EntrySearchModes,
     ScanModes,

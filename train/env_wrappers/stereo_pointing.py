@@ -35,15 +35,15 @@ from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from sensorgym.agents.stereo_pointing import (
-    _assignments,
-    _keep_bonus,
-    _view,
     acquisition_probability,
+    all_assignments,
     drone_rewards,
     grid_prefix,
+    hysteresis_bonus,
     plan_geometry,
     rewards_acquired,
     rewards_values,
+    rule_view,
 )
 from sensorgym.agents.stereo_pointing_horizon import check_cue_steps, plan_aims
 from sensorgym.agents.stereo_pointing_schedule import (
@@ -58,7 +58,7 @@ from sensorgym.envs.stereo_pointing.simulation import (
     assignment_actions,
     slew_actions,
 )
-from sensorgym.train.wrappers import EpisodeSteps, ObservedActionWrapper, _time_limit
+from sensorgym.train.wrappers import EpisodeSteps, ObservedActionWrapper, time_limit_of
 
 
 class AssignmentAction(ObservedActionWrapper):
@@ -139,7 +139,7 @@ class PlanAction(ObservedActionWrapper):
                 f"venv: expected the joint observation ({p.obs_dim},), got "
                 f"{venv.observation_space.shape} (pointing-plan must lie under observation wrappers)"
             )
-        self.candidates = _assignments(p)
+        self.candidates = all_assignments(p)
         """``(m^n, n)``: candidate ``c`` sends receiver ``k`` to drone ``candidates[c, k]``."""
         super().__init__(venv, spaces.Discrete(len(self.candidates)))
         self.params = p
@@ -159,7 +159,7 @@ class PlanAction(ObservedActionWrapper):
         target = self.candidates[choice]
         if self.sharing is None and not self.cue_steps and self.search is None:
             return assignment_actions(self.params, obs, target)
-        view = _view(self.params, np.asarray(obs, dtype=np.float64))
+        view = rule_view(self.params, np.asarray(obs, dtype=np.float64))
         points, index = plan_aims(
             self.params, view, target, self._steps.t, self.cue_steps, self.sharing, self.search
         )
@@ -301,7 +301,7 @@ class PlanFeatures(VecEnvWrapper):
             )
         if not isinstance(stride, int) or stride < 1:
             raise ValueError(f"plan-features: stride must be an integer >= 1, got {stride!r}")
-        limit = max_episode_steps or _time_limit(venv)
+        limit = max_episode_steps or time_limit_of(venv)
         if time_left and not (isinstance(limit, int | np.integer) and limit >= 1):
             raise ValueError(f"plan-features: time_left needs a time limit, got {limit!r}")
         self.params = p
@@ -311,7 +311,7 @@ class PlanFeatures(VecEnvWrapper):
         self.acquisition = bool(acquisition)
         self.plain_horizons = tuple(int(h) for h in plain_horizons)
         self.max_episode_steps = int(limit) if limit else 0
-        self.candidates = _assignments(p)
+        self.candidates = all_assignments(p)
         C = len(self.candidates)
         H = len(self.horizons) + len(self.plain_horizons) + int(self.time_left)
         self.schedule = schedule
@@ -340,7 +340,7 @@ class PlanFeatures(VecEnvWrapper):
     def features(self, obs: NDArray[Any], t: NDArray[np.int64]) -> NDArray[np.float32]:
         """The appended features ``(N, m^n (2H + 1))`` of base observations ``(N, obs_dim)``
         at episode steps ``t (N,)``."""
-        view = _view(self.params, np.asarray(obs, dtype=np.float64))
+        view = rule_view(self.params, np.asarray(obs, dtype=np.float64))
         N, C = len(t), len(self.candidates)
         p_see = acquisition_probability(self.params, view) if self.acquisition else None
         # (horizon, acquisition probabilities or None for the plain plan) per block
@@ -363,7 +363,7 @@ class PlanFeatures(VecEnvWrapper):
                 v = rewards_acquired(self.params, r, weight, p_block)
             parts.append(np.maximum((v - v.max(axis=1, keepdims=True)) / h[:, None], -10.0))
             parts.append(np.eye(C)[np.argmax(v, axis=1)])
-        parts.append(_keep_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
+        parts.append(hysteresis_bonus(view, self.candidates, 1.0 / self.params.n_receivers))
         if self.schedule is not None:
             parts.append(schedule_features(self.params, view, self.schedule).reshape(N, -1))
         return np.concatenate(parts, axis=1).astype(np.float32)
