@@ -62,6 +62,9 @@ def test_wheel_contains_only_sensorgym(tmp_path):
                 continue
             rel = p.relative_to(ROOT / d).as_posix()
             assert f"sensorgym/{d}/{rel}" in names, f"{d}/{rel} missing from the wheel"
+    # PEP 561: every subpackage of the namespace package carries the typed marker
+    for d in MAPPED:
+        assert f"sensorgym/{d}/py.typed" in names, f"{d}/py.typed missing from the wheel"
     # package data: the training hyperparameters
     for p in (ROOT / "train" / "hyperparams").glob("*.yml"):
         assert f"sensorgym/train/hyperparams/{p.name}" in names, f"{p.name} missing from the wheel"
