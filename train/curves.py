@@ -32,10 +32,23 @@ class LearningCurve(BaseCallback):
     ``episodes`` episodes of ``env`` seeded with ``seed``; the points are in :attr:`points`.
 
     ``clock``: the run's clock, read for every point's ``wall_s`` (and its evaluations added to
-    its ``eval_s``); without one, a clock started when learning starts."""
+    its ``eval_s``); without one, a clock started when learning starts.
+
+    Each point also goes to the model's logger (TensorBoard with ``--tensorboard``) as
+    ``eval/mean_return`` and ``eval/ci95``, with every rule's mean return on the same
+    scenarios, ``lines`` (name → mean), as ``eval/<rule>`` beside it; the imitation phase's
+    losses, ``pretrain_loss`` (one per data-collection round), go there as ``pretrain/loss``
+    before learning."""
 
     def __init__(
-        self, env: VecEnv, episodes: int, seed: int, every: int, clock: RunClock | None = None
+        self,
+        env: VecEnv,
+        episodes: int,
+        seed: int,
+        every: int,
+        clock: RunClock | None = None,
+        lines: dict[str, float] | None = None,
+        pretrain_loss: list[float] | None = None,
     ):
         super().__init__()
         if every < 1:
@@ -43,6 +56,8 @@ class LearningCurve(BaseCallback):
         self.env, self.episodes, self.seed, self.every = env, episodes, seed, every
         self.clock = clock if clock is not None else RunClock()
         self.points: list[dict[str, float]] = []
+        self.lines = dict(lines or {})
+        self.pretrain_loss = list(pretrain_loss or [])
         self._next = 0
 
     def _point(self) -> None:
@@ -59,10 +74,18 @@ class LearningCurve(BaseCallback):
                 "eval_s": round(spent, 3),
             }
         )
+        self.logger.record("eval/mean_return", stats.mean)
+        self.logger.record("eval/ci95", stats.ci95)
+        for name, mean in self.lines.items():
+            self.logger.record(f"eval/{name}", mean)
+        self.logger.dump(self.num_timesteps)
 
     def _on_training_start(self) -> None:
         if self.clock.origin is None:
             self.clock.start()
+        for round_, loss in enumerate(self.pretrain_loss, start=1):
+            self.logger.record("pretrain/loss", loss)
+            self.logger.dump(round_)
         self._point()
         self._next = self.every
 

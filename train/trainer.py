@@ -257,7 +257,10 @@ def _train(
     curve = None
     if curve_points:
         every = max(1, -(-run["n_timesteps"] // curve_points))
-        curve = LearningCurve(model_env, eval_episodes, eval_seed, every, clock=clock)
+        lines = {k: r["mean"] for k, r in rule_scores.items()}
+        curve = LearningCurve(
+            model_env, eval_episodes, eval_seed, every, clock, lines, pretrain_loss
+        )
     name = run_dir_for(Path("."), env_id, algo, seed, agents)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])

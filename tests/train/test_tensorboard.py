@@ -29,6 +29,19 @@ def test_train_writes_event_files_with_sb3_and_env_metrics(tmp_path):
     for key in ("bound", "position_error", "range"):  # the env's info at each episode's end
         values = scalars[f"episode/{key}"]
         assert values and all(np.isfinite(values)) and min(values) > 0.0
+    # the learning curve's points beside the rules' returns on the same scenarios, and the
+    # imitation phase's loss per epoch
+    import json
+
+    curve = json.loads(next(tmp_path.rglob("curve.json")).read_text())
+    means = [p["mean"] for p in curve["points"]]
+    assert scalars["eval/mean_return"] == pytest.approx(means, rel=1e-6)  # float32 events
+    evaluation = json.loads(next(tmp_path.rglob("evaluation.json")).read_text())["results"]
+    for rule in ("mpc-estimate", "straight-course"):
+        assert scalars[f"eval/{rule}"] == pytest.approx(
+            [evaluation[rule]["mean"]] * len(means), rel=1e-6
+        )
+    assert scalars["pretrain/loss"] == pytest.approx(curve["pretrain_loss"], rel=1e-6)
 
 
 def test_final_info_is_the_ending_step_s_info():
