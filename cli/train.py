@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from sensorgym.cli import args as types
 from sensorgym.cli.console import make_console, print_path
@@ -69,19 +70,50 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=10,
         help="evaluations during learning for curve.json/curve.png (default 10; 0: none)",
     )
+    parser.add_argument(
+        "--checkpoint-every",
+        type=types.positive_int,
+        default=None,
+        metavar="N",
+        help="write RUN/checkpoint/ every N samples (SB3's model.zip with the optimizer, and "
+        "the run's state) so that --resume can continue the run (default: no checkpoints)",
+    )
+    parser.add_argument(
+        "--resume",
+        type=Path,
+        default=None,
+        metavar="RUN",
+        help="continue the run in the run folder RUN from its checkpoint (every other "
+        "setting is the checkpoint's, except --no-progress, --torch-threads, --tensorboard)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_hyperparam_argument(parser)
     add_param_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from rich.table import Table
-
-    from sensorgym.cli.benchmark import iqm_cell, paired_cell
-    from sensorgym.train.benchmark import best_rule, paired_difference
     from sensorgym.train.config import load_hyperparams
-    from sensorgym.train.trainer import VALIDATION_SEED, train
+    from sensorgym.train.trainer import train
 
+    if args.resume is not None:
+        from sensorgym.train.trainer import resume_arguments
+
+        try:
+            resumed = resume_arguments(args.resume)
+        except ValueError as exc:
+            raise SystemExit(f"--resume: {exc}") from None
+        args.env, args.algo, args.eval_episodes = (
+            resumed["env_id"],
+            resumed["algo"],
+            resumed["eval_episodes"],
+        )
+        result = train(
+            **resumed,
+            progress=not args.no_progress,
+            torch_threads=args.torch_threads,
+            tensorboard=args.tensorboard,
+        )
+        return _report(args, result)
     try:
         recipe = load_hyperparams(args.algo, args.env)
     except KeyError as exc:
@@ -108,7 +140,19 @@ def run(args: argparse.Namespace) -> int:
         curve_points=args.curve_points,
         params=params,
         hyperparams=overrides,
+        checkpoint_every=args.checkpoint_every,
     )
+    return _report(args, result)
+
+
+def _report(args: argparse.Namespace, result: Any) -> int:
+    """Print the run's evaluation beside the rules and where it was saved."""
+    from rich.table import Table
+
+    from sensorgym.cli.benchmark import iqm_cell, paired_cell
+    from sensorgym.train.benchmark import best_rule, paired_difference
+    from sensorgym.train.trainer import VALIDATION_SEED
+
     # the trained policy and the rules on the same scenarios, paired to the best fieldable rule
     # (as `sensorgym benchmark` does on the held-out seed; this is the tuning seed)
     scores = result.evaluation

@@ -59,6 +59,14 @@ class LearningCurve(BaseCallback):
         self.lines = dict(lines or {})
         self.pretrain_loss = list(pretrain_loss or [])
         self._next = 0
+        self._resumed = False
+
+    def resume(self, points: list[dict[str, float]]) -> None:
+        """Continue a checkpointed run's curve (:mod:`.checkpoints`): its ``points`` so far; no
+        point before learning resumes, the next at the first multiple of ``every`` after the
+        last one."""
+        self.points = [dict(p) for p in points]
+        self._resumed = bool(self.points)
 
     def _point(self) -> None:
         wall, spent = self.clock.elapsed(), self.clock.eval_s
@@ -83,6 +91,9 @@ class LearningCurve(BaseCallback):
     def _on_training_start(self) -> None:
         if self.clock.origin is None:
             self.clock.start()
+        if self._resumed:
+            self._next = (int(self.points[-1]["timesteps"]) // self.every + 1) * self.every
+            return
         for round_, loss in enumerate(self.pretrain_loss, start=1):
             self.logger.record("pretrain/loss", loss)
             self.logger.dump(round_)

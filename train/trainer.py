@@ -26,6 +26,7 @@ from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sensorgym.agents.registry import RULES
+from sensorgym.train.checkpoints import CHECKPOINT_DIR, Checkpointer, read_checkpoint
 from sensorgym.train.config import (
     ALGORITHMS,
     apply_overrides,
@@ -97,6 +98,14 @@ class TrainResult:
     """The trained model as it left training (what the run folder's weights reload)."""
 
 
+def resume_arguments(run_dir: Path) -> dict[str, Any]:
+    """The arguments of :func:`train` that the run under ``run_dir`` was started with (from its
+    checkpoint; ``ValueError`` if it has none), with ``resume`` set to continue it."""
+    run = dict(read_checkpoint(run_dir)["run"])
+    params = {k: tuple(v) if isinstance(v, list) else v for k, v in run.pop("params").items()}
+    return {**run, "params": params, "out": Path(run["out"]), "resume": Path(run_dir)}
+
+
 def run_dir_for(out: Path, env_id: str, algo: str, seed: int, agents: bool = False) -> Path:
     """``out/<env id with / as __>/<algo>[-shared]_seed<seed>`` (``-shared``: parameter
     sharing over the env's agents)."""
@@ -121,6 +130,8 @@ def train(
     callbacks: Sequence[BaseCallback] = (),
     curve_points: int = 10,
     params: dict[str, Any] | None = None,
+    checkpoint_every: int | None = None,
+    resume: Path | None = None,
 ) -> TrainResult:
     """Train ``algo`` on ``env_id`` with its YAML hyperparameters (``timesteps``/``n_envs``
     override them), save the run and evaluate it beside the rules.
@@ -148,6 +159,11 @@ def train(
     ``params``: env params fields (``--param NAME=VALUE``, e.g. ``{"n_drones": 4}``) for
     training and evaluation; recorded in ``config.yaml`` so the saved policy refuses an env
     with other ones.
+
+    ``checkpoint_every``: write the run's checkpoint every that many samples
+    (:mod:`.checkpoints`); ``resume``: a run folder with a checkpoint, whose run this call
+    continues (every other argument but ``progress``, ``torch_threads``, ``tensorboard`` and
+    ``callbacks`` is then the checkpoint's; :func:`resume_arguments`).
     """
     import torch
 
@@ -171,6 +187,8 @@ def train(
             list(callbacks),
             curve_points,
             dict(params or {}),
+            checkpoint_every,
+            None if resume is None else read_checkpoint(resume),
         )
     finally:
         torch.set_num_threads(previous_threads)
@@ -191,8 +209,24 @@ def _train(
     callbacks: list[BaseCallback],
     curve_points: int,
     params: dict[str, Any],
+    checkpoint_every: int | None = None,
+    checkpoint: dict[str, Any] | None = None,
 ) -> TrainResult:
     begin, started, load_start = time.perf_counter(), now_utc(), load_average()
+    run_args = {
+        "env_id": env_id,
+        "algo": algo,
+        "seed": seed,
+        "timesteps": timesteps,
+        "n_envs": n_envs,
+        "out": str(out),
+        "eval_episodes": eval_episodes,
+        "agents": agents,
+        "hyperparams": overrides,
+        "curve_points": curve_points,
+        "params": {k: list(v) if isinstance(v, tuple) else v for k, v in params.items()},
+        "checkpoint_every": checkpoint_every,
+    }
     hp = apply_overrides(for_mode(load_hyperparams(algo, env_id), agents), overrides)
     if timesteps is not None:
         hp["n_timesteps"] = timesteps
@@ -213,15 +247,20 @@ def _train(
         env_id, run["n_envs"], seed, agents=agents, wrappers=[*wrappers, *shaping], **params
     )
     tb_log = None if tensorboard is None else str(Path(tensorboard).resolve())
-    model = ALGORITHMS[algo](
-        run["policy"],
-        env,
-        seed=seed,
-        device="cpu",
-        verbose=0,
-        tensorboard_log=tb_log,
-        **algo_kwargs,
-    )
+    if checkpoint is None:
+        model = ALGORITHMS[algo](
+            run["policy"],
+            env,
+            seed=seed,
+            device="cpu",
+            verbose=0,
+            tensorboard_log=tb_log,
+            **algo_kwargs,
+        )
+    else:  # weights, optimizer and counters from the checkpoint, on the rebuilt env
+        model = ALGORITHMS[algo].load(
+            checkpoint["model"], env=env, device="cpu", tensorboard_log=tb_log
+        )
 
     # the same evaluation scenarios for all: the policy on its own (wrapped, per-agent) view,
     # the rules on the env's joint one; one random stream per episode, as the benchmark scores
@@ -245,9 +284,17 @@ def _train(
 
     clock = RunClock()  # training starts: imitation, then learning (see .cost)
     clock.start()
+    if checkpoint is not None and checkpoint.get("clock"):  # the clock goes on from there
+        clock.origin -= checkpoint["clock"]["elapsed_s"]
+        clock.eval_s = checkpoint["clock"]["eval_s"]
     if hasattr(model, "clock"):  # ARS stamps its iterations with the run's clock
         model.clock = clock
-    pretrain_loss = pretrain(model, env, imitation, seed) if imitation is not None else []
+    if checkpoint is not None:  # imitated before the checkpoint
+        pretrain_loss = list(checkpoint.get("pretrain_loss") or [])
+    elif imitation is not None:
+        pretrain_loss = pretrain(model, env, imitation, seed)
+    else:
+        pretrain_loss = []
     pretrain_s = clock.elapsed()
     imitated = (  # the transitions the imitation phase collected, every slot's
         0
@@ -261,18 +308,27 @@ def _train(
         curve = LearningCurve(
             model_env, eval_episodes, eval_seed, every, clock, lines, pretrain_loss
         )
+        if checkpoint is not None and checkpoint.get("curve_points"):
+            curve.resume(checkpoint["curve_points"])
     name = run_dir_for(Path("."), env_id, algo, seed, agents)
+    saver = []
+    if checkpoint_every:
+        folder = run_dir_for(out, env_id, algo, seed, agents) / CHECKPOINT_DIR
+        saver = [Checkpointer(folder, checkpoint_every, run_args, curve, clock, pretrain_loss)]
+    done = 0 if checkpoint is None else int(model.num_timesteps)
     with Progress(disable=not progress) as bar:
         task = bar.add_task(f"{algo} on {env_id}", total=run["n_timesteps"])
         model.learn(
-            run["n_timesteps"],
+            max(0, run["n_timesteps"] - done),
             callback=[
                 RichProgress(bar, task),
                 EpisodeInfoLogger(),
                 *([curve] if curve is not None else []),
+                *saver,
                 *callbacks,
             ],
             tb_log_name=f"{name.parent.name}_{name.name}",
+            reset_num_timesteps=checkpoint is None,
         )
     training_s, curve_eval_s = clock.elapsed(), clock.eval_s
     env.close()
@@ -331,6 +387,7 @@ def _train(
             "n_envs": run["n_envs"],
             "eval_episodes": eval_episodes,
             "curve_points": curve_points,
+            **({"resumed_at_timesteps": done} if checkpoint is not None else {}),
             "load_average_1min": {"start": load_start, "end": load_average()},
             "machine": machine_record(),
         },
