@@ -29,9 +29,9 @@ LEG_CHANGE_STEPS = (12, 13, 14, 15)
 LEG_CHANGE_TURN = -1.0
 #: the open-loop turn commands (× 30°/min, + = to starboard) that minimise the book's PCRLB at
 #: 32 min on the true, noise-free target path with 1.5 km kept at every bearing (stand-off +
-#: margin): ``bot_control.optimise_open_loop(restarts=8, seed=10000)`` (48.5 m; the book's
-#: leg change: 95 m). Planned on the book's nominal target (prior knowledge, not the simulator's
-#: truth): a fieldable rule, not a bound.
+#: margin): ``bot_control.optimise_open_loop(restarts=8, seed=10000)`` (its bound beside the
+#: book's leg change: ``docs/reproduction/bot-control.md``). Planned on the book's nominal
+#: target (prior knowledge, not the simulator's truth): a fieldable rule, not a bound.
 BOOK_OPTIMISED_TURNS = (
     -0.9999999999997984,
     -0.690024302996851,

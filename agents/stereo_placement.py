@@ -27,9 +27,9 @@ FloatArray = NDArray[np.float64]
 MAX_CANDIDATES = 10_000
 
 #: ``solver="auto"`` searches exhaustively up to this many joint moves, coordinate-wise beyond:
-#: the 729 of the registered 3 receivers at 8 headings (0.14–0.33 ms per scenario in
-#: ``benchmarks/results/scaling.json``); the 6561 of 4 receivers cost 1.24 ms per scenario, over
-#: the 1 ms a decision may take (coordinate-wise: 0.02–0.04 ms)
+#: the 729 of the registered 3 receivers at 8 headings; the 6561 of 4 receivers take longer
+#: than the 1 ms a decision may take, the coordinate-wise search far less (decision times:
+#: ``benchmarks/results/scaling.json``, the scaling table of README.md)
 AUTO_EXHAUSTIVE = 1_000
 
 #: CirclePlacement tries every assignment of receivers to slots up to this many receivers
@@ -125,12 +125,12 @@ class GreedyPlacement(MemorylessRule):
     ``I = Σ_k (I − u_k u_kᵀ)/r_k²`` (theory §10.1 OC-1) of the lines of sight from the
     receivers at the end of their moves to the estimated drone one period ahead, ``p̂ + τ v̂``.
     (Until issue 13 it maximised ``ln det I`` instead, D-optimal where the reward is
-    A-optimal: 33.1 against 36 on 128 scenarios of seed 500.)
+    A-optimal, and scored lower.)
 
     ``horizon = 1`` is the one-step greedy rule; ``horizon = H > 1`` scores the sum of the
     next ``H`` periods' rewards with every receiver keeping its move (an open-loop lookahead
     over straight drives: it sees that the drone flies on, the one-step rule does not; on the
-    tracker's noisy estimate it scores no better, 35.1–35.6 for H = 2–5).
+    tracker's noisy estimate it scores no better for H = 2–5).
 
     The search over joint moves (``solver``): ``"exhaustive"`` scores all ``(headings + 1)^n``
     of them (:func:`~sensorgym.envs.stereo_placement.kernels.plan_search`), exponential in the

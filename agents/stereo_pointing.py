@@ -22,10 +22,10 @@ keeping the better of the two ends, the same objective through
 :func:`~sensorgym.trackers.stereo.kernels.assignment_marginals_batch`; ``"greedy"`` takes that
 polynomial path at any size, ``"exhaustive"`` the full search (refused above 4096). The
 planners (``plan-estimate``, ``plan-horizon``, ``truth-plan``) score each assignment over the
-whole plan, about 30 µs per assignment and scenario, so their ``"auto"`` is exhaustive only up
-to :data:`PLAN_ASSIGNMENTS` (the registered 4 × 2's 16 assignments): at 4 × 4 and 6 × 3 the
-full search took 7.7 and 24 ms per scenario, the polynomial one 0.05–0.08 ms
-(``benchmarks/results/scaling.json``).
+whole plan, which is costly per assignment, so their ``"auto"`` is exhaustive only up to
+:data:`PLAN_ASSIGNMENTS` (the registered 4 × 2's 16 assignments): at 4 × 4 and 6 × 3 the full
+search takes far longer than the polynomial one (decision times:
+``benchmarks/results/scaling.json``).
 """
 
 from __future__ import annotations

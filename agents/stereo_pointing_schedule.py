@@ -39,8 +39,8 @@ from sensorgym.envs.stereo_pointing.simulation import PointingParams
 #: the furthest a deadline is predicted, steps (beyond it: never)
 MAX_DEADLINE = 1000
 
-#: ``solver="auto"`` schedules the exhaustive search up to this many assignments (at about 30 µs
-#: per assignment and scenario, 8 ms a step at 256)
+#: ``solver="auto"`` schedules the exhaustive search up to this many assignments (each is
+#: scored over the whole plan, so the search's cost grows with their number)
 SCHEDULE_ASSIGNMENTS = 256
 
 

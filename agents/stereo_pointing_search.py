@@ -4,8 +4,8 @@
 A drone is fixed, and its track updated, only when two receivers see it at once. When the cue
 puts a drone just outside one of its two receivers' fields of view, the other one sees it, the
 track is never corrected, its error grows, and the receivers sent to it keep aiming at a
-prediction that is metres off: the drone is never fixed for the whole episode (about 2 % of the
-episodes of the rules before this one, each about −400, most of the spread of their returns).
+prediction that is metres off: the drone is never fixed for the whole episode (a few episodes
+of the rules before this one, each among their worst, most of the spread of their returns).
 One sighting already says much: the drone lies inside the seeing receiver's cone, near its
 boresight ray (the epipolar constraint of stereo, theory §4.4). :func:`search_aims` sends the
 other receivers assigned to a *lost* drone (track RMS above ``lost_rms``) that exactly one
@@ -35,11 +35,10 @@ MIN_SEARCH_RANGE = 5.0
 @dataclass(frozen=True)
 class EpipolarSearch:
     """Where the receivers sent to a lost drone look. The default is the best of the settings
-    measured on tuning seeds 500 and 600 and confirmed on 700 and 800
-    (``research/stereo_pointing/results/pointing_search.json``: first the range sweep alone, +4.5 and +5.5 over
-    ``plan-fix-first``; then the anchor and the sweep across the ray, +3.6, +3.0, +3.5 and +2.5
-    over that, with the drones never fixed from 4, 5, 3, 7 to 0, 1, 0, 4 of 1024; paired, 512
-    episodes each)."""
+    measured on tuning seeds 500 and 600 and confirmed on 700 and 800 (paired, 512 episodes
+    each: first the range sweep alone over ``plan-fix-first``, then the anchor and the sweep
+    across the ray over that, which also leave fewer drones never fixed;
+    ``research/stereo_pointing/results/pointing_search.json``)."""
 
     lost_rms: float = 4.0
     """Track RMS position error ``σ̂`` above which a drone counts as lost, m (a fixed track has

@@ -34,7 +34,7 @@ class Sharing:
     """When a receiver aims between its drone and another one. The default is the best of the
     six settings measured on tuning seeds 500 and 600 (``research/stereo_pointing/results/pointing_sharing.json``;
     the registered rule used ``fraction = 0.97``, the best of the first four, until the finer
-    settings measured since scored about 0.2 higher)."""
+    settings measured since scored higher)."""
 
     margin: float = 0.5
     """``q``: the two lines of sight must lie closer than the field of view's width less ``2 q``

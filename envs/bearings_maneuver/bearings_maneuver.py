@@ -95,30 +95,7 @@ class BearingsManeuverEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version. Issue 10 changed its episodes in place: the tracker's prior now
-      matches the scenario generator (it assumed a course towards the platform), and the bound
-      is carried in square-root covariance form (finite rewards at every scale). Issue 11
-      compiled its reset and step, in place: a reset's first bearings come from the compiled
-      bearing primitive (libm's ``atan2`` where numpy's SIMD one ran before, which can move one
-      by a unit in the last place), and the bound starts from the Cholesky factor of the prior
-      covariance instead of its eigen-decomposition (the same ``P_0 = L Lᵀ`` to rounding).
-      Observations and episode ends are unchanged; rewards moved by at most 8.3e-12 relative
-      on the recorded seeded episodes (re-recorded). Issue 13 added the params fields
-      ``initial_heading``, ``initial_bearing`` and ``target_course`` (ranges of the uniform
-      draws; the defaults are the former full circle, so seeded episodes are bit-identical);
-      ``sensorgym/BearingsManeuverBook-v0`` fixes them to the textbook scenario. Issue 13 also
-      added the ``lookahead-estimate`` rule and shipped PPO policies that observe the time left
-      through the ``time-feature`` wrapper (:mod:`sensorgym.train.wrappers`), imitate that rule
-      before RL, and beat it (observation, dynamics and rewards unchanged). Issue 13 then
-      gave the observation the velocity estimate's uncertainty, in place: entries 10–12 (two
-      log standard deviations and a correlation of the velocity covariance in the platform
-      frame, the position's formula), so a lone platform's observation grew from 10 to 13 and
-      other platforms' positions moved to 13+ (dynamics, rewards and episode ends unchanged;
-      the golden episodes re-recorded for the observation; the shipped policies retrained).
-      Issue 35, in place: the bank's members update by the second-order EKF (theory §7.9,
-      §11.6), so the observation's estimate and its uncertainty change (rewards, dynamics and
-      episode ends unchanged; golden episodes re-recorded; every policy rescored, the shipped
-      ones not retrained).
+    * v0: initial version; reward and observation revised in place (issues 10, 13, 35; CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
@@ -186,10 +163,7 @@ class BearingsManeuverParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version; issues 10 and 11 changed its episodes in place as for
-      :class:`BearingsManeuverEnv` (honest prior, square-root bound; compiled reset and step,
-      rewards moved by at most 8.3e-12 relative). Issue 13's velocity uncertainty (entries 10–12 of
-      each view; other platforms from entry 13) as for :class:`BearingsManeuverEnv`.
+    * v0: initial version; revised in place with :class:`BearingsManeuverEnv` (CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {

@@ -97,10 +97,7 @@ class BearingsManeuverBookEnv(BearingsManeuverEnv):
 
     ## Version History
 
-    * v0: initial version (issue 13). Issue 13 then added the velocity estimate's uncertainty
-      to the observation (13 entries; :class:`BearingsManeuverEnv`'s Version History), in place.
-      Issue 35, in place: the second-order EKF bank of :class:`BearingsManeuverEnv` (the
-      observation changes, the rewards do not); the shipped PPO runs retrained on it.
+    * v0: initial version (issue 13); observation revised in place (issues 13, 35; CHANGELOG.md)
     """
 
     params_type = BookManeuverParams

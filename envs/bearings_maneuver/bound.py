@@ -295,8 +295,8 @@ def _as_prior(prior_factor: ArrayLike | None, B: int) -> FloatArray | None:
 @contextlib.contextmanager
 def one_blas_thread() -> Iterator[None]:
     """OpenBLAS on one thread (this thread only) while SLSQP runs: its least-squares steps on a
-    few dozen variables cost microseconds, and OpenBLAS's thread hand-off on a loaded machine
-    tens of milliseconds each (10x the whole optimisation). Uses the wheels' bundled OpenBLAS
+    few dozen variables are cheap, and OpenBLAS's thread hand-off on a loaded machine can cost
+    more than the whole optimisation. Uses the wheels' bundled OpenBLAS
     ``openblas_set_num_threads_local``; a no-op where it is not found."""
     restore = []
     try:

@@ -290,7 +290,7 @@ def registered_episode_steps(env_id: str) -> int | None:
 
 
 #: actions of at most this many entries are checked for finiteness element by element in Python
-#: (a numpy reduction costs several µs of call overhead on a two-entry action)
+#: (on a two-entry action a numpy reduction's call overhead costs more than the loop)
 _SMALL_ACTION = 64
 
 

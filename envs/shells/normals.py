@@ -4,11 +4,10 @@ stream.
 numba compiles NumPy's ziggurat on the Generator's bit generator (any of NumPy's: PCG64,
 PCG64DXSM, Philox, SFC64, MT19937), so :func:`standard_normal_rows` over consecutive row ranges
 fills exactly what ``rng.standard_normal(out.shape)`` would return (small fills take NumPy's
-own call, the same draws), and leaves the Generator
-where that call would (``tests/envs/test_normals.py`` checks both). It is faster than NumPy's
-own call (about 10 against 14 ns a draw here) and, filling rows ``lo..hi`` only, lets a
-threaded step start the kernel on the first rows while the rest are drawn
-(:func:`sensorgym.envs.shells.rows.run_drawn_rows`).
+own call, the same draws), and leaves the Generator where that call would
+(``tests/envs/test_normals.py`` checks both). It is faster than NumPy's own call on large fills
+and, filling rows ``lo..hi`` only, lets a threaded step start the kernel on the first rows while
+the rest are drawn (:func:`sensorgym.envs.shells.rows.run_drawn_rows`).
 """
 
 from __future__ import annotations
@@ -19,8 +18,8 @@ from numpy.typing import NDArray
 
 from sensorgym.envs.shells.streams import RowGenerator
 
-#: draws below which NumPy's own call is faster (numba's call costs about 13 µs to unbox the
-#: Generator; NumPy's about 1 µs)
+#: draws below which NumPy's own call is faster (numba's call pays a fixed cost to unbox the
+#: Generator, many times NumPy's own call overhead)
 COMPILED_MIN_DRAWS = 8192
 
 

@@ -4,10 +4,11 @@ Every env's step is one compiled kernel looping over scenarios (rows of the batc
 draws are made with the env's Generator before the kernel runs the rows they belong to, so rows
 are independent and any split of them gives bit-identical results. :func:`run_rows` runs
 ``kernel_on(lo, hi)`` over contiguous row ranges, on :func:`threads` threads when the batch is
-large enough to pay for the hand-off (about 20 µs), else in the calling thread.
+large enough to pay for the hand-off to a pool thread, else in the calling thread.
 :func:`run_drawn_rows` also makes the draws, range by range in the stream's order, so that the
 pool's chunks run while the calling thread still draws the later rows (StereoScanning: 480
-normal draws per scenario at 16 receivers × 10 drones, 15 % of its step when drawn first).
+normal draws per scenario at 16 receivers × 10 drones, a sizeable share of its step when drawn
+first).
 
 Why threads and not numba's ``prange``: a ``parallel=True`` kernel adds seconds of cold compile
 per env, and numba's OpenMP/TBB layers do not survive ``fork()`` (SB3's subprocess vector envs,
@@ -29,8 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: fewest scenarios per thread for a split to pay (a step costs about 1 µs per scenario and
-#: the hand-off to a pool thread about 20 µs)
+#: fewest scenarios per thread for a split to pay (the hand-off to a pool thread costs as much
+#: as many scenarios' steps)
 MIN_ROWS_PER_THREAD = 128
 
 #: per key of :func:`run_drawn_rows`: the last call's costs (what the next split is sized by)

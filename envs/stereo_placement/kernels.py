@@ -152,7 +152,7 @@ def _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position):
     """Row ``s``'s order-1 conjugation (checked): the n = 3 closed form, else the normal
     equations; returns the kernel's input-check code. The row is passed as a plain int64: the
     literal row 0 of :func:`period_rows` would compile the kernels once more (numba
-    specialises a call on a literal integer argument; 3.5 s of cold compile)."""
+    specialises a call on a literal integer argument: another cold compile)."""
     lo = np.int64(s)
     if ak.shape[1] == 2:
         return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q,
@@ -608,8 +608,8 @@ def plan_search(receivers, position, velocity, shifts, joint, scalars, horizon, 
 
     Why the period's end and not the fix times ``d_k``: the receiver fixing at ``d_1 = 0``
     has not moved yet at its fix, so a one-period search at the fix times never moves it
-    (it scores 24 against 36 on 128 scenarios); the end of the move stands for where the
-    receiver will fix from next."""
+    (and scores lower); the end of the move stands for where the receiver will fix from
+    next."""
     period, radius = scalars[0], scalars[4]
     n, M = receivers.shape[1], shifts.shape[0]
     u, r = np.empty((n, 3)), np.empty(n)

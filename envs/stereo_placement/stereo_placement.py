@@ -88,27 +88,7 @@ class StereoPlacementEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version. Issue 11 (in place): the step is a compiled kernel; observations are
-      unchanged and rewards agree with the former numpy step to below 1e-12 relative. Then the
-      step, observation and diagnostics became one compiled pass over the scenarios (split
-      over threads), bit for bit the same episodes; a receiver within ``MIN_RANGE`` (1 nm) of
-      the drone or the estimate now has no line of sight (zero, as the stereo tracker kernels'
-      ``line_of_sight``) instead of a scaled one.
-    * v0, issue 13 (in place; scenarios, observations and rewards unchanged, golden episodes
-      unchanged): ``greedy-information`` maximises the env's own reward predicted one period
-      ahead instead of ``ln det`` of the information; ``lookahead-information`` (its sum over
-      3 periods) and ``truth-lookahead`` (the same on the true drone: truth-informed) are
-      registered. Trained policies act through
-      :class:`~sensorgym.train.env_wrappers.stereo_placement.PlanTargetAction` (a correction of
-      the tracker's one-period prediction that the greedy search plans on) with 8 stacked
-      observations, imitating the truth-informed target before PPO.
-    * v0, issue 15 (in place; the registered 3-receiver env, its rules and golden episodes
-      unchanged): ``n_receivers`` sets the number of receiver vehicles (``--param
-      n_receivers=16``), the delays then spread evenly over ``[0, 0.6]`` s unless given; the
-      step solves n ≥ 4 receivers' conjugation with compiled normal equations (it took the
-      SVD path before: the same fixes to rounding, some 1e-9 relative); the greedy rules
-      search joint moves coordinate-wise beyond 10⁴ of them, ``circle-placement`` rotates
-      the receivers' order around the circle beyond 6 receivers.
+    * v0: initial version; step compiled, ``n_receivers`` added in place (issues 11, 15; CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
@@ -171,7 +151,7 @@ class StereoPlacementParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version; issue 11 as for :class:`StereoPlacementEnv`.
+    * v0: initial version; revised in place with :class:`StereoPlacementEnv` (CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {

@@ -93,36 +93,7 @@ class StereoPointingEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version. Issue 10 (in place; default episodes unchanged): two receivers may
-      no longer share a place on the circle; degenerate inputs that used to crash (exact fixes
-      with no process noise, a fix on or behind a receiver, a drone at a receiver) now take the
-      documented fallbacks. Issue 11: the step is a compiled kernel; rewards agree with the
-      former numpy step to below 1e-12 relative. Later in issue 11 (episodes bit-identical):
-      the step kernel also writes the observation and info, large batches are split over
-      threads (``SENSORGYM_THREADS``), the reset is compiled, and the rules score their
-      candidates in compiled kernels (same actions). Issue 13 (in place; rewards and dynamics
-      unchanged, golden observations re-recorded — the old entries are bit-identical, the new
-      ones inserted): the observation gains each drone's estimated velocity ``v̂_j / V``
-      (``V = velocity_scale``) and ``ln(σ̂_v,j · 1 s / σ_ref)`` (the CV filter's velocity and
-      its RMS error), so ``obs_dim`` is ``3n + 3nm + 8m`` (was ``+ 4m``; 52, was 44). Rules:
-      ``hold-cue`` added (the cue assignment held), ``plan-estimate`` (the best held
-      assignment over a 100-step plan on the tracker's estimate) and ``truth-plan`` (truth-informed:
-      the same planner on the truth); the assignment rules' hysteresis counts a receiver aimed at a drone's
-      prediction, not only one that saw it, and is larger (orthogonal pairs 0.3, greedy 3.0,
-      were 0.05), which ends the step-0 near-tie that sent every receiver to the other drone;
-      one slew controller serves the rules and the assignment action wrapper. Later in issue
-      13 (env unchanged): the rule ``plan-acquire``, ``plan-horizon`` weighing each drone's
-      planned return by the chance that the receivers sent to it find it on the track; then
-      ``plan-acquire-share``, whose receivers aim between their drone and another one when
-      both fit in the field of view (one receiver fixes two drones). Issue 15 (episodes
-      bit-identical): a threaded step draws the direction noise row range by row range while
-      its first chunk already runs (``run_drawn_rows``; the same stream). Later in issue 13
-      (env unchanged): ``plan-acquire-share`` aims between two drones up to the field of
-      view's whole width (was 97 %); the rule ``plan-fix-first`` holds the cue's pairs for the
-      first step, so that every track has its first fix before the plan re-pairs; the rule
-      ``plan-search`` then also sends the receivers of a lost drone that one receiver sees
-      along that receiver's line of sight. Later in issue 13 (env unchanged): ``plan-search``
-      also sweeps across that line of sight, and the seeing receiver holds it.
+    * v0: initial version; fallbacks and observation revised in place (issues 10, 13; CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 5}
@@ -186,8 +157,7 @@ class StereoPointingParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version; issues 10, 11 and 13 (velocity estimates in the observation) as for
-      :class:`StereoPointingEnv`.
+    * v0: initial version; revised in place with :class:`StereoPointingEnv` (CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {

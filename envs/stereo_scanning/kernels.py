@@ -21,7 +21,7 @@ chain them per scenario:
 
 Random draws stay with numpy's Generator (drawn before the kernels, in a fixed order). The
 per-params scalars and the receivers' geometry travel in one constants array (``C_*``): each
-array argument costs the dispatcher about 0.1 µs, a sizeable share of a one-scenario step.
+array argument costs the dispatcher time, a sizeable share of a one-scenario step.
 """
 
 from __future__ import annotations
@@ -317,7 +317,8 @@ def _pair_gates(i, h, k, la, fix_time, count_h, count_k, P, b, sig, position_sig
 
 # The scratch carvers and _save are called with constant sizes and with float and int buffers,
 # contiguous or not: register_jitable types them on plain integers inside each caller, where a
-# dispatcher compiled one specialisation per literal size and layout (18 copies, ~4.6 s cold)
+# dispatcher compiled one specialisation per literal size and layout (18 copies, each a cold
+# compile)
 @register_jitable(**_JIT)
 def _carve1(buf, o, a):
     """The next ``a`` entries of the scratch buffer ``buf`` from offset ``o``, and the offset

@@ -54,11 +54,17 @@ class StereoScanningEnv(CoreEnv):
     cumulative index, and are confirmed after ``confirm_hits`` periods (paper 000's groups run
     online); candidates sharing no vector with a continued track open tentative tracks; a
     confirmed track is dropped after more than ``max_misses`` periods without a candidate.
+    With ``n > 3`` a triple is also dropped before receivers 4 … n are searched when its speed
+    exceeds ``max_speed`` by more than ``q σ_vel``, during the search when its prediction lies
+    inside the sectors of ``ghost_misses`` of them, by more than its uncertainty and motion,
+    with no fix in its gate there (negative information), and after it when the joint fit
+    fails its χ² test at ``fit_false_alarm`` (theory §5.3).
     ``tracker="alternative"`` selects paper 000's alternative instead (receivers 1–2, delays
     ignored, line fits, theory §5.2), ``tracker="algorithmic"`` paper 003's algorithmic
     detector (receivers 1–2; each pair re-solved with the track's motion, ``B̂_2 = b_2 − V Δt_2``,
     and scored by ``c_1 J_1 + c_2 J_2 + c_3 J_3``, theory §5.5, run online in the same table).
-    Under the full sweep the three track 91 %, 88 % and 97 % of the present drones.
+    Under the papers' full sweep each of the three tracks most of the present drones
+    (``tests/envs/stereo_scanning/test_env.py``).
 
     ## Action Space
 
@@ -142,72 +148,7 @@ class StereoScanningEnv(CoreEnv):
 
     ## Version History
 
-    * v0: initial version (issue 12). Issue 13 (observation and dynamics unchanged, golden
-      episodes unchanged): the rules search with two consecutive full sweeps every 10 periods
-      (a single sweep never confirmed a new drone: its tentative track dies unless the next
-      period continues it); ``cue-entry-search`` (cue-following searching with sectors on the
-      region where drones enter, 53° instead of the 90° sweep) and ``cue-no-search`` are
-      registered rules; the ``scan-modes`` wrapper
-      (:mod:`sensorgym.train.env_wrappers.stereo_scanning`) lets a policy choose per period between
-      a sweep, an entry search and the rules' sectors on the tracks; PPO policies trained
-      through it (behaviour cloning of ``cue-entry-search``, then RL; training seeds 0, 1, 2)
-      are shipped and beat every fieldable rule (``docs/environments.md``). Issue 11 (episodes
-      bit-identical): the compiled step runs out of place and writes the new state's
-      observation (``ScanningState.observation``), so ``observe`` only reads it. Issue 15
-      (the registered default's episodes bit-identical): any ``n_receivers ≥ 3`` (field added;
-      ``receiver_azimuths`` and ``scan_offsets`` default to ``None``, the layout of
-      :func:`~sensorgym.envs.stereo_scanning.simulation.default_azimuths` and
-      :func:`~sensorgym.envs.stereo_scanning.simulation.default_offsets`); receivers 4 … n
-      refine the triples of receivers 1–3 by least squares over all receivers' fixes. Later in
-      issue 15 a triple must pass the pair gate on all three of its pairs (receivers 2–3 as
-      well as 1–2 and 1–3): fewer ghost triples reach the refinement. The registered default's
-      episodes stay bit-identical (golden, and 256 held-out episodes of every rule and shipped
-      policy); at 16 receivers × 10 drones episodes may differ (over 64 episodes of seed 500
-      every rule's mean return is unchanged to 0.02). Later still, a triple whose speed
-      exceeds ``max_speed`` by more than ``q σ_vel`` is dropped before receivers 4 … n are
-      searched for it (at ``n = 3`` the speed check drops it anyway: the default's episodes
-      stay bit-identical); at 16 × 10 about 13 of 35 triples per period were such ghosts, and
-      the few that joined fixes and passed were all ghosts. Over 64 episodes of seed 500
-      every rule's mean return at 16 × 10 is unchanged or higher (greedy-information
-      8.44 → 8.93, cue-following 7.77 → 8.26, cue-no-search −16.08 → −15.12). Then the
-      joint fit of more than three receivers must pass a χ² test (``J/σ_e²`` on ``2 n − 6``
-      degrees of freedom, one-sided 1e-6, plus each fix's unmodelled drift ``½ a_max Δ²``): a
-      ghost triple that gathered other objects' fixes (median ``χ²/dof`` 36 against 1.13 for a
-      true drone's fit) is dropped. At 16 × 10 the rules' returns rise sharply (seed 500, 64
-      episodes: greedy-information 8.93 → 35.66, cue-following 8.26 → 34.44, cue-no-search
-      −15.12 → 34.82, truth-sectors 44.81 → 48.43): the ghosts had taken the true
-      candidates' fixes (cue-following tracks 90 % of the present drones instead of 77 %).
-      These 16 × 10 scores are ``sensorgym benchmark --env sensorgym/StereoScanning-v0
-      --param n_receivers=16 --param n_drones=10 --episodes 64 --seed 500 --no-shipped``
-      before, after the speed pre-gate and after the χ² test:
-      ``docs/scores/stereo_scanning_16x10/{before,speed_pregate,chi2_test}.json``. The registered default
-      (three receivers, no joint fit) is unchanged. The χ² test then took the exact quantile
-      (``scipy.stats.chi2.isf`` at the new field ``fit_false_alarm``, 1e-6) instead of the
-      Wilson–Hilferty approximation (default unchanged; at 16 × 10, same command,
-      ``chi2_exact.json``: greedy-information 35.66, cue-following 34.44, cue-no-search
-      34.82, cue-entry-search 33.63 → 33.90, truth-sectors 48.43 → 48.47). Then negative
-      information (new field ``ghost_misses``, 2): a triple whose prediction lies inside the
-      sectors of two of receivers 4 … n, by more than its uncertainty and its motion during
-      their sweeps, with no fix in its gate there, is dropped at once — detection is certain
-      inside a sector, so a real drone has a fix there. The registered default (three
-      receivers) is unchanged. At 16 × 10 most triples that reach receivers 4 … n are
-      ghosts, and most of those are now dropped after a few receivers instead of a search of
-      all thirteen and a joint fit (the step's time: ``benchmarks/results/scaling.json``).
-      Same command, ``negative_information.json``:
-      every rule's mean return is unchanged or higher (truth-sectors 48.47 → 50.53, paired
-      +2.06 ± 0.37; cue-entry-search 33.90 → 36.82, +2.92 ± 2.19; greedy-information,
-      cue-following and cue-no-search +0.003; full-sweep and orthogonal-sectors identical).
-      Later in issue 15 (episodes bit-identical): the raster's pixel-visit iteration takes its
-      angles from a polynomial arctangent and falls back to libm's only within the
-      polynomial's error (10⁻⁸ rad) of a pixel or sector edge, where the two could disagree.
-      Then (episodes bit-identical): a threaded step draws the direction noise row range by
-      row range while its first chunk already runs (``run_drawn_rows``; the same stream).
-      Issue 35 (rewards and observations change; golden episodes re-recorded): a triple's
-      ``σ_pos``, ``σ_vel`` are the square roots of the traces of its exact first-order
-      covariance under the angle noise (theory §3.5, §11.6) instead of the papers'
-      ``σ_e² (AᵀA)⁻¹``, which understates ``σ_vel``. Every policy rescored on both
-      held-out seeds (``docs/scores/``); the shipped PPO runs, not retrained, still beat
-      every fieldable rule (``docs/environments.md``).
+    * v0: initial version (issue 12); tracker and reward revised in place (issues 15, 35; CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 4}
@@ -269,7 +210,7 @@ class StereoScanningParallelEnv(CoreParallelEnv):
 
     ## Version History
 
-    * v0: initial version (issue 12).
+    * v0: initial version (issue 12); revised with :class:`StereoScanningEnv` (CHANGELOG.md)
     """
 
     metadata: ClassVar[dict[str, Any]] = {
