@@ -96,6 +96,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from sensorgym.train.sweep import join_with_token
+
+    join_with_token(args.address)  # before Ray is imported: it reads its auth mode once
     try:
         import ray  # noqa: F401
     except ImportError:

@@ -241,7 +241,8 @@ def join_with_token(address: str | None) -> bool:
 
     A head started by ``ray start --head`` on Ray >= 2.59 refuses clients without the token
     (``InvalidAuthToken``), and a client sends it only in token mode; a cluster without auth
-    accepts a client in token mode too. Returns whether the mode was set here."""
+    accepts a client in token mode too. Ray reads the mode once per process, when it is first
+    imported and used: call this before. Returns whether the mode was set here."""
     if address is None or "RAY_AUTH_MODE" in os.environ:
         return False
     has_token = bool(os.environ.get("RAY_AUTH_TOKEN") or os.environ.get("RAY_AUTH_TOKEN_PATH"))
@@ -264,6 +265,7 @@ def run_sweep(
 
     An instance already initialised in this process is used as it is (and left running);
     one started here is shut down at the end."""
+    join_with_token(address)  # before Ray is imported: it reads its auth mode once
     import ray
     from ray import tune
     from ray.tune.schedulers import ASHAScheduler, FIFOScheduler
@@ -279,7 +281,6 @@ def run_sweep(
     space = dict(parse_space(f"{k}={v}") for k, v in settings.space.items())
     started = not ray.is_initialized()
     if started:
-        join_with_token(address)
         ray.init(
             address="local" if address is None else address,
             num_cpus=num_cpus if address is None else None,

@@ -195,11 +195,21 @@ def ray_head(monkeypatch, short_tmp):
 
 
 def test_an_ars_sweep_joins_a_head_started_with_token_auth(ray_head, tmp_path):
+    # a fresh process, as a user starts it (Ray reads its auth mode once per process), with no
+    # RAY_AUTH_MODE in its environment: the sweep turns token mode on to join the head
     env = "sensorgym/StereoPointing-v0"
     args = ["--env", env, "--algo", "ars", "--seeds", "0", "--timesteps", "1", "--n-envs", "2"]
     args += ["--eval-episodes", "2", "--hyperparam", "episodes=2", "--hyperparam", "n_directions=1"]
-    assert main(["sweep", *args, "--address", ray_head, "--out", str(tmp_path)]) == 0
-    assert os.environ.get("RAY_AUTH_MODE") == "token"  # the head's token was sent
+    cli = Path(sys.executable).parent / "sensorgym"
+    environ = {k: v for k, v in os.environ.items() if not k.startswith("RAY_AUTH")}
+    done = subprocess.run(
+        [str(cli), "sweep", *args, "--address", ray_head, "--out", str(tmp_path)],
+        env=environ,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stdout[-2000:] + done.stderr[-4000:]
     doc = json.loads((tmp_path / "sweep.json").read_text())
     assert doc["settings"]["algo"] == "ars" and doc["incomplete"] == 0
     (config,) = doc["configs"].values()
