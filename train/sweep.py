@@ -339,6 +339,7 @@ def run_sweep(
         "settings": asdict(settings),
         "trials": trials,
         **summary,
+        "rules": rule_lines(summary["configs"]),
         "benchmark": benchmark,
     }
     (out / "sweep.json").write_text(json.dumps(doc, indent=2) + "\n")
@@ -376,9 +377,23 @@ def fan_out_benchmark(settings: SweepSettings, runs: list[Path]) -> dict[str, di
     return {name: pool(ray.get(refs)) for name, refs in futures.items()}
 
 
+def rule_lines(configs: dict[str, dict[str, Any]]) -> dict[str, float]:
+    """Every rule's mean return on the trials' evaluation episodes (each trial scores the rules
+    beside its policy on the same episodes of the tuning seed: read from the first run folder
+    that has its ``evaluation.json``)."""
+    for config in configs.values():
+        for run_dir in config["run_dirs"]:
+            path = Path(run_dir) / "evaluation.json"
+            if path.is_file():
+                results = json.loads(path.read_text())["results"]
+                return {k: float(v["mean"]) for k, v in results.items() if k != "trained"}
+    return {}
+
+
 def plot_sweep(doc: dict[str, Any], path: Path) -> Path | None:
     """A PNG at ``path``: per configuration its mean evaluation return over seeds with the 95 %
-    interval, and each seed's return as a dot; the best configuration in orange."""
+    interval, and each seed's return as a dot; the best configuration in orange; every rule's
+    return on the same episodes (``doc["rules"]``) as a grey vertical line, named at the top."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -388,7 +403,7 @@ def plot_sweep(doc: dict[str, Any], path: Path) -> Path | None:
     if not configs:
         return None
     tags = sorted(configs, key=lambda tag: configs[tag]["mean"])
-    fig, ax = plt.subplots(figsize=(7.5, 1.2 + 0.4 * len(tags)))
+    fig, ax = plt.subplots(figsize=(7.5, 2.4 + 0.4 * len(tags)))
     for y, tag in enumerate(tags):
         c = configs[tag]
         color = "#e8833a" if tag == doc["best"] else "#4878a8"
@@ -396,7 +411,18 @@ def plot_sweep(doc: dict[str, Any], path: Path) -> Path | None:
         ax.plot(c["returns"], [y] * len(c["returns"]), "k.", markersize=5)
     ax.set_yticks(range(len(tags)), tags, fontsize=8)
     ax.axvline(0.0, color="black", linewidth=0.6)
-    ax.set_xlabel("evaluation return per seed (dots), mean ± 95 % across seeds", fontsize=9)
+    top = len(tags) - 0.4
+    for name, mean in sorted(doc.get("rules", {}).items(), key=lambda kv: kv[1]):
+        ax.axvline(mean, color="0.45", linewidth=0.9, linestyle="--", zorder=0)
+        ax.text(
+            mean, top, name, rotation=90, va="bottom", ha="center", fontsize=7,
+            bbox={"facecolor": "white", "edgecolor": "none", "pad": 0.5},
+        )  # fmt: skip
+    if doc.get("rules"):
+        ax.set_ylim(-0.6, top + 0.2 + 0.25 * max(len(n) for n in doc["rules"]) / 4)
+    ax.set_xlabel(
+        "evaluation return per seed (dots), mean ± 95 % across seeds; rules dashed", fontsize=9
+    )
     ax.set_title(f"{doc['settings']['env_id']}: {doc['settings']['algo']} sweep", fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=90)

@@ -63,6 +63,10 @@ def test_two_seed_sweep_on_a_local_ray_instance(tmp_path, capsys, monkeypatch, s
         evaluation = json.loads((tmp_path / run_dir / "evaluation.json").read_text())
         returns.append(evaluation["results"]["trained"]["mean"])
     assert config["returns"] == returns
+    # the rules, scored beside each trial's policy on the same episodes, are the chart's lines
+    rules = json.loads((tmp_path / config["run_dirs"][0] / "evaluation.json").read_text())
+    assert doc["rules"] == {k: v["mean"] for k, v in rules["results"].items() if k != "trained"}
+    assert {"straight-course", "mpc-estimate"} <= set(doc["rules"])
     assert config["mean"] == pytest.approx(np.mean(returns))
     half = stats.t.ppf(0.975, 1) * np.std(returns, ddof=1) / np.sqrt(2)
     assert config["ci95"] == pytest.approx(half)
