@@ -108,6 +108,7 @@ def warm(env_ids: list[str], events: Any = None) -> tuple[list[str], float, int]
     finished, ``what`` the one that comes next."""
     import gymnasium as gym
     import numpy as np
+    from gymnasium.envs.registration import load_env_creator
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
     from sensorgym.envs.shells.normals import COMPILED_MIN_DRAWS, standard_normal_rows
@@ -116,8 +117,10 @@ def warm(env_ids: list[str], events: Any = None) -> tuple[list[str], float, int]
     t0 = time.perf_counter()
     played = 0
     specs = {env_id: policies_for(env_id, shipped=False) for env_id in env_ids}
-    variants = {
-        env_id: getattr(gym.spec(env_id).make().unwrapped.simulation, "COMPILE_VARIANTS", ())
+    variants = {  # read off the env class: making an env here would compile its kernels
+        env_id: getattr(
+            load_env_creator(gym.spec(env_id).entry_point).simulation, "COMPILE_VARIANTS", ()
+        )
         for env_id in env_ids
     }
     total = sum(1 + len(specs[e]) + len(variants[e]) for e in env_ids)

@@ -77,11 +77,6 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
 
     def render(self) -> NDArray[np.uint8] | None:
         """The frame of scenario 0 (``"rgb_array"``) or ``None`` after showing it (``"human"``)."""
-        if self.render_mode is None:
-            gym.logger.warn("render: no render_mode was given to the environment")
-            return None
-        if self._state is None:
-            raise RuntimeError("render: call reset() first")
         return self._frames.render(self.params)
 
     def close(self) -> None:

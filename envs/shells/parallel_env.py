@@ -22,7 +22,6 @@ from collections.abc import Callable, Mapping
 from types import ModuleType
 from typing import Any, ClassVar
 
-import gymnasium
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
@@ -159,11 +158,6 @@ class CoreParallelEnv(ParallelEnv):
     def render(self) -> NDArray[np.uint8] | None:
         """The frame of the scenario (``"rgb_array"``) or ``None`` after showing it
         (``"human"``); ``None`` with a warning when no ``render_mode`` was given."""
-        if self.render_mode is None:
-            gymnasium.logger.warn("render: no render_mode was given to the environment")
-            return None
-        if self._state is None:
-            raise RuntimeError("render: call reset() first")
         return self._frames.render(self.params)
 
     def close(self) -> None:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
+import gymnasium
 import numpy as np
 from numpy.typing import NDArray
 
@@ -56,9 +57,13 @@ class Frames:
         return module.draw(params, self.history)
 
     def render(self, params: Any) -> NDArray[np.uint8] | None:
-        """The frame for ``"rgb_array"``; for ``"human"`` the frame shown in the window (where
-        matplotlib has an interactive backend; elsewhere it is drawn and not shown) and
-        ``None``."""
+        """What a shell's ``render()`` returns: the frame for ``"rgb_array"``; for ``"human"``
+        ``None`` after showing the frame in the window (where matplotlib has an interactive
+        backend; elsewhere it is drawn and not shown); with no mode ``None`` and Gymnasium's
+        warning. ``RuntimeError`` before the first reset."""
+        if self.mode is None:
+            gymnasium.logger.warn("render: no render_mode was given to the environment")
+            return None
         frame = self.draw(params)
         if self.mode == "rgb_array":
             return frame

@@ -238,3 +238,9 @@ def test_the_parallel_frame_is_the_gymnasium_frame():
     with pytest.raises(ValueError, match="render_mode"):
         bearings_maneuver.parallel_env(render_mode="ansi")
     assert bearings_maneuver.parallel_env().render() is None  # no mode: a warning, no frame
+    for fresh in (  # both shells refuse to draw before the first reset
+        bearings_maneuver.parallel_env(render_mode="rgb_array"),
+        gym.make("sensorgym/BearingsManeuver-v0", render_mode="rgb_array").unwrapped,
+    ):
+        with pytest.raises(RuntimeError, match="reset"):
+            fresh.render()

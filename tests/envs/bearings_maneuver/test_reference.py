@@ -43,6 +43,7 @@ from sensorgym.envs.bearings_maneuver.book import BOOK_ENV_ID, BookManeuverParam
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
 from sensorgym.envs.shells.contract import Core, registered_episode_steps
 from sensorgym.trackers.geometry import wrap_angle
+from tests.reference_checks import assert_close, norm
 
 SEED = 20260738
 BATCH = 8
@@ -137,7 +138,7 @@ def _assert_same_view(core: Core, got: ManeuverState, want: ManeuverState, how: 
         f"{how}: info position_error",
         i_got["position_error"],
         i_want["position_error"],
-        _norm(want.target[:, :2])[:, 0],  # a difference of coordinates of the target's size
+        norm(want.target[:, :2])[:, 0],  # a difference of coordinates of the target's size
     )
 
 
@@ -145,13 +146,13 @@ def _assert_same_state(got: ManeuverState, want: ManeuverState, how: str) -> Non
     """Every field of the state, each on the scale its rounding is relative to."""
     compared = {
         "t": lambda a: np.abs(a),
-        "platform_position": _norm,
+        "platform_position": norm,
         "speed": lambda a: np.abs(a),
         "target": _block_norms,
-        "bound_factor": _norm,  # row i of a square root L: √P_ii
+        "bound_factor": norm,  # row i of a square root L: √P_ii
         "accuracy": lambda a: np.abs(a),
         "nearest_range": lambda a: np.abs(a),
-        "position_error": lambda a: _norm(want.target[:, :2])[:, 0],
+        "position_error": lambda a: norm(want.target[:, :2])[:, 0],
     }
     assert {f.name for f in dataclasses.fields(ManeuverState)} == {
         *compared,
@@ -180,28 +181,13 @@ def _assert_same_state(got: ManeuverState, want: ManeuverState, how: str) -> Non
 def _assert_close(
     name: str, got: np.ndarray, want: np.ndarray, scale: np.ndarray | float, atol: float = ATOL
 ) -> None:
-    """``|got − want| ≤ RTOL · scale + atol`` entry by entry (``scale`` broadcasts)."""
-    got, want = np.asarray(got, dtype=np.float64), np.asarray(want, dtype=np.float64)
-    assert got.shape == want.shape, f"{name}: shape {got.shape}, expected {want.shape}"
-    err = np.abs(got - want)
-    tol = RTOL * np.broadcast_to(scale, err.shape) + atol
-    if not np.all(err <= tol):  # NaN fails too
-        i = np.unravel_index(np.nanargmax(np.where(err <= tol, 0.0, err / tol)), err.shape)
-        raise AssertionError(
-            f"{name}: at {tuple(map(int, i))}, {got[i]!r} vs {want[i]!r} "
-            f"(|Δ| = {err[i]:.3g}, tolerance {tol[i]:.3g})"
-        )
-
-
-def _norm(v: np.ndarray) -> np.ndarray:
-    """The norm over the last axis, kept for broadcasting."""
-    return np.linalg.norm(v, axis=-1, keepdims=True)
+    assert_close(name, got, want, scale, RTOL, atol)
 
 
 def _block_norms(x: np.ndarray) -> np.ndarray:
     """A target state's scales ``(..., 4)``: its position entries that of its position's norm,
     its velocity entries that of its velocity's (the two have different units)."""
-    pos, vel = _norm(x[..., :2]), _norm(x[..., 2:])
+    pos, vel = norm(x[..., :2]), norm(x[..., 2:])
     return np.concatenate([pos, pos, vel, vel], axis=-1)
 
 

@@ -62,6 +62,7 @@ from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingSt
 from sensorgym.trackers.geometry import wrap_angle
 from sensorgym.trackers.stereo.information import MIN_FIX_RANGE, fix_in_front
 from sensorgym.trackers.stereo.kalman import CVTrack
+from tests.reference_checks import assert_close, norm
 
 SEED = 20260738
 BATCH = 8
@@ -188,7 +189,7 @@ def _assert_same(
         _assert_close(f"{how}: {name}", d, np.zeros_like(d), np.pi, rtol)
     for name in ("drone_position", "drone_velocity"):
         v = getattr(want, name)
-        _assert_close(f"{how}: {name}", getattr(got, name), v, _norm(v), rtol)
+        _assert_close(f"{how}: {name}", getattr(got, name), v, norm(v), rtol)
     x, P = want.track.x, want.track.P
     _assert_close(f"{how}: track x", got.track.x, x, _block_norms(x), rtol)
     sd = np.sqrt(np.abs(np.diagonal(P, axis1=-2, axis2=-1)))
@@ -220,32 +221,13 @@ def _assert_close(
     rtol: float,
     atol: float = ATOL,
 ) -> None:
-    """``|got − want| ≤ rtol · scale + atol`` entry by entry (``scale`` broadcasts); entries
-    that are not finite must be equal."""
-    got, want = np.asarray(got, dtype=np.float64), np.asarray(want, dtype=np.float64)
-    assert got.shape == want.shape, f"{name}: shape {got.shape}, expected {want.shape}"
-    finite = np.isfinite(want)
-    if not np.array_equal(got[~finite], want[~finite]):
-        np.testing.assert_array_equal(got[~finite], want[~finite], err_msg=name)
-    err = np.abs(np.where(finite, got, 0.0) - np.where(finite, want, 0.0))
-    tol = rtol * np.where(finite, np.broadcast_to(scale, err.shape), 0.0) + atol
-    if not np.all(err <= tol):  # NaN fails too
-        i = np.unravel_index(np.nanargmax(np.where(err <= tol, 0.0, err / tol)), err.shape)
-        raise AssertionError(
-            f"{name}: at {tuple(map(int, i))}, {got[i]!r} vs {want[i]!r} "
-            f"(|Δ| = {err[i]:.3g}, tolerance {tol[i]:.3g})"
-        )
-
-
-def _norm(v: np.ndarray) -> np.ndarray:
-    """The norm over the last axis, kept for broadcasting."""
-    return np.linalg.norm(v, axis=-1, keepdims=True)
+    assert_close(name, got, want, scale, rtol, atol)
 
 
 def _block_norms(x: np.ndarray) -> np.ndarray:
     """A track's scales ``(..., 6)``: its position entries that of its position's norm, its
     velocity entries that of its velocity's (the two have different units)."""
-    pos, vel = _norm(x[..., :3]), _norm(x[..., 3:])
+    pos, vel = norm(x[..., :3]), norm(x[..., 3:])
     return np.concatenate([pos, pos, pos, vel, vel, vel], axis=-1)
 
 
