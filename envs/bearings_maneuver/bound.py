@@ -66,10 +66,9 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 
-from sensorgym.envs.bearings_maneuver import kernels as K_
 from sensorgym.envs.bearings_maneuver import simulation
+from sensorgym.envs.bearings_maneuver.kernels import fly_step
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
-from sensorgym.envs.worlds.platform_kernels import fly_platform
 from sensorgym.trackers.bearings.kernels import STATE_DIM, accuracy, bound_predict, bound_update
 from sensorgym.trackers.stereo.kernels import copy2
 
@@ -87,7 +86,7 @@ _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": Fal
 
 
 @njit(**_JIT)
-def returns_kernel(c, pos0, heading0, speed0, L0, acc0, path, actions, ret, log_final, ranges,
+def returns_kernel(settings, pos0, heading0, speed0, L0, acc0, path, actions, ret, log_final, ranges,
                    ended):  # fmt: skip
     """The env's episode under each action sequence ``actions (S, T, K, 2)`` from one reset
     state (platforms ``pos0 (K, 2)``, ``heading0``, ``speed0`` ``(K,)``, the bound's square root
@@ -96,10 +95,10 @@ def returns_kernel(c, pos0, heading0, speed0, L0, acc0, path, actions, ret, log_
     Writes the exact return ``ret (S,)`` (rewards summed until the episode ends, the penalty
     included), ``ln m(P_T)`` of the full horizon ignoring termination ``log_final (S,)``, every
     range ``ranges (S, T, K)`` and the step count at the end ``ended (S,)`` (``T`` when the
-    stand-off was kept)."""
+    stand-off was kept); ``settings`` is the params' record (:data:`.kernels.SETTINGS`)."""
+    p = settings[0]
     S, T, K = actions.shape[0], actions.shape[1], actions.shape[2]
-    dt, q_tilde, sigma = c[K_.DT], c[K_.Q_TILDE], c[K_.SIGMA]
-    rel = c[K_.RELATIVE_RANGE] > 0.0
+    dt, q_tilde, sigma = p.dt, p.q_tilde, p.sigma
     L = np.empty((STATE_DIM, STATE_DIM))
     L_pred = np.empty((STATE_DIM, STATE_DIM))
     A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
@@ -118,10 +117,9 @@ def returns_kernel(c, pos0, heading0, speed0, L0, acc0, path, actions, ret, log_
             for k in range(K):
                 a0 = min(max(actions[s, t, k, 0], -1.0), 1.0)
                 a1 = min(max(actions[s, t, k, 1], -1.0), 1.0)
-                px[k], py[k], h[k], v[k] = fly_platform(
-                    px[k], py[k], h[k], v[k], a0 * c[K_.MAX_TURN], a1 * c[K_.MAX_DV], dt,
-                    c[K_.MAX_TURN], c[K_.MAX_DV], c[K_.MIN_SPEED], c[K_.MAX_SPEED],
-                )  # fmt: skip
+                px[k], py[k], h[k], v[k] = fly_step(
+                    p, px[k], py[k], h[k], v[k], a0 * p.max_turn, a1 * p.max_dv
+                )
             tx, ty = path[t + 1, 0], path[t + 1, 1]
             # P̄ = F P Fᵀ + Q, then each platform's bearing on the true target, in turn
             bound_predict(L, dt, q_tilde, L_pred, A_pred)
@@ -129,18 +127,18 @@ def returns_kernel(c, pos0, heading0, speed0, L0, acc0, path, actions, ret, log_
                 bound_update(L_pred, tx, ty, px[k], py[k], sigma, L, A_update)
                 if k + 1 < K:
                     copy2(L, L_pred)
-            m = accuracy(rel, L, tx, ty, px[0], py[0], c[K_.FLOOR])
+            m = accuracy(p.relative_range, L, tx, ty, px[0], py[0], p.floor)
             close = False
             for k in range(K):
                 r = math.hypot(tx - px[k], ty - py[k])
                 ranges[s, t, k] = r
-                if r < c[K_.MIN_RANGE]:
+                if r < p.min_range:
                     close = True
             if end == T:
                 # reward_k = ln m_k − ln m_{k+1} − penalty · [a platform within min_range]
                 total += math.log(acc) - math.log(m)
                 if close:
-                    total -= c[K_.PENALTY]
+                    total -= p.penalty
                     end = t + 1
             acc = m
         ret[s] = total

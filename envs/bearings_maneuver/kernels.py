@@ -1,27 +1,39 @@
 """The BearingsManeuver reset, step and observation as compiled passes over the batch's rows.
 
 :func:`step_kernel` is :func:`.simulation.step` for the scenarios ``lo ≤ b < hi`` (so that
-:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads);
-:func:`reset_kernel` is :func:`.simulation.reset` after its draws. All are built from the primitives written once in
+:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads), and
+:func:`reset_kernel` is :func:`.simulation.reset` after its draws. Both follow the stages of
+the readable numpy form, :mod:`.reference` (theory §2.5, §7.7–§7.9, §11.2), one compiled
+function per stage under the reference's name: :func:`fly`, :func:`move_target`,
+:func:`take_bearings`, :func:`prior_bank`, :func:`track` (the bank's predict and updates),
+:func:`bound` (its predict, updates and the accuracy), :func:`derive` (the observation) and
+:func:`reward_and_end`. The stages are built from the primitives written once in
 :mod:`sensorgym.trackers.bearings.kernels` (prior, bank, bound, accuracy) and
 :mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings); the bank's
-members take the second-order EKF update (``bank_update``, theory §7.9, §11.6). The random draws
-are made by the caller with numpy's Generator, in the order and shapes of the numpy form, and
-passed in: seeded episodes do not depend on the kernel or on the split of the rows.
+members take the second-order EKF update (``bank_update``, theory §7.9, §11.6). The random
+draws are made by the caller with numpy's Generator, in the order and shapes of the numpy
+form, and passed in: seeded episodes do not depend on the kernel or on the split of the rows.
 
 The step reads the old state's arrays and writes freshly allocated ones (states are values).
-Every kernel that writes a state also writes its derived fields — the observation
-(:func:`derive`, the table of :func:`.simulation.observe_agents`), the nearest range and the
-estimate's position error — from one moment-matched bank estimate, so that
-:func:`.simulation.observe` and :func:`.simulation.info` only read them.
+Every kernel that writes a state also writes its derived fields — the observation (the table
+of :func:`.simulation.observe_agents`), the nearest range and the estimate's position error —
+from one moment-matched bank estimate, so that :func:`.simulation.observe` and
+:func:`.simulation.info` only read them.
 
-Scalar settings come packed in one float64 array ``c`` (:attr:`.simulation.ManeuverParams.
-kernel_constants`), indexed by the constants below.
+What the kernels take:
+
+- the **settings**: one record of dtype :data:`SETTINGS`, read by field name (``p.dt``,
+  ``p.sigma``); :attr:`.simulation.ManeuverParams.kernel_constants` builds it once per params;
+- a **state** as the tuple of its arrays in the order of :data:`StateArrays` (what
+  :func:`.simulation.state_arrays` returns), which the kernels read by name;
+- **scratch** from :func:`workspace` (the step and reset) and :func:`plan_workspace` (the
+  planners), allocated once per call and reused over the rows.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -49,208 +61,333 @@ from sensorgym.trackers.stereo.kernels import copy1, copy2
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
-# indices into the packed settings ``c``
-DT, Q_TILDE, SIGMA, MAX_TURN, MAX_DV, MIN_SPEED, MAX_SPEED = 0, 1, 2, 3, 4, 5, 6
-FLOOR, MIN_RANGE, PENALTY, RELATIVE_RANGE = 7, 8, 9, 10
-RANGE_SCALE, SPEED_SCALE, CLIP, SPEED_MEAN, SPEED_SIGMA = 11, 12, 13, 14, 15
-N_CONSTANTS = 16
+#: The scalar settings the kernels read, one record per params
+#: (:attr:`.simulation.ManeuverParams.kernel_constants`).
+SETTINGS = np.dtype(
+    [
+        ("dt", np.float64),  # step length T, s
+        ("q_tilde", np.float64),  # the target's process noise intensity q̃, m²/s³
+        ("sigma", np.float64),  # bearing noise σ, rad
+        ("max_turn", np.float64),  # ω_max, rad/s
+        ("max_dv", np.float64),  # Δv_max per step, m/s
+        ("min_speed", np.float64),  # platform speed limits, m/s
+        ("max_speed", np.float64),
+        ("floor", np.float64),  # the accuracy is kept inside [floor, 1/floor]
+        ("min_range", np.float64),  # stand-off: closer ends the episode, m
+        ("penalty", np.float64),  # close_penalty
+        ("range_scale", np.float64),  # observation scales: m, m/s
+        ("speed_scale", np.float64),
+        ("clip", np.float64),  # observations clipped to ±clip
+        ("speed_mean", np.float64),  # the tracker's speed prior, m/s
+        ("speed_sigma", np.float64),
+        ("relative_range", np.bool_),  # the reward measures σ_r/r (else the position RMS)
+    ],
+    align=True,
+)
+
+#: The arrays of a :class:`.simulation.ManeuverState`, in the order the kernels take them:
+#: platforms ``pos (B, K, 2)``, ``heading``, ``speed`` ``(B, K)``, ``target (B, 4)``, the bank's
+#: log weights ``lw (B, N)``, means ``X (B, N, 4)``, covariances ``P (B, N, 4, 4)``, the bound's
+#: square root ``L (B, 4, 4)``, its accuracy ``acc (B,)``, the bearings ``z (B, K)``, the
+#: observation ``obs (B, K, obs_dim)`` float32, the nearest range and the position error ``(B,)``.
+StateArrays = namedtuple("StateArrays", "pos heading speed target lw X P L acc z obs nearest error")
+
+#: Scratch of the step and the reset (:func:`workspace`): the bank's estimate ``x``, ``Pe`` and
+#: weights ``w``, and the bound recursion's ``L_pred`` and pre-arrays ``A_pred``, ``A_update``.
+Workspace = namedtuple("Workspace", "x Pe w L_pred A_pred A_update")
+
+#: Scratch of the planners (:func:`plan_workspace`): the target's mean ``path (H, 4)`` (with
+#: ``x``, ``x_next`` and the unused noise factor ``G``), a platform's ``track (H, 2)``, every
+#: platform's ``tracks (K, H, 2)`` and their bearings' information ``info (K, H, 3)``, the
+#: others' summed information ``others (H, 3)`` (``none``: no others), the bound's root ``Lc``
+#: with ``L_pred``, ``A_pred``, ``A_update``, and for ``q̃ = 0`` the others' root ``Lo``, the
+#: late information ``C`` and its vector ``u``.
+PlanWorkspace = namedtuple(
+    "PlanWorkspace",
+    "x x_next G path track tracks info others none Lc L_pred A_pred A_update Lo C u",
+)
 
 
 @njit(**_JIT)
-def step_kernel(
-    lo,
-    hi,
-    c,
-    pos,
-    heading,
-    speed,
-    target,
-    lw,
-    X,
-    P,
-    L,
-    acc,
-    action,
-    target_noise,
-    noise_factor,
-    bearing_noise,
-    pos2,
-    heading2,
-    speed2,
-    target2,
-    lw2,
-    X2,
-    P2,
-    L2,
-    acc2,
-    z2,
-    obs,
-    nearest,
-    error,
-    reward,
-    terminated,
-):
-    """One step of scenarios ``lo ≤ b < hi``: reads the state ``pos (B, K, 2)``, ``heading``,
-    ``speed`` ``(B, K)``, ``target (B, 4)``, bank ``lw (B, N)``, ``X (B, N, 4)``,
-    ``P (B, N, 4, 4)``, bound ``L (B, 4, 4)``, ``acc (B,)``, and writes the new one into the
-    arrays suffixed 2, with the bearings ``z2 (B, K)``, the derived fields ``obs``,
-    ``nearest``, ``error`` and ``reward``, ``terminated`` ``(B,)``. ``action (B, K, 2)`` is
-    clipped to ``[−1, 1]``; ``target_noise (B, 4)`` standard normals (used when ``q̃ > 0``,
-    with ``noise_factor`` ``G``, ``G Gᵀ = Q``), ``bearing_noise (B, K)``. Returns the number of
-    non-finite action entries (the caller raises: the kernel trusts everything else)."""
-    K = heading.shape[1]
-    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
-    L_pred = np.empty((STATE_DIM, STATE_DIM))
-    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
-    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
-    x = np.empty(STATE_DIM)
-    Pe = np.empty((STATE_DIM, STATE_DIM))
-    w = np.empty(lw.shape[1])
+def workspace(members):
+    """Scratch for the rows of one step or reset call, with a bank of ``members``."""
+    return Workspace(
+        np.empty(STATE_DIM),
+        np.empty((STATE_DIM, STATE_DIM)),
+        np.empty(members),
+        np.empty((STATE_DIM, STATE_DIM)),
+        np.empty((2 * STATE_DIM, STATE_DIM)),
+        np.empty((STATE_DIM + 1, STATE_DIM + 1)),
+    )
+
+
+@njit(**_JIT)
+def plan_workspace(horizon, platforms):
+    """Scratch for the rows of one planner call: plans of ``horizon`` steps, ``platforms``
+    planned jointly (0 for a single platform's plans)."""
+    D = STATE_DIM
+    return PlanWorkspace(
+        np.empty(D),
+        np.empty(D),
+        np.zeros((D, D)),
+        np.empty((horizon, D)),
+        np.empty((horizon, 2)),
+        np.empty((platforms, horizon, 2)),
+        np.empty((platforms, horizon, 3)),
+        np.zeros((horizon, 3)),
+        np.empty((0, 3)),
+        np.empty((D, D)),
+        np.empty((D, D)),
+        np.empty((2 * D, D)),
+        np.empty((D + 1, D + 1)),
+        np.empty((D, D)),
+        np.empty((D, D)),
+        np.empty(D),
+    )
+
+
+# --- the contract: reset and step ---------------------------------------------------------------
+
+
+@njit(**_JIT)
+def reset_kernel(settings, prior, state, eps):
+    """Fresh scenarios from their draws (:func:`.reference.reset`), every row of ``state`` (a
+    tuple in the order of :data:`StateArrays`): it reads the drawn platforms ``pos``,
+    ``heading``, ``speed`` and ``target`` and writes the rest — the first bearings ``z`` (noise
+    ``eps (B, K)``); the prior bank from platform 1's bearing (``prior``: the range cells
+    ``r``, ``σ_r`` and log weights ``(N,)`` and the spread factors of the bearing and the course
+    ``(3,)``, :attr:`.simulation.ManeuverParams.prior_cells`); the bound's square root ``L`` of
+    the bank's moment-matched covariance; the other platforms' first bearings fused into both;
+    the accuracy ``acc`` and the derived fields. ``settings`` is the params' record."""
+    p = settings[0]
+    s = StateArrays(*state)
+    ws = workspace(s.lw.shape[1])
+    for b in range(s.z.shape[0]):
+        take_bearings(p, s, eps, b)
+        prior_bank(p, prior, s, b)
+        # P_0 = P_prior, the bank's covariance, which already holds platform 1's first bearing;
+        # then P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the other platforms' first bearings
+        bank_estimate(s.lw[b], s.X[b], s.P[b], ws.x, ws.Pe, ws.w)
+        psd_square_root(ws.Pe, s.L[b])
+        for k in range(1, s.z.shape[1]):
+            update_bank(p, s, b, k)
+            copy2(s.L[b], ws.L_pred)
+            update_bound(p, ws.L_pred, s, b, k, ws)
+        s.acc[b] = row_accuracy(p, s, b)
+        derive(p, s, b, ws)
+
+
+@njit(**_JIT)
+def step_kernel(lo, hi, settings, old, action, draws, new, out):
+    """One step of the scenarios ``lo ≤ b < hi`` (:func:`.reference.step`): reads the state
+    ``old`` and writes the next into ``new`` (tuples of arrays in the order of
+    :data:`StateArrays`, derived fields included) and ``out = (reward, terminated)`` ``(B,)``.
+    ``action (B, K, 2)`` is clipped to ``[−1, 1]``; ``draws = (target_noise, noise_factor,
+    bearing_noise)``: ``(B, 4)`` standard normals (read when ``q̃ > 0``), ``G (4, 4)`` with
+    ``G Gᵀ = Q``, ``(B, K)`` standard normals. ``settings`` is the params' record. Returns the
+    number of non-finite action entries (the caller raises: the kernel trusts everything else)."""
+    p = settings[0]
+    s, s2 = StateArrays(*old), StateArrays(*new)
+    target_noise, noise_factor, bearing_noise = draws
+    reward, terminated = out
+    ws = workspace(s.lw.shape[1])
     bad = 0
     for b in range(lo, hi):
-        # 1. platforms fly the commanded arcs: (a₀ ω_max, a₁ Δv_max), a clipped to [−1, 1]
-        for k in range(K):
-            a0, a1 = action[b, k, 0], action[b, k, 1]
-            if not (np.isfinite(a0) and np.isfinite(a1)):
-                bad += 1
-            a0 = min(max(a0, -1.0), 1.0)
-            a1 = min(max(a1, -1.0), 1.0)
-            pos2[b, k, 0], pos2[b, k, 1], heading2[b, k], speed2[b, k] = fly_platform(
-                pos[b, k, 0],
-                pos[b, k, 1],
-                heading[b, k],
-                speed[b, k],
-                a0 * c[MAX_TURN],
-                a1 * c[MAX_DV],
-                dt,
-                c[MAX_TURN],
-                c[MAX_DV],
-                c[MIN_SPEED],
-                c[MAX_SPEED],
-            )
-        # the target moves on
-        propagate_target(
-            target[b],
-            target_noise[b] if q_tilde > 0.0 else x,
-            noise_factor,
-            dt,
-            q_tilde,
-            target2[b],
-        )
-        # 2. noisy bearings; the bank predicts, then fuses them in turn
-        for k in range(K):
-            z2[b, k] = noisy_bearing(
-                target2[b, 0],
-                target2[b, 1],
-                pos2[b, k, 0],
-                pos2[b, k, 1],
-                sigma,
-                bearing_noise[b, k],
-            )
-        for n in range(lw.shape[1]):
-            lw2[b, n] = lw[b, n]
-        bank_predict(X[b], P[b], dt, q_tilde, X2[b], P2[b])
-        for k in range(K):
-            bank_update(lw2[b], X2[b], P2[b], z2[b, k], pos2[b, k, 0], pos2[b, k, 1], sigma)
-        # 3. the bound: P̄ = F P Fᵀ + Q, then each platform's bearing information, square root
-        bound_predict(L[b], dt, q_tilde, L_pred, A_pred)
-        for k in range(K):
-            bound_update(
-                L_pred,
-                target2[b, 0],
-                target2[b, 1],
-                pos2[b, k, 0],
-                pos2[b, k, 1],
-                sigma,
-                L2[b],
-                A_update,
-            )
-            if k + 1 < K:
-                copy2(L2[b], L_pred)
-        m = accuracy(
-            c[RELATIVE_RANGE] > 0.0,
-            L2[b],
-            target2[b, 0],
-            target2[b, 1],
-            pos2[b, 0, 0],
-            pos2[b, 0, 1],
-            c[FLOOR],
-        )
-        # reward_k = ln m_k − ln m_{k+1}; − close_penalty when a platform comes within min_range
-        r = math.log(acc[b]) - math.log(m)
-        acc2[b] = m
-        end = False
-        for k in range(K):
-            if (
-                math.hypot(target2[b, 0] - pos2[b, k, 0], target2[b, 1] - pos2[b, k, 1])
-                < c[MIN_RANGE]
-            ):
-                end = True
-        terminated[b] = end
-        reward[b] = r - c[PENALTY] * (1.0 if end else 0.0)
-        derive(
-            b, c, pos2, heading2, speed2, z2, target2, lw2, X2, P2, x, Pe, w, obs, nearest, error
-        )
+        # 1. the platforms fly the commanded arcs, the target moves on
+        bad += fly(p, s, s2, action, b)
+        move_target(p, s, s2, target_noise, noise_factor, b, ws)
+        # 2. every platform takes a bearing; the bank predicts, then fuses them in turn
+        take_bearings(p, s2, bearing_noise, b)
+        track(p, s, s2, b)
+        # 3. the bound on the true state: P̄ = F P Fᵀ + Q, then each platform's bearing
+        s2.acc[b] = bound(p, s, s2, b, ws)
+        # 4. what the agents see (and info reads), from the bank's estimate
+        derive(p, s2, b, ws)
+        # 5. reward and episode end: a platform within the stand-off min_range
+        reward[b], terminated[b] = reward_and_end(p, s, s2, b)
+    return bad
+
+
+# --- the world: flight, target motion, bearings (theory §2.5, §7.7, §11.2) ---------------------
+
+
+@njit(**_JIT)
+def fly_step(p, px, py, heading, speed, turn, dv):
+    """One platform's ``(x, y, heading, speed)`` one step on under the command ``(ω, Δv)``
+    (rad/s, m/s; clipped to the settings' limits), the exact arc of
+    :func:`~sensorgym.envs.worlds.platform_kernels.fly_platform`."""
+    return fly_platform(
+        px, py, heading, speed, turn, dv, p.dt, p.max_turn, p.max_dv, p.min_speed, p.max_speed
+    )
+
+
+@njit(**_JIT)
+def fly(p, s, s2, action, b):
+    """Row ``b``'s platforms fly the commanded arcs ``(a₀ ω_max, a₁ Δv_max)``, ``a`` clipped to
+    ``[−1, 1]`` (:func:`.reference.fly`), from ``s`` into ``s2``. Returns the number of
+    non-finite action entries."""
+    bad = 0
+    for k in range(s.heading.shape[1]):
+        a0, a1 = action[b, k, 0], action[b, k, 1]
+        if not (np.isfinite(a0) and np.isfinite(a1)):
+            bad += 1
+        a0 = min(max(a0, -1.0), 1.0)
+        a1 = min(max(a1, -1.0), 1.0)
+        s2.pos[b, k, 0], s2.pos[b, k, 1], s2.heading[b, k], s2.speed[b, k] = fly_step(
+            p, s.pos[b, k, 0], s.pos[b, k, 1], s.heading[b, k], s.speed[b, k],
+            a0 * p.max_turn, a1 * p.max_dv,
+        )  # fmt: skip
     return bad
 
 
 @njit(**_JIT)
-def reset_kernel(
-    c, r, sr, lw0, pos_f, vel_f, heading, speed, target, pos, eps, z, lw, X, P, L, acc, obs,
-    nearest, error,
-):  # fmt: skip
-    """Fresh scenarios from their draws (platforms ``pos (B, K, 2)``, ``heading``, ``speed``
-    ``(B, K)``, ``target (B, 4)``, bearing noise ``eps (B, K)``), every row: the first bearings
-    ``z``; the prior bank from platform 1's (range cells ``r``, ``sr``, ``lw0`` ``(N,)``, spread
-    factors ``pos_f``, ``vel_f`` ``(3,)``, course mean = the bearing) into ``lw``, ``X``,
-    ``P``; the bound's square root ``L`` of the bank's moment-matched covariance; the other
-    platforms' first bearings fused into both; the accuracy ``acc`` and the derived fields."""
-    x = np.empty(STATE_DIM)
-    Pe = np.empty((STATE_DIM, STATE_DIM))
-    L_in = np.empty((STATE_DIM, STATE_DIM))
-    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
-    w = np.empty(lw.shape[1])
-    sigma = c[SIGMA]
-    for b in range(z.shape[0]):
-        for k in range(z.shape[1]):
-            z[b, k] = noisy_bearing(
-                target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, eps[b, k]
-            )
-        range_bank_prior(
-            z[b, 0],
-            pos[b, 0, 0],
-            pos[b, 0, 1],
-            r,
-            sr,
-            lw0,
-            pos_f,
-            c[SPEED_MEAN],
-            c[SPEED_SIGMA],
-            z[b, 0],
-            vel_f,
-            lw[b],
-            X[b],
-            P[b],
+def move_target(p, s, s2, noise, G, b, ws):
+    """Row ``b``'s target one step on (:func:`.reference.move_target`): ``x' = F x + G ε``
+    (``ε = noise[b]``, read only when ``q̃ > 0``)."""
+    propagate_target(s.target[b], noise[b] if p.q_tilde > 0.0 else ws.x, G, p.dt, p.q_tilde,
+                     s2.target[b])  # fmt: skip
+
+
+@njit(**_JIT)
+def take_bearings(p, s, noise, b):
+    """Row ``b``'s noisy bearings ``z = wrap(β + σ ε)`` of the target from every platform of
+    ``s`` (:func:`.reference.take_bearings`), written into ``s.z[b]``."""
+    for k in range(s.z.shape[1]):
+        s.z[b, k] = noisy_bearing(
+            s.target[b, 0], s.target[b, 1], s.pos[b, k, 0], s.pos[b, k, 1], p.sigma, noise[b, k]
         )
-        # P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the prior already holds platform 1's bearing
-        bank_estimate(lw[b], X[b], P[b], x, Pe, w)
-        psd_square_root(Pe, L[b])
-        for k in range(1, z.shape[1]):
-            bank_update(lw[b], X[b], P[b], z[b, k], pos[b, k, 0], pos[b, k, 1], sigma)
-            copy2(L[b], L_in)
-            bound_update(
-                L_in, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], sigma, L[b], A_update
+
+
+# --- the tracker: range-parameterised bank of second-order EKFs (theory §7.9, §11.2) -----------
+
+
+@njit(**_JIT)
+def prior_bank(p, prior, s, b):
+    """Row ``b``'s bank from platform 1's first bearing (:func:`.reference.prior_bank`): range
+    cells and spread factors ``prior``, the speed prior of the settings, course mean = the
+    bearing."""
+    r, sr, lw0, pos_f, vel_f = prior
+    z = s.z[b, 0]
+    range_bank_prior(z, s.pos[b, 0, 0], s.pos[b, 0, 1], r, sr, lw0, pos_f, p.speed_mean,
+                     p.speed_sigma, z, vel_f, s.lw[b], s.X[b], s.P[b])  # fmt: skip
+
+
+@njit(**_JIT)
+def update_bank(p, s, b, k):
+    """Row ``b``'s bank fuses platform ``k``'s bearing (:func:`.reference.update_bank`)."""
+    bank_update(s.lw[b], s.X[b], s.P[b], s.z[b, k], s.pos[b, k, 0], s.pos[b, k, 1], p.sigma)
+
+
+@njit(**_JIT)
+def track(p, s, s2, b):
+    """Row ``b``'s bank predicts from ``s`` (:func:`.reference.predict_bank`) and fuses the
+    bearings of ``s2`` in platform order, into ``s2``."""
+    copy1(s.lw[b], s2.lw[b])
+    bank_predict(s.X[b], s.P[b], p.dt, p.q_tilde, s2.X[b], s2.P[b])
+    for k in range(s2.z.shape[1]):
+        update_bank(p, s2, b, k)
+
+
+# --- the bound: posterior CRLB on the true state, square-root form (theory §7.8, §11.2) --------
+
+
+@njit(**_JIT)
+def update_bound(p, L_pred, s, b, k, ws):
+    """``s.L[b]``, the square root of ``(P̄⁻¹ + Hᵀ H / σ²)⁻¹`` from ``L_pred`` (the root of
+    ``P̄``) after platform ``k``'s bearing at the true target (:func:`.reference.update_bound`)."""
+    bound_update(L_pred, s.target[b, 0], s.target[b, 1], s.pos[b, k, 0], s.pos[b, k, 1],
+                 p.sigma, s.L[b], ws.A_update)  # fmt: skip
+
+
+@njit(**_JIT)
+def row_accuracy(p, s, b):
+    """The accuracy ``m(P)`` the reward measures of row ``b``'s bound
+    (:func:`.reference.accuracy`): relative range from platform 1, or the position RMS."""
+    return accuracy(p.relative_range, s.L[b], s.target[b, 0], s.target[b, 1], s.pos[b, 0, 0],
+                    s.pos[b, 0, 1], p.floor)  # fmt: skip
+
+
+@njit(**_JIT)
+def bound(p, s, s2, b, ws):
+    """Row ``b``'s bound one step on, into ``s2``: ``P̄ = F P Fᵀ + Q``
+    (:func:`.reference.predict_bound`), then each platform's bearing information in turn.
+    Returns its accuracy."""
+    bound_predict(s.L[b], p.dt, p.q_tilde, ws.L_pred, ws.A_pred)
+    K = s2.z.shape[1]
+    for k in range(K):
+        update_bound(p, ws.L_pred, s2, b, k, ws)
+        if k + 1 < K:
+            copy2(s2.L[b], ws.L_pred)
+    return row_accuracy(p, s2, b)
+
+
+# --- reward, observation -----------------------------------------------------------------------
+
+
+@njit(**_JIT)
+def reward_and_end(p, s, s2, b):
+    """Row ``b``'s ``(reward, terminated)`` (:func:`.reference.reward`): ``ln m_k − ln m_{k+1}``,
+    less ``close_penalty`` when a platform of ``s2`` came within ``min_range``."""
+    r = math.log(s.acc[b]) - math.log(s2.acc[b])
+    end = False
+    for k in range(s2.pos.shape[1]):
+        if math.hypot(s2.target[b, 0] - s2.pos[b, k, 0], s2.target[b, 1] - s2.pos[b, k, 1]) < (
+            p.min_range
+        ):
+            end = True
+    return r - p.penalty * (1.0 if end else 0.0), end
+
+
+@njit(**_JIT)
+def derive(p, s, b, ws):
+    """Row ``b``'s derived fields of ``s`` (:func:`.reference.with_derived_fields`) from the
+    bank's moment-matched estimate (into ``ws.x``, ``ws.Pe``): each platform's observation
+    (:func:`observe_platform`), the nearest platform's range ``min_k ‖x_t − p_k‖`` and the
+    estimate's position error ``‖x̂ − x_t‖``."""
+    bank_estimate(s.lw[b], s.X[b], s.P[b], ws.x, ws.Pe, ws.w)
+    K = s.heading.shape[1]
+    for k in range(K):
+        observe_platform(p, s, b, k, ws.x, ws.Pe)
+    r = np.inf
+    for k in range(K):
+        r = min(r, math.hypot(s.target[b, 0] - s.pos[b, k, 0], s.target[b, 1] - s.pos[b, k, 1]))
+    s.nearest[b] = r
+    s.error[b] = math.hypot(ws.x[0] - s.target[b, 0], ws.x[1] - s.target[b, 1])
+
+
+@njit(**_JIT)
+def observe_platform(p, s, b, k, x, Pe):
+    """Platform ``k``'s observation ``s.obs[b, k]`` (float32, the table of
+    :func:`.simulation.observe_agents`, every entry clipped to ``±clip``) from the estimate
+    ``x``, ``Pe``: the bearing relative to the heading, the own speed, the estimated target's
+    position and velocity relative to the platform, in its frame, their spreads, and each other
+    platform's position relative to this one, in platform order."""
+    obs, clip = s.obs, p.clip
+    range_scale, speed_scale = p.range_scale, p.speed_scale
+    psi = s.heading[b, k]
+    sn, co = math.sin(psi), math.cos(psi)
+    rel = s.z[b, k] - psi
+    _put(obs, b, k, 0, math.sin(rel), clip)
+    _put(obs, b, k, 1, math.cos(rel), clip)
+    _put(obs, b, k, 2, s.speed[b, k] / max(p.max_speed, 1e-12), clip)
+    r0, r1 = body_frame(sn, co, x[0] - s.pos[b, k, 0], x[1] - s.pos[b, k, 1])
+    _put(obs, b, k, 3, r0 / range_scale, clip)
+    _put(obs, b, k, 4, r1 / range_scale, clip)
+    v0, v1 = body_frame(sn, co, x[2] - s.speed[b, k] * sn, x[3] - s.speed[b, k] * co)
+    _put(obs, b, k, 5, v0 / speed_scale, clip)
+    _put(obs, b, k, 6, v1 / speed_scale, clip)
+    # the position and the velocity covariance in the platform frame, as spreads
+    _put_spread(obs, b, k, 7, sn, co, Pe[0, 0], Pe[0, 1], Pe[1, 1], range_scale, clip)
+    _put_spread(obs, b, k, 10, sn, co, Pe[2, 2], Pe[2, 3], Pe[3, 3], speed_scale, clip)
+    i = 13
+    for j in range(s.heading.shape[1]):
+        if j != k:
+            o0, o1 = body_frame(
+                sn, co, s.pos[b, j, 0] - s.pos[b, k, 0], s.pos[b, j, 1] - s.pos[b, k, 1]
             )
-        acc[b] = accuracy(
-            c[RELATIVE_RANGE] > 0.0,
-            L[b],
-            target[b, 0],
-            target[b, 1],
-            pos[b, 0, 0],
-            pos[b, 0, 1],
-            c[FLOOR],
-        )
-        derive(b, c, pos, heading, speed, z, target, lw, X, P, x, Pe, w, obs, nearest, error)
+            _put(obs, b, k, i, o0 / range_scale, clip)
+            _put(obs, b, k, i + 1, o1 / range_scale, clip)
+            i += 2
 
 
 # a world vector v in the platform frame (starboard, ahead): (c v₀ − s v₁, s v₀ + c v₁)
@@ -261,7 +398,7 @@ def body_frame(s, c, v0, v1):
 
 # every entry clipped to [−clip, clip]. _put and _put_spread are called with constant
 # indices: register_jitable types them on plain integers (one compile each), where a
-# dispatcher compiles one specialisation per literal index (11 + 2, 2 s of cold compile)
+# dispatcher compiles one specialisation per literal index
 @register_jitable(**_JIT)
 def _put(out, b, k, i, value, clip):
     out[b, k, i] = min(max(value, -clip), clip)
@@ -287,67 +424,24 @@ def _put_spread(out, b, k, i, s, c, p00, p01, p11, scale, clip):
     _put(out, b, k, i + 2, pb01 / (sd0 * sd1), clip)
 
 
-@njit(**_JIT)
-def derive(b, c, pos, heading, speed, bearing, target, lw, X, P, x, Pe, w, obs, nearest, error):
-    """Row ``b``'s derived fields from the bank's moment-matched estimate ``x``, ``Pe``
-    (scratch, with the weights ``w``): each platform's observation ``obs[b] (K, obs_dim)`` float32 (the table of
-    :func:`.simulation.observe_agents`), the nearest platform's range
-    ``min_k ‖x_t − p_k‖`` and the estimate's position error ``‖x̂ − x_t‖``."""
-    K = heading.shape[1]
-    max_speed, range_scale, speed_scale, clip = (
-        c[MAX_SPEED],
-        c[RANGE_SCALE],
-        c[SPEED_SCALE],
-        c[CLIP],
-    )
-    bank_estimate(lw[b], X[b], P[b], x, Pe, w)
-    for k in range(K):
-        psi = heading[b, k]
-        s, co = math.sin(psi), math.cos(psi)
-        rel = bearing[b, k] - psi
-        _put(obs, b, k, 0, math.sin(rel), clip)
-        _put(obs, b, k, 1, math.cos(rel), clip)
-        _put(obs, b, k, 2, speed[b, k] / max(max_speed, 1e-12), clip)
-        r0, r1 = body_frame(s, co, x[0] - pos[b, k, 0], x[1] - pos[b, k, 1])
-        _put(obs, b, k, 3, r0 / range_scale, clip)
-        _put(obs, b, k, 4, r1 / range_scale, clip)
-        v0, v1 = body_frame(s, co, x[2] - speed[b, k] * s, x[3] - speed[b, k] * co)
-        _put(obs, b, k, 5, v0 / speed_scale, clip)
-        _put(obs, b, k, 6, v1 / speed_scale, clip)
-        # the position and the velocity covariance in the platform frame, as spreads
-        _put_spread(obs, b, k, 7, s, co, Pe[0, 0], Pe[0, 1], Pe[1, 1], range_scale, clip)
-        _put_spread(obs, b, k, 10, s, co, Pe[2, 2], Pe[2, 3], Pe[3, 3], speed_scale, clip)
-        # each other platform's position relative to this one, in platform order
-        i = 13
-        for j in range(K):
-            if j != k:
-                o0, o1 = body_frame(s, co, pos[b, j, 0] - pos[b, k, 0], pos[b, j, 1] - pos[b, k, 1])
-                _put(obs, b, k, i, o0 / range_scale, clip)
-                _put(obs, b, k, i + 1, o1 / range_scale, clip)
-                i += 2
-    r = np.inf
-    for k in range(K):
-        r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
-    nearest[b] = r
-    error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])
+# --- the planners: the bound along a plan (agents.bearings_maneuver) ---------------------------
 
 
 # one platform flies command (ω, Δv) for len(out) steps: its positions ``out (H, 2)``
 @njit(**_JIT)
-def _fly_hold(c, px, py, h, v, turn, dv, out):
+def _fly_hold(p, px, py, h, v, turn, dv, out):
     for s in range(out.shape[0]):
-        px, py, h, v = fly_platform(
-            px, py, h, v, turn, dv, c[DT], c[MAX_TURN], c[MAX_DV], c[MIN_SPEED], c[MAX_SPEED]
-        )
+        px, py, h, v = fly_step(p, px, py, h, v, turn, dv)
         out[s, 0], out[s, 1] = px, py
 
 
-# the target's mean path x' = F x (no noise draw) from x0 (4,): ``path (H, 4)``
+# the target's mean path x' = F x (no noise draw) from x0 (4,): ``ws.path (H, 4)``
 @njit(**_JIT)
-def _mean_path(c, x0, path, x, x_next, G):
+def _mean_path(p, x0, ws):
+    x, x_next, path = ws.x, ws.x_next, ws.path
     copy1(x0, x)
     for s in range(path.shape[0]):
-        propagate_target(x, x, G, c[DT], 0.0, x_next)
+        propagate_target(x, x, ws.G, p.dt, 0.0, x_next)
         copy1(x_next, x)
         copy1(x, path[s])
 
@@ -377,57 +471,60 @@ def _fuse_position_information(L_pred, i00, i01, i11, out, A):
 
 
 @njit(**_JIT)
-def _plan_accuracy(c, L0, path, track, others, use_others, too_close, ox, oy, Lc, L_pred, A_pred,
-                   A_update):  # fmt: skip
+def _plan_accuracy(p, L0, track, others, use_others, too_close, origin, ws):
     """The bound recursion of :func:`step_kernel` along a plan: from the square root ``L0``,
-    each step predicts and fuses the bearing from ``track[s]`` on the target ``path[s]``; with
-    ``use_others``, together with the other platforms' position information ``others[s]``
-    (``(i00, i01, i11)``): the 2×2 sum enters as two rank-one updates, the columns of its
-    Cholesky factor (information adds, so this is the env's sequential fusion of every
-    bearing). Returns the accuracy the reward measures at the end (relative range from
-    ``(ox, oy)``), or ``inf`` when the track comes within ``too_close`` of the path."""
-    dt, q_tilde, sigma = c[DT], c[Q_TILDE], c[SIGMA]
+    each step predicts and fuses the bearing from ``track[s]`` on the target's mean path
+    ``ws.path[s]``; with ``use_others``, together with the other platforms' position
+    information ``others[s]`` (``(i00, i01, i11)``): the 2×2 sum enters as two rank-one
+    updates, the columns of its Cholesky factor (information adds, so this is the env's
+    sequential fusion of every bearing). Returns the accuracy the reward measures at the end
+    (relative range from ``origin[-1]``), or ``inf`` when the track comes within
+    ``too_close`` of the path."""
+    path, Lc, L_pred = ws.path, ws.Lc, ws.L_pred
     copy2(L0, Lc)
     close = False
     for s in range(path.shape[0]):
-        bound_predict(Lc, dt, q_tilde, L_pred, A_pred)
+        bound_predict(Lc, p.dt, p.q_tilde, L_pred, ws.A_pred)
         dx, dy = path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]
         if use_others:
             r = math.hypot(dx, dy)
             n0, n1 = dy / r, -dx / r
-            a = 1.0 / (r * sigma) ** 2
+            a = 1.0 / (r * p.sigma) ** 2
             i00 = others[s, 0] + a * n0 * n0
             i01 = others[s, 1] + a * n0 * n1
             i11 = others[s, 2] + a * n1 * n1
-            _fuse_position_information(L_pred, i00, i01, i11, Lc, A_update)
+            _fuse_position_information(L_pred, i00, i01, i11, Lc, ws.A_update)
         else:
-            bound_update(L_pred, path[s, 0], path[s, 1], track[s, 0], track[s, 1], sigma, Lc,
-                         A_update)  # fmt: skip
+            bound_update(L_pred, path[s, 0], path[s, 1], track[s, 0], track[s, 1], p.sigma, Lc,
+                         ws.A_update)  # fmt: skip
         if math.hypot(dx, dy) < too_close:
             close = True
     if close:
         return np.inf
     H = path.shape[0] - 1
-    return accuracy(c[RELATIVE_RANGE] > 0.0, Lc, path[H, 0], path[H, 1], ox, oy, c[FLOOR])
+    return accuracy(p.relative_range, Lc, path[H, 0], path[H, 1], origin[-1, 0], origin[-1, 1],
+                    p.floor)  # fmt: skip
 
 
 # q̃ = 0: the plan's own bearings fuse last (trackers.bearings.kernels.late_bearing_information),
 # so the recursion of the prior and the other platforms' bearings runs once per platform, not
-# once per candidate: ``Lo`` is its square root at the end of the horizon
+# once per candidate: ``ws.Lo`` is its square root at the end of the horizon
 @njit(**_JIT)
-def _others_root(c, L0, others, horizon, Lo, L_pred, A_pred, A_update):
-    dt, q_tilde = c[DT], c[Q_TILDE]
+def _others_root(p, L0, others, ws):
+    Lo = ws.Lo
     copy2(L0, Lo)
-    for s in range(horizon):
-        bound_predict(Lo, dt, q_tilde, L_pred, A_pred)
-        _fuse_position_information(L_pred, others[s, 0], others[s, 1], others[s, 2], Lo, A_update)
+    for s in range(ws.path.shape[0]):
+        bound_predict(Lo, p.dt, p.q_tilde, ws.L_pred, ws.A_pred)
+        _fuse_position_information(ws.L_pred, others[s, 0], others[s, 1], others[s, 2], Lo,
+                                   ws.A_update)  # fmt: skip
 
 
 @njit(**_JIT)
-def _late_plan_accuracy(c, Lo, path, track, too_close, ox, oy, C, u, Lc):
-    """:func:`_plan_accuracy` for ``q̃ = 0`` from the others' root ``Lo`` (:func:`_others_root`):
-    the plan's bearings enter at the end in one update (equal up to rounding)."""
-    dt, sigma = c[DT], c[SIGMA]
+def _late_plan_accuracy(p, track, too_close, origin, ws):
+    """:func:`_plan_accuracy` for ``q̃ = 0`` from the others' root ``ws.Lo``
+    (:func:`_others_root`): the plan's bearings enter at the end in one update (equal up to
+    rounding)."""
+    path, C = ws.path, ws.C
     H = path.shape[0]
     for i in range(STATE_DIM):
         for j in range(STATE_DIM):
@@ -435,14 +532,16 @@ def _late_plan_accuracy(c, Lo, path, track, too_close, ox, oy, C, u, Lc):
     for s in range(H):
         if math.hypot(path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]) < too_close:
             return np.inf
-        late_bearing_information(Lo, path[s, 0], path[s, 1], track[s, 0], track[s, 1], sigma,
-                                 (H - 1 - s) * dt, C, u)  # fmt: skip
-    late_update_root(Lo, C, Lc)
-    return accuracy(c[RELATIVE_RANGE] > 0.0, Lc, path[H - 1, 0], path[H - 1, 1], ox, oy, c[FLOOR])
+        late_bearing_information(ws.Lo, path[s, 0], path[s, 1], track[s, 0], track[s, 1],
+                                 p.sigma, (H - 1 - s) * p.dt, C, ws.u)  # fmt: skip
+    late_update_root(ws.Lo, C, ws.Lc)
+    return accuracy(p.relative_range, ws.Lc, path[H - 1, 0], path[H - 1, 1], origin[-1, 0],
+                    origin[-1, 1], p.floor)  # fmt: skip
 
 
 @njit(**_JIT)
-def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close, out):
+def plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command, horizon, too_close,
+                out):  # fmt: skip
     """The truth-informed lookahead's plans for one platform (:meth:`sensorgym.agents.bearings_maneuver.
     TruthLookahead.plan_bounds`) for scenarios ``lo ≤ b < hi``: platform 1 of ``pos (B, K, 2)``,
     ``heading``, ``speed`` ``(B, K)`` holds each command ``command (C, 2)`` (rad/s, m/s; clipped
@@ -450,42 +549,27 @@ def plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too
     ``target (B, 4)`` and the bound's square root ``L (B, 4, 4)`` runs the env's recursion
     (:func:`step_kernel`'s predict and bearing update on the true state). Writes the accuracy
     the reward measures at the end, ``out (B, C)``, or ``inf`` for a plan that comes within
-    ``too_close`` (m)."""
-    x = np.empty(STATE_DIM)
-    x_next = np.empty(STATE_DIM)
-    G = np.zeros((STATE_DIM, STATE_DIM))
-    path = np.empty((horizon, STATE_DIM))
-    track = np.empty((horizon, 2))
-    none = np.empty((0, 3))
-    Lc = np.empty((STATE_DIM, STATE_DIM))
-    L_pred = np.empty((STATE_DIM, STATE_DIM))
-    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
-    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
-    late = c[Q_TILDE] == 0.0
-    no_others = np.zeros((horizon, 3))
-    Lo = np.empty((STATE_DIM, STATE_DIM))
-    u = np.empty(STATE_DIM)
+    ``too_close`` (m). ``settings`` is the params' record."""
+    p = settings[0]
+    ws = plan_workspace(horizon, 0)
+    track = ws.track
+    late = p.q_tilde == 0.0
     for b in range(lo, hi):
-        _mean_path(c, target[b], path, x, x_next, G)
+        _mean_path(p, target[b], ws)
         if late:
-            _others_root(c, L[b], no_others, horizon, Lo, L_pred, A_pred, A_update)
+            _others_root(p, L[b], ws.others, ws)
         for j in range(command.shape[0]):
-            _fly_hold(c, pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0], command[j, 0],
+            _fly_hold(p, pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0], command[j, 0],
                       command[j, 1], track)  # fmt: skip
             if late:
-                out[b, j] = _late_plan_accuracy(
-                    c, Lo, path, track, too_close, track[-1, 0], track[-1, 1], L_pred, u, Lc
-                )
+                out[b, j] = _late_plan_accuracy(p, track, too_close, track, ws)
             else:
-                out[b, j] = _plan_accuracy(
-                    c, L[b], path, track, none, False, too_close, track[-1, 0], track[-1, 1],
-                    Lc, L_pred, A_pred, A_update,
-                )  # fmt: skip
+                out[b, j] = _plan_accuracy(p, L[b], track, ws.none, False, too_close, track, ws)
 
 
 @njit(**_JIT)
-def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizon, too_close,
-                      choice):  # fmt: skip
+def joint_plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command, horizon,
+                      too_close, choice):  # fmt: skip
     """Receding-horizon plans of ``K`` platforms by sequential (coordinate-wise) choice, for
     scenarios ``lo ≤ b < hi`` (:class:`sensorgym.agents.bearings_maneuver.TruthLookahead` on
     the truth, :class:`~sensorgym.agents.bearings_maneuver.EstimateLookahead` on the estimate):
@@ -499,111 +583,82 @@ def joint_plan_kernel(lo, hi, c, pos, heading, speed, target, L, command, horizo
     platform and each candidate's own bearings enter at the end, :func:`_late_plan_accuracy`,
     so a candidate costs ``horizon`` rank-one sums instead of ``horizon`` triangularisations). For
     ``K = 1`` this is :func:`plan_kernel`'s argmin. Writes each platform's command index into
-    ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out."""
+    ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out.
+    ``settings`` is the params' record."""
+    p = settings[0]
     K = heading.shape[1]
-    sigma = c[SIGMA]
-    x = np.empty(STATE_DIM)
-    x_next = np.empty(STATE_DIM)
-    G = np.zeros((STATE_DIM, STATE_DIM))
-    path = np.empty((horizon, STATE_DIM))
-    tracks = np.empty((K, horizon, 2))
-    track = np.empty((horizon, 2))
-    info = np.empty((K, horizon, 3))
-    others = np.zeros((horizon, 3))
-    Lc = np.empty((STATE_DIM, STATE_DIM))
-    L_pred = np.empty((STATE_DIM, STATE_DIM))
-    A_pred = np.empty((2 * STATE_DIM, STATE_DIM))
-    A_update = np.empty((STATE_DIM + 1, STATE_DIM + 1))
-    late = c[Q_TILDE] == 0.0
-    Lo = np.empty((STATE_DIM, STATE_DIM))
-    u = np.empty(STATE_DIM)
+    ws = plan_workspace(horizon, K)
+    tracks, track, info, others = ws.tracks, ws.track, ws.info, ws.others
+    late = p.q_tilde == 0.0
     for b in range(lo, hi):
-        _mean_path(c, target[b], path, x, x_next, G)
+        _mean_path(p, target[b], ws)
         for k in range(K):
-            _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k], 0.0, 0.0,
+            _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k], 0.0, 0.0,
                       tracks[k])  # fmt: skip
-            _bearing_information(path, tracks[k], sigma, info[k])
+            _bearing_information(ws.path, tracks[k], p.sigma, info[k])
         for k in range(K):
-            others[:, :] = 0.0
-            for i in range(K):
-                if i != k:
-                    for s in range(horizon):
-                        for e in range(3):
-                            others[s, e] += info[i, s, e]
+            _sum_others(info, k, others)
             if late:
-                _others_root(c, L[b], others, horizon, Lo, L_pred, A_pred, A_update)
+                _others_root(p, L[b], others, ws)
             best, best_value = 0, np.inf
             for j in range(command.shape[0]):
-                _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
+                _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
                           command[j, 0], command[j, 1], track)  # fmt: skip
                 origin = track if k == 0 else tracks[0]
                 if late:
-                    value = _late_plan_accuracy(
-                        c,
-                        Lo,
-                        path,
-                        track,
-                        too_close,
-                        origin[-1, 0],
-                        origin[-1, 1],
-                        L_pred,
-                        u,
-                        Lc,
-                    )
+                    value = _late_plan_accuracy(p, track, too_close, origin, ws)
                 else:
-                    value = _plan_accuracy(
-                        c, L[b], path, track, others, K > 1, too_close, origin[-1, 0],
-                        origin[-1, 1], Lc, L_pred, A_pred, A_update,
-                    )  # fmt: skip
+                    value = _plan_accuracy(p, L[b], track, others, K > 1, too_close, origin, ws)
                 if value < best_value:
                     best, best_value = j, value
             choice[b, k] = best
-            _fly_hold(c, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
+            _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
                       command[best, 0], command[best, 1], tracks[k])  # fmt: skip
-            _bearing_information(path, tracks[k], sigma, info[k])
+            _bearing_information(ws.path, tracks[k], p.sigma, info[k])
+
+
+# the information of every platform's bearings but platform k's, summed: ``others (H, 3)``
+@njit(**_JIT)
+def _sum_others(info, k, others):
+    others[:, :] = 0.0
+    for i in range(info.shape[0]):
+        if i != k:
+            for s in range(others.shape[0]):
+                for e in range(3):
+                    others[s, e] += info[i, s, e]
 
 
 @njit(**_JIT)
-def greedy_kernel(c, obs, sd, delta, command, too_close, choice):
+def greedy_kernel(settings, obs, sd, delta, command, too_close, choice):
     """The greedy rule (:class:`sensorgym.agents.bearings_maneuver.GreedyManeuver`) on every
     platform's view ``obs (n, K, obs_dim)``, platform by platform (sequential greedy): platform
     ``k`` flies each command ``command (C, 2)`` (rad/s, m/s) from its own frame
-    (:func:`fly_platform` from the origin, heading 0 = ahead); the estimated target moves on by
+    (:func:`fly_step` from the origin, heading 0 = ahead); the estimated target moves on by
     its estimated velocity; the command with the largest information gain ``hᵀ P h`` of the next
     bearing, ``h = n̂/r`` at the new relative position (``-inf`` within ``too_close``, m), is
     taken, and its information updates ``P ← P − P h hᵀ P / (hᵀ P h + σ²)`` before the next
     platform chooses. ``P`` is the estimate's position covariance in platform 1's frame, from
     its standard deviations ``sd (n, 2)`` (m) and correlation (obs 9); ``delta (n, K)`` turns
     platform ``k``'s frame into platform 1's (its heading relative to platform 1's, rad).
-    Writes each platform's first best command index into ``choice (n, K)``."""
+    Writes each platform's first best command index into ``choice (n, K)``. ``settings`` is
+    the params' record."""
+    p = settings[0]
     K = obs.shape[1]
-    dt, max_speed, sigma = c[DT], c[MAX_SPEED], c[SIGMA]
-    range_scale, speed_scale = c[RANGE_SCALE], c[SPEED_SCALE]
+    dt, sigma = p.dt, p.sigma
+    range_scale, speed_scale = p.range_scale, p.speed_scale
     for b in range(obs.shape[0]):
         # estimated position covariance from the log standard deviations and the correlation
         p00, p11 = sd[b, 0] * sd[b, 0], sd[b, 1] * sd[b, 1]
         p01 = sd[b, 0] * sd[b, 1] * obs[b, 0, 9]
         for k in range(K):
-            v = obs[b, k, 2] * max_speed
+            v = obs[b, k, 2] * p.max_speed
             d0, d1 = obs[b, k, 3] * range_scale, obs[b, k, 4] * range_scale
             # estimated target velocity in the platform frame: relative velocity + own (0, v)
             vt0, vt1 = obs[b, k, 5] * speed_scale, obs[b, k, 6] * speed_scale + v
             cd, sdl = math.cos(delta[b, k]), math.sin(delta[b, k])
             best, best_gain, h0, h1 = 0, -np.inf, 0.0, 0.0
             for j in range(command.shape[0]):
-                e0, e1, _, _ = fly_platform(
-                    0.0,
-                    0.0,
-                    0.0,
-                    v,
-                    command[j, 0],
-                    command[j, 1],
-                    dt,
-                    c[MAX_TURN],
-                    c[MAX_DV],
-                    c[MIN_SPEED],
-                    max_speed,
-                )
+                e0, e1, _, _ = fly_step(p, 0.0, 0.0, 0.0, v, command[j, 0], command[j, 1])
                 # relative position after the step, the bearing's normal n̂ and its gain
                 n0 = d0 + vt0 * dt - e0
                 n1 = d1 + vt1 * dt - e1

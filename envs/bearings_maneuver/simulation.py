@@ -34,8 +34,8 @@ course uniform over the full circle, speed with the mean and standard deviation 
 uniform ``target_speed`` draw (unless ``prior_speed`` says otherwise), moment-matched.
 
 The reset and the step run as compiled kernels over the batch's rows (:mod:`.kernels`:
-:func:`~.kernels.prior_kernel`, :func:`~.kernels.start_kernel`, :func:`~.kernels.step_kernel`,
-the step split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), built from the
+:func:`~.kernels.reset_kernel`, :func:`~.kernels.step_kernel`, the stages of
+:mod:`.reference` compiled, the step split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), built from the
 tracker primitives the public functions of :mod:`sensorgym.trackers.bearings` also call
 (:mod:`sensorgym.trackers.bearings.kernels`) and the world's
 (:mod:`sensorgym.envs.worlds.platform_kernels`); the random draws are made here with the
@@ -210,22 +210,35 @@ class ManeuverParams(FieldsOnlyPickle):
         return self.world.max_speed + self.target_speed[1]
 
     @functools.cached_property
-    def kernel_constants(self) -> FloatArray:
-        """The scalar settings the compiled kernels read, packed in one read-only float64
-        array (indices in :mod:`.kernels`); computed once per params."""
+    def kernel_constants(self) -> NDArray[np.void]:
+        """The scalar settings the compiled kernels read, as one read-only record (a
+        structured array of one element, dtype :data:`.kernels.SETTINGS`) that they read by
+        field name; computed once per params."""
         w = self.world
-        c = np.empty(kernels.N_CONSTANTS)
-        c[kernels.DT], c[kernels.Q_TILDE], c[kernels.SIGMA] = w.dt, w.q_tilde, w.sigma_bearing
-        c[kernels.MAX_TURN], c[kernels.MAX_DV] = w.max_turn_rate, w.max_speed_change
-        c[kernels.MIN_SPEED], c[kernels.MAX_SPEED] = w.min_speed, w.max_speed
-        c[kernels.FLOOR], c[kernels.MIN_RANGE] = ACCURACY_FLOOR, self.min_range
-        c[kernels.PENALTY] = self.close_penalty
-        c[kernels.RELATIVE_RANGE] = 1.0 if self.metric == "relative_range" else 0.0
-        c[kernels.RANGE_SCALE], c[kernels.SPEED_SCALE] = self.range_scale, self.speed_scale
-        c[kernels.CLIP] = OBS_CLIP
-        c[kernels.SPEED_MEAN], c[kernels.SPEED_SIGMA] = self.prior_speed_moments
-        c.flags.writeable = False
-        return c
+        speed_mean, speed_sigma = self.prior_speed_moments
+        fields = {
+            "dt": w.dt,
+            "q_tilde": w.q_tilde,
+            "sigma": w.sigma_bearing,
+            "max_turn": w.max_turn_rate,
+            "max_dv": w.max_speed_change,
+            "min_speed": w.min_speed,
+            "max_speed": w.max_speed,
+            "floor": ACCURACY_FLOOR,
+            "min_range": self.min_range,
+            "penalty": self.close_penalty,
+            "range_scale": self.range_scale,
+            "speed_scale": self.speed_scale,
+            "clip": OBS_CLIP,
+            "speed_mean": speed_mean,
+            "speed_sigma": speed_sigma,
+            "relative_range": self.metric == "relative_range",
+        }
+        record = np.array(
+            [tuple(fields[name] for name in kernels.SETTINGS.names)], kernels.SETTINGS
+        )
+        record.flags.writeable = False
+        return record
 
     @functools.cached_property
     def prior_cells(self) -> tuple[FloatArray, ...]:
@@ -455,24 +468,8 @@ def reset(
     speed = np.full((batch, K), params.initial_platform_speed)
     accuracy, nearest, error = np.empty(batch), np.empty(batch), np.empty(batch)
     obs = np.empty((batch, K, params.obs_dim), dtype=np.float32)
-    kernels.reset_kernel(
-        params.kernel_constants,
-        *params.prior_cells,
-        heading,
-        speed,
-        target,
-        positions,
-        eps,
-        z,
-        lw,
-        X,
-        P,
-        L,
-        accuracy,
-        obs,
-        nearest,
-        error,
-    )
+    arrays = (positions, heading, speed, target, lw, X, P, L, accuracy, z, obs, nearest, error)
+    kernels.reset_kernel(params.kernel_constants, params.prior_cells, arrays, eps)
     bank = RangeBankState.trusted(lw, BearingsGaussian.trusted(X, P, t))
     return ManeuverState.trusted(
         t=np.zeros(batch),
@@ -516,42 +513,12 @@ def step(
     z, reward, terminated = np.empty((B, K)), np.empty(B), np.empty(B, dtype=bool)
     obs = np.empty((B, K, params.obs_dim), dtype=np.float32)
     nearest, error = np.empty(B), np.empty(B)
-    c = params.kernel_constants
-    noise_factor = cwna_noise_factor(w.dt, w.q_tilde)
+    draws = (target_noise, cwna_noise_factor(w.dt, w.q_tilde), bearing_noise)
+    new = (pos, heading, speed, target, lw, X, P, L, accuracy, z, obs, nearest, error)
     bad: list[int] = []
     # fly, move the target, bearings, bank predict + update, P̄ = F P Fᵀ + Q,
     # P_{k+1} = (P̄⁻¹ + Σ_platforms Hᵀ H / σ²)⁻¹ in square-root form, reward_k = ln m_k − ln m_{k+1}
-    arrays = (
-        c,
-        old.platform_position,
-        old.heading,
-        old.speed,
-        old.target,
-        bank.log_weights,
-        bank.members.x,
-        bank.members.P,
-        old.bound_factor,
-        old.accuracy,
-        a,
-        target_noise,
-        noise_factor,
-        bearing_noise,
-        pos,
-        heading,
-        speed,
-        target,
-        lw,
-        X,
-        P,
-        L,
-        accuracy,
-        z,
-        obs,
-        nearest,
-        error,
-        reward,
-        terminated,
-    )
+    arrays = (params.kernel_constants, state_arrays(old), a, draws, new, (reward, terminated))
     if B < 2 * MIN_ROWS_PER_THREAD:  # run_rows would not split it: skip its bookkeeping
         bad.append(kernels.step_kernel(0, B, *arrays))
     else:
@@ -577,6 +544,27 @@ def step(
 
 
 _NO_TARGET_NOISE = np.zeros((0, STATE_DIM))
+
+
+def state_arrays(state: ManeuverState) -> tuple[NDArray[Any], ...]:
+    """The state's arrays in the order the kernels take them (:data:`.kernels.StateArrays`):
+    platforms, target, bank, bound, accuracy, bearings and the derived fields."""
+    bank = state.bank
+    return (
+        state.platform_position,
+        state.heading,
+        state.speed,
+        state.target,
+        bank.log_weights,
+        bank.members.x,
+        bank.members.P,
+        state.bound_factor,
+        state.accuracy,
+        state.bearing,
+        state.observation,
+        state.nearest_range,
+        state.position_error,
+    )
 
 
 def _joint_action(action: ArrayLike, B: int, K: int) -> FloatArray:
@@ -650,6 +638,6 @@ def observe_agents(params: ManeuverParams, state: ManeuverState) -> NDArray[np.f
     | …      | ``range_scale``, in platform order                                   |
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``. Computed by the kernels with the
-    state (:func:`.kernels.derive`), from the bank's moment-matched estimate.
+    state (:func:`.kernels.observe_platform`), from the bank's moment-matched estimate.
     """
     return state.observation.copy()
