@@ -186,7 +186,7 @@ def bearing_residual(
 def predict(state: BearingsGaussian, t: float, q_tilde: float) -> BearingsGaussian:
     """Kalman prediction to time ``t`` (exact for the linear CV/CWNA model)::
 
-    x⁻ = F x,   P⁻ = F P Fᵀ + Q        with F = F(t − t₀), Q = Q(t − t₀)
+        x⁻ = F x,   P⁻ = F P Fᵀ + Q        with F = F(t − t₀), Q = Q(t − t₀)
 
     A filter runs forward: ``t`` before the estimate's own time ``t₀`` (which would give a
     negative process-noise variance) or not finite raises ``ValueError`` naming ``t``.

@@ -1,0 +1,169 @@
+"""The docs site has a page and a picture for every registered env, generated from its spec.
+
+The site itself is built by ``scripts/docs.sh`` (Sphinx with ``-W``, in CI); these tests check,
+without Sphinx, what it is made of: the page generator of ``docs/_ext/sensorgym_docs.py``
+writes one page per id with the spec's sections, and ``docs/make_pictures.py`` has committed
+one picture per id.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from PIL import Image
+
+from sensorgym.envs import ENV_IDS
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+SPEC_SECTIONS = ("Action Space", "Observation Space", "Rewards", "Episode End", "Arguments")
+
+
+def _extension():
+    path = DOCS / "_ext" / "sensorgym_docs.py"
+    spec = importlib.util.spec_from_file_location("sensorgym_docs", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules.setdefault("sensorgym_docs", module)
+    spec.loader.exec_module(module)
+    return module
+
+
+ext = _extension()
+
+
+def test_the_envs_registered_are_the_six_the_site_documents():
+    assert set(ENV_IDS) == set(_pictures_script_rules())
+    assert len(ENV_IDS) == 6
+
+
+def _pictures_script_rules() -> dict[str, str]:
+    path = DOCS / "make_pictures.py"
+    spec = importlib.util.spec_from_file_location("make_pictures", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)  # defines RULES; renders only under __main__
+    return module.RULES
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_page_has_the_spec_sections_of_its_docstring(env_id):
+    page = ext.env_page(env_id)
+    headings = re.findall(r"^## (.+?)\s*$", page, flags=re.M)
+    for section in SPEC_SECTIONS:
+        assert section in headings, f"{env_id}: no '## {section}' on its page"
+    assert "## Registration" in page and "## PettingZoo" in page
+    assert f"`max_episode_steps` | {_max_steps(env_id)} |" in page
+    assert "import env, parallel_env" in page
+    # the picture the page shows is the committed one
+    assert f"](../assets/envs/{ext.env_name(env_id)}.png)" in page
+    # reST roles became MyST roles with full names (Sphinx resolves them unambiguously)
+    assert not re.search(r":(class|func|mod|meth|attr):`", page)
+    for target in re.findall(r"\{py:\w+\}`~?([^`]+)`", page):
+        assert target.startswith("sensorgym."), f"{env_id}: unresolved target {target!r}"
+
+
+def _max_steps(env_id: str) -> int:
+    import gymnasium as gym
+
+    return gym.spec(env_id).max_episode_steps
+
+
+def test_a_page_section_is_the_docstring_text_not_a_copy():
+    """The page's Rewards section is generated from the class docstring itself."""
+    import inspect
+
+    import gymnasium as gym
+
+    env_id = "sensorgym/StereoPlacement-v0"
+    cls = gym.envs.registration.load_env_creator(gym.spec(env_id).entry_point)
+    _, sections = ext._split(inspect.getdoc(cls))
+    page = ext.env_page(env_id)
+    rewards = page.split("## Rewards\n", 1)[1].split("\n## ", 1)[0].strip()
+    expected = ext._roles(sections["Rewards"], cls.__module__, cls.__name__, myst=True)
+    assert rewards == expected.strip()
+
+
+def test_a_section_left_to_the_base_env_comes_from_its_docstring():
+    page = ext.env_page("sensorgym/BearingsManeuverBook-v0")
+    action = page.split("## Action Space\n", 1)[1].split("\n## ", 1)[0]
+    assert "From the docstring of" in action and "BearingsManeuverEnv" in action
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_has_a_committed_picture(env_id):
+    path = ext.picture_path(env_id)
+    assert path.is_file(), f"{path.relative_to(ROOT)}: run .venv/bin/python docs/make_pictures.py"
+    tracked = subprocess.run(
+        ["git", "ls-files", "--error-unmatch", str(path.relative_to(ROOT))],
+        cwd=ROOT,
+        capture_output=True,
+    )
+    if tracked.returncode not in (0, 1):  # no git (an unpacked sdist): the file is enough
+        pytest.skip("not a git checkout")
+    assert tracked.returncode == 0, f"{path.relative_to(ROOT)} is not committed"
+    with Image.open(path) as im:
+        assert im.format == "PNG" and min(im.size) >= 200
+
+
+def test_generated_pages_are_one_per_id_and_in_the_toctree(tmp_path, monkeypatch):
+    monkeypatch.setattr(ext, "PAGES", tmp_path)
+    (tmp_path / "Retired-v0.md").write_text("# an id no longer registered\n")
+    written = ext.write_env_pages()
+    names = sorted(p.name for p in tmp_path.glob("*.md"))
+    assert names == sorted(["index.md", *(f"{ext.env_name(i)}.md" for i in ENV_IDS)])
+    assert len(written) == len(ENV_IDS) + 1
+    index = (tmp_path / "index.md").read_text()
+    for env_id in ENV_IDS:
+        assert f"\n{ext.env_name(env_id)}\n" in index
+
+
+def test_markdown_tables_and_sections_become_rest_for_autodoc():
+    lines = [
+        "Summary.",
+        "",
+        "## Action Space",
+        "",
+        "| index | action | unit |",
+        "|-------|--------|------|",
+        "| 0     | ``a | b`` turn | rad/s |",
+        "",
+        "A :class:`.simulation` reference stays text.",
+    ]
+    rst = ext.markdown_to_rst(lines)
+    assert ".. rubric:: Action Space" in rst
+    assert ".. list-table::" in rst
+    assert "   * - 0" in rst and "     - ``a | b`` turn" in rst
+    assert not any(line.startswith("|") for line in rst)
+
+
+def test_relative_targets_resolve_to_where_the_object_is_defined():
+    module = "sensorgym.envs.stereo_pointing.crowded"
+    assert ext.resolve_target(".simulation", module) == "sensorgym.envs.stereo_pointing.simulation"
+    assert (
+        ext.resolve_target("~.simulation.PointingParams".lstrip("~"), module)
+        == "sensorgym.envs.stereo_pointing.simulation.PointingParams"
+    )
+    # a name re-exported by a package is documented where it is defined
+    assert ext.resolve_target("StraightCourse", "sensorgym.agents") == (
+        "sensorgym.agents.bearings_maneuver.StraightCourse"
+    )
+    assert ext.resolve_target("no_such_thing", module) == "no_such_thing"
+
+
+def test_the_site_build_is_wired_into_ci_and_the_docs_extra():
+    import tomllib
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"][
+        "optional-dependencies"
+    ]
+    assert {re.split(r"[<>=]", d)[0] for d in extras["docs"]} >= {"sphinx", "furo", "myst-parser"}
+    script = (ROOT / "scripts" / "docs.sh").read_text()
+    assert re.search(r'sphinx-build"? -W --keep-going -b html docs docs/_build/html', script)
+    ci = (ROOT / ".ci" / "run").read_text().splitlines()
+    assert "bash scripts/test.sh" in ci and "bash scripts/docs.sh" in ci
+    assert ci.index("bash scripts/docs.sh") > ci.index("bash scripts/test.sh")
+    assert "docs/_build/" in (ROOT / ".gitignore").read_text().splitlines()
