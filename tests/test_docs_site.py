@@ -62,7 +62,7 @@ def test_every_env_page_has_the_spec_sections_of_its_docstring(env_id):
     assert f"](../assets/envs/{ext.env_name(env_id)}.png)" in page
     # reST roles became MyST roles with full names (Sphinx resolves them unambiguously)
     assert not re.search(r":(class|func|mod|meth|attr):`", page)
-    for target in re.findall(r"\{py:\w+\}`~?([^`]+)`", page):
+    for target in re.findall(r"\{py:\w+\}`~?(?:[^`<]+<)?([^`>]+)>?`", page):
         assert target.startswith("sensorgym."), f"{env_id}: unresolved target {target!r}"
 
 

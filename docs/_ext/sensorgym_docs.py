@@ -25,6 +25,7 @@ Importing this module needs no Sphinx: ``tests/test_docs_site.py`` calls :func:`
 
 from __future__ import annotations
 
+import functools
 import importlib
 import inspect
 import itertools
@@ -65,6 +66,7 @@ def picture_path(env_id: str) -> Path:
 # --- names ------------------------------------------------------------------------------------
 
 
+@functools.cache
 def _lookup(path: str) -> Any:
     """The object a dotted path names (a module, or an attribute chain inside one), or None."""
     parts = path.split(".")
@@ -94,6 +96,7 @@ def _canonical(path: str, obj: Any) -> str:
     return path
 
 
+@functools.cache
 def resolve_target(target: str, module: str, cls: str | None = None) -> str:
     """The full dotted name of a role's target written in ``module`` (and class ``cls``).
 
@@ -122,9 +125,11 @@ def _roles(text: str, module: str, cls: str | None, myst: bool) -> str:
     def one(m: re.Match[str]) -> str:
         kind, tilde, target = m.groups()
         full = resolve_target(target, module, cls)
-        # ~ shows the last component only; a resolved relative name keeps what its author wrote
-        shown = tilde or ("~" if full != target and not target.startswith("sensorgym.") else "")
-        return f"{{py:{kind}}}`{shown}{full}`" if myst else f":py:{kind}:`{shown}{full}`"
+        # ~ shows the last component only; a resolved relative name shows what its author wrote
+        text = f"{tilde}{full}"
+        if not tilde and full != target and not target.startswith("sensorgym."):
+            text = f"{target.lstrip('.')} <{full}>"
+        return f"{{py:{kind}}}`{text}`" if myst else f":py:{kind}:`{text}`"
 
     return ROLE.sub(one, text)
 
@@ -332,6 +337,20 @@ def env_page(env_id: str) -> str:
                 body = _roles(body, module, None, myst=True)
                 out += [f"## {title}", "", body, ""]
                 continue
+        if body is None and title == "Arguments":
+            # the base env's text would name the base's id and params: the same sentence for
+            # this id, from the registration
+            params = cls.params_type
+            out += [
+                f"## {title}",
+                "",
+                f'`gym.make("{env_id}", render_mode=None, **fields)`: every setting is a field '
+                f"of {ref(params)} (units in its docstrings), given as a keyword or as "
+                f"`params={params.__name__}(...)`; the same keywords work for `gym.make_vec` and "
+                "`parallel_env` (below).",
+                "",
+            ]
+            continue
         if body is None:
             for base in bases:
                 _, base_sections = _split(inspect.getdoc(base) or "")
@@ -342,7 +361,10 @@ def env_page(env_id: str) -> str:
             continue
         out += [f"## {title}", ""]
         if owner is not cls:
-            out += [f"*From the docstring of {ref(owner)}, which this env keeps.*", ""]
+            note = f"*From the docstring of {ref(owner)}, which this env keeps"
+            if title == "Episode End":
+                note += f"; this env's time limit is {spec.max_episode_steps} steps (registration)"
+            out += [note + ".*", ""]
         out += [roles(body, owner), ""]
     out += [
         "## Registration",
