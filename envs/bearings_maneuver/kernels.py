@@ -60,6 +60,9 @@ from sensorgym.trackers.bearings.kernels import (
 from sensorgym.trackers.stereo.kernels import copy1, copy2
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
+#: the stages are inlined into the kernels: each separately compiled function adds to the
+#: cold compile
+_INLINE = {**_JIT, "inline": "always"}
 
 #: The scalar settings the kernels read, one record per params
 #: (:attr:`.simulation.ManeuverParams.kernel_constants`).
@@ -108,7 +111,7 @@ PlanWorkspace = namedtuple(
 )
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def workspace(members):
     """Scratch for the rows of one step or reset call, with a bank of ``members``."""
     return Workspace(
@@ -121,7 +124,7 @@ def workspace(members):
     )
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def plan_workspace(horizon, platforms):
     """Scratch for the rows of one planner call: plans of ``horizon`` steps, ``platforms``
     planned jointly (0 for a single platform's plans)."""
@@ -211,7 +214,7 @@ def step_kernel(lo, hi, settings, old, action, draws, new, out):
 # --- the world: flight, target motion, bearings (theory §2.5, §7.7, §11.2) ---------------------
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def fly_step(p, px, py, heading, speed, turn, dv):
     """One platform's ``(x, y, heading, speed)`` one step on under the command ``(ω, Δv)``
     (rad/s, m/s; clipped to the settings' limits), the exact arc of
@@ -221,7 +224,7 @@ def fly_step(p, px, py, heading, speed, turn, dv):
     )
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def fly(p, s, s2, action, b):
     """Row ``b``'s platforms fly the commanded arcs ``(a₀ ω_max, a₁ Δv_max)``, ``a`` clipped to
     ``[−1, 1]`` (:func:`.reference.fly`), from ``s`` into ``s2``. Returns the number of
@@ -240,7 +243,7 @@ def fly(p, s, s2, action, b):
     return bad
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def move_target(p, s, s2, noise, G, b, ws):
     """Row ``b``'s target one step on (:func:`.reference.move_target`): ``x' = F x + G ε``
     (``ε = noise[b]``, read only when ``q̃ > 0``)."""
@@ -248,7 +251,7 @@ def move_target(p, s, s2, noise, G, b, ws):
                      s2.target[b])  # fmt: skip
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def take_bearings(p, s, noise, b):
     """Row ``b``'s noisy bearings ``z = wrap(β + σ ε)`` of the target from every platform of
     ``s`` (:func:`.reference.take_bearings`), written into ``s.z[b]``."""
@@ -261,7 +264,7 @@ def take_bearings(p, s, noise, b):
 # --- the tracker: range-parameterised bank of second-order EKFs (theory §7.9, §11.2) -----------
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def prior_bank(p, prior, s, b):
     """Row ``b``'s bank from platform 1's first bearing (:func:`.reference.prior_bank`): range
     cells and spread factors ``prior``, the speed prior of the settings, course mean = the
@@ -272,13 +275,13 @@ def prior_bank(p, prior, s, b):
                      p.speed_sigma, z, vel_f, s.lw[b], s.X[b], s.P[b])  # fmt: skip
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def update_bank(p, s, b, k):
     """Row ``b``'s bank fuses platform ``k``'s bearing (:func:`.reference.update_bank`)."""
     bank_update(s.lw[b], s.X[b], s.P[b], s.z[b, k], s.pos[b, k, 0], s.pos[b, k, 1], p.sigma)
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def track(p, s, s2, b):
     """Row ``b``'s bank predicts from ``s`` (:func:`.reference.predict_bank`) and fuses the
     bearings of ``s2`` in platform order, into ``s2``."""
@@ -291,7 +294,7 @@ def track(p, s, s2, b):
 # --- the bound: posterior CRLB on the true state, square-root form (theory §7.8, §11.2) --------
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def update_bound(p, L_pred, s, b, k, ws):
     """``s.L[b]``, the square root of ``(P̄⁻¹ + Hᵀ H / σ²)⁻¹`` from ``L_pred`` (the root of
     ``P̄``) after platform ``k``'s bearing at the true target (:func:`.reference.update_bound`)."""
@@ -299,7 +302,7 @@ def update_bound(p, L_pred, s, b, k, ws):
                  p.sigma, s.L[b], ws.A_update)  # fmt: skip
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def row_accuracy(p, s, b):
     """The accuracy ``m(P)`` the reward measures of row ``b``'s bound
     (:func:`.reference.accuracy`): relative range from platform 1, or the position RMS."""
@@ -307,7 +310,7 @@ def row_accuracy(p, s, b):
                     s.pos[b, 0, 1], p.floor)  # fmt: skip
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def bound(p, s, s2, b, ws):
     """Row ``b``'s bound one step on, into ``s2``: ``P̄ = F P Fᵀ + Q``
     (:func:`.reference.predict_bound`), then each platform's bearing information in turn.
@@ -324,7 +327,7 @@ def bound(p, s, s2, b, ws):
 # --- reward, observation -----------------------------------------------------------------------
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def reward_and_end(p, s, s2, b):
     """Row ``b``'s ``(reward, terminated)`` (:func:`.reference.reward`): ``ln m_k − ln m_{k+1}``,
     less ``close_penalty`` when a platform of ``s2`` came within ``min_range``."""
@@ -355,7 +358,7 @@ def derive(p, s, b, ws):
     s.error[b] = math.hypot(ws.x[0] - s.target[b, 0], ws.x[1] - s.target[b, 1])
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def observe_platform(p, s, b, k, x, Pe):
     """Platform ``k``'s observation ``s.obs[b, k]`` (float32, the table of
     :func:`.simulation.observe_agents`, every entry clipped to ``±clip``) from the estimate
@@ -618,7 +621,7 @@ def joint_plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command,
 
 
 # the information of every platform's bearings but platform k's, summed: ``others (H, 3)``
-@njit(**_JIT)
+@njit(**_INLINE)
 def _sum_others(info, k, others):
     others[:, :] = 0.0
     for i in range(info.shape[0]):
