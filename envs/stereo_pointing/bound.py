@@ -65,7 +65,6 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from sensorgym.envs.stereo_pointing.kernels import C_CLIP, C_DT, C_FOV, C_SIGMA, C_SIGMA_REF
 from sensorgym.envs.stereo_pointing.simulation import PointingParams, PointingState
 from sensorgym.trackers.stereo.kernels import (
     JIT,
@@ -99,15 +98,33 @@ MAX_DRONES = 16
 
 @njit(**JIT)
 def _bound_row(
-    receivers, c, p, q, u, r, ones, mask, seeable, f, g, arg, cand, n_cand, rem, K, choice, scratch
+    receivers,
+    settings,
+    p,
+    q,
+    u,
+    r,
+    ones,
+    mask,
+    seeable,
+    f,
+    g,
+    arg,
+    cand,
+    n_cand,
+    rem,
+    K,
+    choice,
+    scratch,
 ):
     """The bound ``B`` at the true drone positions ``p (m, 3)`` (after the step's move), each
     receiver holding at most ``q`` drones; returns ``(B, best K (m,) as receiver bit masks of
     the f-level sets that attain it)`` in ``K[n]`` (scratch arrays given by the caller)."""
     n, m = receivers.shape[0], p.shape[0]
     N = 1 << n
-    sigma_ang, sigma_ref, clip_r = c[C_SIGMA], c[C_SIGMA_REF], c[C_CLIP]
-    cos2 = math.cos(2.0 * c[C_FOV]) - COS_SLACK
+    s = settings[0]
+    sigma_ang, sigma_ref, clip_r = s.sigma_ang, s.sigma_ref, s.reward_clip
+    cos2 = math.cos(2.0 * s.fov) - COS_SLACK
     G, LU, inv = scratch[0], scratch[1], scratch[2]
     piv = np.empty(3, np.int64)
     # lines of sight u_kj and ranges r_kj; whether receiver k can see drone j at all (u ≠ 0:
@@ -238,13 +255,13 @@ def _bound_row(
 
 
 @njit(**JIT)
-def _bound_path_kernel(receivers, c, position, velocity, steps, q, values, views):
+def _bound_path_kernel(receivers, settings, position, velocity, steps, q, values, views):
     """``values (B, steps)``: the bound of each of the next ``steps`` steps from drones at
     ``position``/``velocity (B, m, 3)``, moved as the env moves them (``p ← p + v dt``);
     ``views (B, n, m)``: the attaining views of the first step."""
     B, m, n = position.shape[0], position.shape[1], receivers.shape[0]
     N = 1 << n
-    dt = c[C_DT]
+    dt = settings[0].dt
     p = np.empty((m, 3))
     u, r = np.empty((m, n, 3)), np.empty((m, n))
     ones = np.ones(n)
@@ -268,7 +285,7 @@ def _bound_path_kernel(receivers, c, position, velocity, steps, q, values, views
                 for i in range(3):
                     p[j, i] = p[j, i] + velocity[b, j, i] * dt
             values[b, t] = _bound_row(
-                receivers, c, p, q, u, r, ones, mask, seeable, f, g, arg, cand, n_cand, rem, K,
+                receivers, settings, p, q, u, r, ones, mask, seeable, f, g, arg, cand, n_cand, rem, K,
                 choice, scratch,
             )  # fmt: skip
             if t == 0:
@@ -315,7 +332,7 @@ def bound_path(
     B = p.shape[0]
     values = np.empty((B, steps))
     views = np.zeros((B, params.n_receivers, params.n_drones), dtype=bool)
-    _bound_path_kernel(params._receivers, params._constants, p, v, steps, q, values, views)
+    _bound_path_kernel(params._receivers, params.kernel_settings, p, v, steps, q, values, views)
     return values
 
 
@@ -343,7 +360,7 @@ def step_bound_views(
     B = p.shape[0]
     values = np.empty((B, 1))
     views = np.zeros((B, params.n_receivers, params.n_drones), dtype=bool)
-    _bound_path_kernel(params._receivers, params._constants, p, v, 1, q, values, views)
+    _bound_path_kernel(params._receivers, params.kernel_settings, p, v, 1, q, values, views)
     return values[:, 0], views
 
 

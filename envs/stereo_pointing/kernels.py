@@ -17,6 +17,7 @@ results; ``prange`` is not used (seconds of cold compile, and numba's OpenMP lay
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -66,36 +67,220 @@ def pointing_offset(azimuth, elevation, u):
     return wrap_angle(az - azimuth), el - elevation
 
 
-#: layout of the per-params constants array (``simulation.PointingParams._constants``)
-(C_SLEW, C_MAX_EL, C_DT, C_Q, C_COS_FOV, C_SIGMA, C_SIGMA_REF, C_CLIP, C_FOV, C_LENGTH, C_SPEED) = (
-    range(11)
+#: The scalar settings the kernels read, one record per params
+#: (:attr:`.simulation.PointingParams.kernel_settings`), read by field name.
+SETTINGS = np.dtype(
+    [
+        ("slew", np.float64),  # the largest turn of a gimbal in one step, ω dt, rad
+        ("max_elevation", np.float64),  # rad
+        ("dt", np.float64),  # step length, s
+        ("q", np.float64),  # the tracker's process noise
+        ("cos_fov", np.float64),  # cos of the field-of-view half-angle
+        ("sigma_ang", np.float64),  # angular noise σ, rad
+        ("sigma_ref", np.float64),  # the reward's reference bound, m
+        ("reward_clip", np.float64),
+        ("fov", np.float64),  # field-of-view half-angle, rad
+        ("length_scale", np.float64),  # observation scales: m, m/s
+        ("velocity_scale", np.float64),
+    ],
+    align=True,
 )
+
+#: The arrays of a :class:`.simulation.PointingState`, in the order the kernels take them
+#: (:func:`.simulation.state_arrays`): time ``t (B,)``, gimbals ``azimuth``, ``elevation``
+#: ``(B, n)``, drones ``position``, ``velocity`` ``(B, m, 3)``, tracks ``x (B, m, 6)``,
+#: ``P (B, m, 6, 6)``, who saw whom ``seen (B, n, m)``, ``fixed (B, m)`` and the bound
+#: ``(B, m)``.
+StateArrays = namedtuple(
+    "StateArrays", "t azimuth elevation position velocity x P seen fixed bound"
+)
+
+#: Scratch of one step call (:func:`workspace`): per receiver ``ones``, the true lines of
+#: sight ``u (n, 3)``, ranges ``r``, measured lines of sight ``z (n, 3)``, boresights
+#: ``bore (n, 3)``, the fix's ranges ``r_fix`` and the view ``mask``; the fix ``M (3,)``, its
+#: information ``G``, the true geometry's ``G_true``, the fix covariance ``R``, the prediction
+#: ``x_pred``, ``P_pred``, and the solvers' ``rhs``, ``LU``, ``piv``, ``S``, ``K``, ``work``,
+#: ``inv``.
+Workspace = namedtuple(
+    "Workspace",
+    "ones u r z bore r_fix mask M G G_true R x_pred P_pred rhs LU piv S K work inv",
+)
+
 #: rows of the diagnostics array ``info (3, B)`` (``simulation.info``)
 I_ERROR, I_FIXED, I_VIEWS = range(3)
 
 
+@njit(**INLINE)
+def workspace(n):
+    """Scratch for the rows of one step call with ``n`` receivers: views of one buffer (one
+    allocation per call, not twenty)."""
+    buf = np.empty(12 * n + 138)
+    ones = buf[:n]
+    ones[:] = 1.0
+    o = 12 * n
+    return Workspace(
+        ones,
+        buf[n : 4 * n].reshape((n, 3)),
+        buf[4 * n : 5 * n],
+        buf[5 * n : 8 * n].reshape((n, 3)),
+        buf[8 * n : 11 * n].reshape((n, 3)),
+        buf[11 * n : 12 * n],
+        np.empty(n, dtype=np.bool_),
+        buf[o : o + 3],
+        buf[o + 3 : o + 12].reshape((3, 3)),
+        buf[o + 12 : o + 21].reshape((3, 3)),
+        buf[o + 21 : o + 30].reshape((3, 3)),
+        buf[o + 30 : o + 36],
+        buf[o + 36 : o + 72].reshape((6, 6)),
+        buf[o + 72 : o + 75].reshape((3, 1)),
+        buf[o + 75 : o + 84].reshape((3, 3)),
+        np.empty(3, np.int64),
+        buf[o + 84 : o + 93].reshape((3, 3)),
+        buf[o + 93 : o + 111].reshape((6, 3)),
+        buf[o + 111 : o + 129].reshape((3, 6)),
+        buf[o + 129 : o + 138].reshape((3, 3)),
+    )
+
+
 @njit(**JIT)
-def observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_pred, u):
-    """``simulation.observe`` of scenario ``b`` into ``obs[b]`` (float32, clipped to
-    ``±OBS_CLIP``): gimbals, offsets of the predicted drones from each boresight and who saw
-    whom, the predicted positions and velocities and their log accuracies. Scratch ``x_pred (6,)``,
-    ``P_pred (6, 6)``, ``u (3,)``."""
-    n, m = azimuth.shape[1], x.shape[1]
-    fov, length, speed, sigma_ref = c[C_FOV], c[C_LENGTH], c[C_SPEED], c[C_SIGMA_REF]
+def step_kernel(lo, hi, receivers, settings, old, action, noise, new, out):
+    """One step of scenarios ``lo … hi − 1`` (:func:`.reference.step`, stage by stage): the
+    gimbals slew, the drones fly on, each receiver sees and measures them, each drone is
+    fixed and its track predicted and updated, the bound and the reward; then the new state's
+    observation and diagnostics. Reads the state ``old`` and writes the next into ``new``
+    (tuples of arrays in the order of :data:`StateArrays`; ``new.velocity`` is
+    ``old.velocity``, the drones fly straight) and ``out = (reward (B,), obs (B, obs_dim)
+    float32, info (3, B))``. ``receivers (n, 3)``; ``settings`` the params' record;
+    ``action (B, n, 2)`` raw actions; ``noise (B, n, m, 3)`` standard normal draws (ignored
+    where ``σ_ang = 0``). No output may alias an input. Returns False (and stops) if an
+    action is NaN or infinite."""
+    p = settings[0]
+    s, s2 = StateArrays(*old), StateArrays(*new)
+    reward, obs, info = out
+    m = s.position.shape[1]
+    for b in range(lo, hi):
+        for k in range(s.azimuth.shape[1]):
+            if not (math.isfinite(action[b, k, 0]) and math.isfinite(action[b, k, 1])):
+                return False
+    ws = workspace(s.azimuth.shape[1])
+    for b in range(lo, hi):
+        s2.t[b] = s.t[b] + p.dt
+        # 1. the gimbals slew, the drones fly on
+        slew(p, s, s2, action, b, ws)
+        total = 0.0
+        for j in range(m):
+            fly(p, s, s2, b, j)
+            # 2. who sees drone j, and what each receiver measures
+            measure(p, receivers, s2, noise, b, j, ws)
+            # 3. the fix, trusted only in front of its receivers; the track predicted, updated
+            track(p, receivers, s, s2, b, j, ws)
+            # 4. the bound of the true geometry of the receivers that see the drone, the reward
+            total += score(p, s2, b, j, ws)
+        reward[b] = total / m
+        # 5. what the new state shows: the observation and the diagnostics
+        observe_row(p, receivers, s2, b, obs, ws.x_pred, ws.P_pred, ws.u[0])
+        info_row(s2, b, info)
+    return True
+
+
+@njit(**INLINE)
+def slew(p, s, s2, action, b, ws):
+    """Row ``b``'s gimbals after the action, each entry clipped to ``[−1, 1]``
+    (:func:`.reference.slew`): ``α ← wrap(α + a₀ ω dt)``, ``ε ← clip(ε + a₁ ω dt, ±ε_max)``;
+    their boresights into ``ws.bore``."""
+    for k in range(s.azimuth.shape[1]):
+        s2.azimuth[b, k] = wrap_angle(s.azimuth[b, k] + clip(action[b, k, 0], -1.0, 1.0) * p.slew)
+        s2.elevation[b, k] = clip(
+            s.elevation[b, k] + clip(action[b, k, 1], -1.0, 1.0) * p.slew,
+            -p.max_elevation,
+            p.max_elevation,
+        )
+        unit_from_angles(s2.azimuth[b, k], s2.elevation[b, k], ws.bore[k])
+
+
+@njit(**INLINE)
+def fly(p, s, s2, b, j):
+    """Drone ``j`` of row ``b`` one step on its straight line: ``p ← p + v dt``
+    (:func:`.reference.fly`)."""
+    for i in range(3):
+        s2.position[b, j, i] = s.position[b, j, i] + s.velocity[b, j, i] * p.dt
+
+
+@njit(**INLINE)
+def measure(p, receivers, s2, noise, b, j, ws):
+    """Who sees drone ``j`` of row ``b`` and what each receiver measures
+    (:func:`.reference.lines_of_sight`, :func:`~.reference.in_view`,
+    :func:`~.reference.noisy_directions`): true lines of sight ``ws.u``, ranges ``ws.r``, the
+    view ``ws.mask`` (also into ``s2.seen``) and the measured directions ``ws.z``."""
+    for k in range(receivers.shape[0]):
+        ws.r[k] = line_of_sight(receivers[k], s2.position[b, j], ws.u[k])
+        ws.mask[k] = in_view(ws.bore[k], ws.u[k], p.cos_fov)
+        s2.seen[b, k, j] = ws.mask[k]
+        if p.sigma_ang > 0.0:
+            perturb_direction(ws.u[k], noise[b, k, j], p.sigma_ang, ws.z[k])
+        else:
+            copy1(ws.u[k], ws.z[k])
+
+
+@njit(**INLINE)
+def track(p, receivers, s, s2, b, j, ws):
+    """Drone ``j``'s fix (:func:`.reference.weighted_fix`), trusted only in front of its
+    receivers (:func:`~.reference.in_front`), and its track predicted and, with a trusted fix
+    of covariance ``R = σ² G⁻¹``, updated (:func:`~.reference.kalman_predict`,
+    :func:`~.reference.kalman_update`)."""
+    ok = weighted_fix(receivers, ws.z, ws.mask, ws.ones, 2, ws.M, ws.G, ws.r_fix, ws.rhs, ws.LU,
+                      ws.piv)  # fmt: skip
+    ok = ok and fix_in_front(ws.M, receivers, ws.z, ws.mask, MIN_FIX_RANGE)
+    s2.fixed[b, j] = ok
+    cv_predict(s.x[b, j], s.P[b, j], p.dt, p.q, ws.x_pred, ws.P_pred)
+    if ok:
+        # R = σ² G⁻¹ at the fix's own ranges
+        R = ws.R
+        inverse3(ws.G, ws.LU, ws.piv, R)
+        for i in range(3):
+            for col in range(3):
+                R[i, col] *= p.sigma_ang**2
+        cv_update(ws.x_pred, ws.P_pred, ws.M, R, s2.x[b, j], s2.P[b, j], ws.S, ws.K, ws.LU,
+                  ws.piv, ws.work)  # fmt: skip
+    else:
+        copy1(ws.x_pred, s2.x[b, j])
+        copy2(ws.P_pred, s2.P[b, j])
+
+
+@njit(**INLINE)
+def score(p, s2, b, j, ws):
+    """Drone ``j``'s bound of the true geometry of the receivers that see it, into
+    ``s2.bound[b, j]`` (:func:`.reference.position_bound`); returns its reward term
+    (:func:`~.reference.reward`)."""
+    position_information(ws.u, ws.r, ws.ones, ws.mask, ws.G_true)
+    ok_true = observable(ws.G_true, count_views(ws.mask))
+    s2.bound[b, j] = position_sigma(ws.G_true, ok_true, p.sigma_ang, ws.LU, ws.piv, ws.inv)
+    return log_ratio_reward(s2.bound[b, j], p.sigma_ref, p.reward_clip)
+
+
+@njit(**JIT)
+def observe_row(p, receivers, s, b, obs, x_pred, P_pred, u):
+    """``simulation.observe`` of scenario ``b`` of the state ``s`` into ``obs[b]`` (float32,
+    clipped to ``±OBS_CLIP``): gimbals, offsets of the predicted drones from each boresight and
+    who saw whom, the predicted positions and velocities and their log accuracies. Scratch
+    ``x_pred (6,)``, ``P_pred (6, 6)``, ``u (3,)``."""
+    n, m = s.azimuth.shape[1], s.x.shape[1]
+    azimuth, elevation = s.azimuth, s.elevation
+    fov, length, speed, sigma_ref = p.fov, p.length_scale, p.velocity_scale, p.sigma_ref
     for k in range(n):
         obs[b, 3 * k] = clip(math.sin(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
         obs[b, 3 * k + 1] = clip(math.cos(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
         obs[b, 3 * k + 2] = clip(elevation[b, k] / (np.pi / 2), -OBS_CLIP, OBS_CLIP)
     for j in range(m):
         # the tracker's prediction for the next measurement time
-        cv_predict(x[b, j], P[b, j], c[C_DT], c[C_Q], x_pred, P_pred)
+        cv_predict(s.x[b, j], s.P[b, j], p.dt, p.q, x_pred, P_pred)
         for k in range(n):
             line_of_sight(receivers[k], x_pred, u)
             d_az, d_el = pointing_offset(azimuth[b, k], elevation[b, k], u)
             col = 3 * n + 3 * (k * m + j)
             obs[b, col] = clip(d_az / fov, -OBS_CLIP, OBS_CLIP)
             obs[b, col + 1] = clip(d_el / fov, -OBS_CLIP, OBS_CLIP)
-            obs[b, col + 2] = 1.0 if seen[b, k, j] else 0.0
+            obs[b, col + 2] = 1.0 if s.seen[b, k, j] else 0.0
         col = 3 * n + 3 * n * m + 8 * j
         for i in range(3):
             obs[b, col + i] = clip(x_pred[i] / length, -OBS_CLIP, OBS_CLIP)
@@ -109,9 +294,11 @@ def observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_
 
 
 @njit(**INLINE)
-def info_row(b, x, position, seen, fixed, info):
-    """``simulation.info`` of scenario ``b`` into ``info[:, b]``: the mean position error of
-    the tracks ``mean_j ‖x̂_j − p_j‖``, the number of drones fixed and of receiver-drone views."""
+def info_row(s, b, info):
+    """``simulation.info`` of scenario ``b`` of the state ``s`` into ``info[:, b]``: the mean
+    position error of the tracks ``mean_j ‖x̂_j − p_j‖``, the number of drones fixed and of
+    receiver-drone views."""
+    x, position, seen, fixed = s.x, s.position, s.seen, s.fixed
     n, m = seen.shape[1], seen.shape[2]
     error = 0.0
     n_fixed = 0.0
@@ -131,126 +318,16 @@ def info_row(b, x, position, seen, fixed, info):
 
 
 @njit(**JIT)
-def step_kernel(
-    lo,  # first scenario row
-    hi,  # end of the rows (the caller splits a batch over threads, envs/shells/rows.py)
-    receivers,  # (n, 3) receiver places
-    c,  # per-params constants (C_* layout)
-    t,  # (B,) time before the step
-    azimuth,  # (B, n) boresights before the step
-    elevation,
-    position,  # (B, m, 3) drones before the step
-    velocity,
-    x,  # (B, m, 6) tracks
-    P,  # (B, m, 6, 6)
-    action,  # (B, n, 2) raw actions
-    noise,  # (B, n, m, 3) standard normal draws (ignored where sigma_ang == 0)
-    # outputs (out of place: none may alias an input)
-    t_out,  # (B,)
-    az_out,  # (B, n)
-    el_out,
-    p_out,  # (B, m, 3)
-    x_out,  # (B, m, 6)
-    P_out,  # (B, m, 6, 6)
-    seen,  # (B, n, m) bool
-    fixed,  # (B, m) bool
-    bound,  # (B, m)
-    reward,  # (B,)
-    obs,  # (B, obs_dim) float32: the observation of the new state (observe_row)
-    info,  # (3, B): the diagnostics of the new state (info_row)
-):
-    """One step of scenarios ``lo … hi − 1`` (``simulation.step``): slew, move, see, measure,
-    fix, track, score; then the new state's observation and diagnostics. Returns False (and
-    stops) if an action is NaN or infinite."""
-    n = azimuth.shape[1]
-    m = position.shape[1]
-    for b in range(lo, hi):
-        for k in range(n):
-            if not (math.isfinite(action[b, k, 0]) and math.isfinite(action[b, k, 1])):
-                return False
-    slew, max_elevation, dt, q = c[C_SLEW], c[C_MAX_EL], c[C_DT], c[C_Q]
-    cos_fov, sigma_ang, sigma_ref, reward_clip = c[C_COS_FOV], c[C_SIGMA], c[C_SIGMA_REF], c[C_CLIP]
-    # scratch: views of one buffer (one allocation per call instead of twenty)
-    buf = np.empty(12 * n + 138)
-    ones = buf[:n]
-    ones[:] = 1.0
-    u = buf[n : 4 * n].reshape((n, 3))  # true lines of sight to one drone
-    r = buf[4 * n : 5 * n]
-    z = buf[5 * n : 8 * n].reshape((n, 3))  # measured lines of sight
-    bore = buf[8 * n : 11 * n].reshape((n, 3))
-    r_fix = buf[11 * n : 12 * n]
-    o = 12 * n
-    M, G, G_true = (
-        buf[o : o + 3],
-        buf[o + 3 : o + 12].reshape((3, 3)),
-        buf[o + 12 : o + 21].reshape((3, 3)),
-    )
-    R, x_pred = buf[o + 21 : o + 30].reshape((3, 3)), buf[o + 30 : o + 36]
-    P_pred, rhs = buf[o + 36 : o + 72].reshape((6, 6)), buf[o + 72 : o + 75].reshape((3, 1))
-    LU, S = buf[o + 75 : o + 84].reshape((3, 3)), buf[o + 84 : o + 93].reshape((3, 3))
-    K, work = buf[o + 93 : o + 111].reshape((6, 3)), buf[o + 111 : o + 129].reshape((3, 6))
-    inv = buf[o + 129 : o + 138].reshape((3, 3))
-    mask = np.empty(n, dtype=np.bool_)
-    piv = np.empty(3, np.int64)
-    for b in range(lo, hi):
-        t_out[b] = t[b] + dt
-        # 1. slew the gimbals (actions clipped to [−1, 1]), move the drones
-        for k in range(n):
-            az_out[b, k] = wrap_angle(azimuth[b, k] + clip(action[b, k, 0], -1.0, 1.0) * slew)
-            el_out[b, k] = clip(
-                elevation[b, k] + clip(action[b, k, 1], -1.0, 1.0) * slew,
-                -max_elevation,
-                max_elevation,
-            )
-            unit_from_angles(az_out[b, k], el_out[b, k], bore[k])
-        total = 0.0
-        for j in range(m):
-            for i in range(3):
-                p_out[b, j, i] = position[b, j, i] + velocity[b, j, i] * dt
-            # 2. who sees drone j, and what each receiver measures
-            for k in range(n):
-                r[k] = line_of_sight(receivers[k], p_out[b, j], u[k])
-                mask[k] = in_view(bore[k], u[k], cos_fov)
-                seen[b, k, j] = mask[k]
-                if sigma_ang > 0.0:
-                    perturb_direction(u[k], noise[b, k, j], sigma_ang, z[k])
-                else:
-                    copy1(u[k], z[k])
-            # 3. the fix, trusted only in front of its receivers; the track predicted and updated
-            ok = weighted_fix(receivers, z, mask, ones, 2, M, G, r_fix, rhs, LU, piv)
-            ok = ok and fix_in_front(M, receivers, z, mask, MIN_FIX_RANGE)
-            fixed[b, j] = ok
-            cv_predict(x[b, j], P[b, j], dt, q, x_pred, P_pred)
-            if ok:
-                # R = σ² G⁻¹ at the fix's own ranges
-                inverse3(G, LU, piv, R)
-                for i in range(3):
-                    for col in range(3):
-                        R[i, col] *= sigma_ang**2
-                cv_update(x_pred, P_pred, M, R, x_out[b, j], P_out[b, j], S, K, LU, piv, work)
-            else:
-                copy1(x_pred, x_out[b, j])
-                copy2(P_pred, P_out[b, j])
-            # 4. the bound of the true geometry of the receivers that see the drone, the reward
-            position_information(u, r, ones, mask, G_true)
-            ok_true = observable(G_true, count_views(mask))
-            bound[b, j] = position_sigma(G_true, ok_true, sigma_ang, LU, piv, inv)
-            total += log_ratio_reward(bound[b, j], sigma_ref, reward_clip)
-        reward[b] = total / m
-        # 5. what the new state shows: the observation and the diagnostics
-        observe_row(b, receivers, c, az_out, el_out, x_out, P_out, seen, obs, x_pred, P_pred, u[0])
-        info_row(b, x_out, p_out, seen, fixed, info)
-    return True
-
-
-@njit(**JIT)
-def observe_kernel(receivers, c, azimuth, elevation, x, P, seen, position, fixed, obs, info):
+def observe_kernel(receivers, settings, state, obs, info):
     """The observation ``obs (B, obs_dim)`` float32 and diagnostics ``info (3, B)`` of a state
-    that :func:`step_kernel` did not make (a reset, or a state built by hand)."""
+    (a tuple in the order of :data:`StateArrays`) that :func:`step_kernel` did not make (a
+    reset, or a state built by hand)."""
+    p = settings[0]
+    s = StateArrays(*state)
     x_pred, P_pred, u = np.empty(6), np.empty((6, 6)), np.empty(3)
-    for b in range(azimuth.shape[0]):
-        observe_row(b, receivers, c, azimuth, elevation, x, P, seen, obs, x_pred, P_pred, u)
-        info_row(b, x, position, seen, fixed, info)
+    for b in range(s.azimuth.shape[0]):
+        observe_row(p, receivers, s, b, obs, x_pred, P_pred, u)
+        info_row(s, b, info)
 
 
 @njit(**JIT)
@@ -292,28 +369,22 @@ def drones_kernel(distance, bearing, height, speed, heading, climb, position, ve
 
 
 @njit(**JIT)
-def start_kernel(
-    c,  # per-params constants (C_* layout)
-    sigma_p,  # cue standard deviations: position, m
-    sigma_v,  # velocity, m/s
-    position,  # (B, m, 3) drones
-    velocity,
-    noise_p,  # (B, m, 3) standard normal draws of the cue's position error
-    noise_v,  # (B, m, 3) and of its velocity error
-    azimuth,  # (B, n) given pointing
-    elevation,
-    # outputs
-    x,  # (B, m, 6) the tracker on its cue
-    P,  # (B, m, 6, 6)
-    az_out,  # (B, n) wrapped
-    el_out,  # (B, n) within ±max_elevation
-):
-    """The start of every scenario (``simulation.start``): the tracker on its cue (truth plus
-    ``σ``-scaled errors, covariance ``diag(σ_p², σ_v²)``: the primitive ``cv_prior`` of
+def start_kernel(settings, cue_sigma, drones, noise, gimbals, out):
+    """The start of every scenario (``simulation.start``, :func:`.reference.cue_track`,
+    :func:`~.reference.hold_gimbals`): the tracker on its cue (truth plus ``σ``-scaled errors,
+    covariance ``diag(σ_p², σ_v²)``: the primitive ``cv_prior`` of
     :mod:`sensorgym.trackers.stereo.kernels`), the gimbals wrapped and held within their
-    elevation limit."""
+    elevation limit. ``cue_sigma = (σ_p, σ_v)`` (m, m/s); ``drones = (position, velocity)``
+    ``(B, m, 3)``; ``noise = (noise_p, noise_v)`` ``(B, m, 3)`` standard normal draws of the
+    cue's errors; ``gimbals = (azimuth, elevation)`` ``(B, n)`` as given; writes
+    ``out = (x (B, m, 6), P (B, m, 6, 6), azimuth, elevation)``."""
+    p = settings[0]
+    sigma_p, sigma_v = cue_sigma
+    position, velocity = drones
+    noise_p, noise_v = noise
+    azimuth, elevation = gimbals
+    x, P, az_out, el_out = out
     B, m = position.shape[0], position.shape[1]
-    max_elevation = c[C_MAX_EL]
     cue_p, cue_v = np.empty(3), np.empty(3)
     for b in range(B):
         for j in range(m):
@@ -323,7 +394,7 @@ def start_kernel(
             cv_prior(cue_p, cue_v, sigma_p, sigma_v, x[b, j], P[b, j])
         for k in range(azimuth.shape[1]):
             az_out[b, k] = wrap_angle(azimuth[b, k])
-            el_out[b, k] = clip(elevation[b, k], -max_elevation, max_elevation)
+            el_out[b, k] = clip(elevation[b, k], -p.max_elevation, p.max_elevation)
 
 
 @njit(**JIT)

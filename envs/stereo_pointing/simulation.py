@@ -197,25 +197,28 @@ class PointingParams(FieldsOnlyPickle):
         return o
 
     @functools.cached_property
-    def _constants(self) -> FloatArray:
-        """The scalars the compiled kernels read, computed once (layout ``kernels.C_*``)."""
-        c = np.array(
-            [
-                self.slew_rate * self.dt,
-                self.max_elevation,
-                self.dt,
-                self.process_noise,
-                np.cos(self.fov),
-                self.sigma_ang,
-                self.sigma_ref,
-                self.reward_clip,
-                self.fov,
-                self.length_scale,
-                self.velocity_scale,
-            ]
+    def kernel_settings(self) -> NDArray[np.void]:
+        """The scalar settings the compiled kernels read, as one read-only record (a
+        structured array of one element, dtype :data:`.kernels.SETTINGS`) that they read by
+        field name; computed once per params."""
+        fields = {
+            "slew": self.slew_rate * self.dt,
+            "max_elevation": self.max_elevation,
+            "dt": self.dt,
+            "q": self.process_noise,
+            "cos_fov": np.cos(self.fov),
+            "sigma_ang": self.sigma_ang,
+            "sigma_ref": self.sigma_ref,
+            "reward_clip": self.reward_clip,
+            "fov": self.fov,
+            "length_scale": self.length_scale,
+            "velocity_scale": self.velocity_scale,
+        }
+        record = np.array(
+            [tuple(fields[name] for name in kernels.SETTINGS.names)], kernels.SETTINGS
         )
-        c.flags.writeable = False
-        return c
+        record.flags.writeable = False
+        return record
 
     @property
     def length_scale(self) -> float:
@@ -340,8 +343,9 @@ def _start(
     x, P = np.empty((B, m, 6)), np.empty((B, m, 6, 6))
     az, el = np.empty((B, n)), np.empty((B, n))
     kernels.start_kernel(
-        params._constants, sp, sv, p, v, noise_p, noise_v, azimuth, elevation, x, P, az, el
-    )
+        params.kernel_settings, (sp, sv), (p, v), (noise_p, noise_v), (azimuth, elevation),
+        (x, P, az, el),
+    )  # fmt: skip
     if cued:
         u = np.empty((B, n, 3))
         kernels.cue_lines_batch(params._receivers, x, u)
@@ -471,28 +475,16 @@ def step(
         if params.sigma_ang > 0.0:
             standard_normal_rows(rng, noise, lo, hi)
 
-    track = state.track
     # the state's arrays go in as they are: step, start and the shells make them float64 and
     # C-contiguous (the compiled kernel would take any other layout too, compiled anew)
-    args = (
-        params._receivers,
-        params._constants,
-        state.t,
-        state.azimuth,
-        state.elevation,
-        state.drone_position,
-        state.drone_velocity,
-        track.x,
-        track.P,
-        a,
-        noise,
-    )
+    args = (params._receivers, params.kernel_settings, state_arrays(state), a, noise)
     t, az, el = np.empty(B), np.empty((B, n)), np.empty((B, n))
     p, x, P = np.empty((B, m, 3)), np.empty((B, m, 6)), np.empty((B, m, 6, 6))
     seen, fixed = np.empty((B, n, m), dtype=bool), np.empty((B, m), dtype=bool)
     bound, reward = np.empty((B, m)), np.empty(B)
     obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
-    outputs = (t, az, el, p, x, P, seen, fixed, bound, reward, obs, diag)
+    v = state.drone_velocity  # the drones fly straight: the new state's is the old one's
+    outputs = ((t, az, el, p, v, x, P, seen, fixed, bound), (reward, obs, diag))
     if B < 2 * MIN_ROWS_PER_THREAD:  # what run_drawn_rows does for a batch this small, sooner
         draw(0, B)
         finite = kernels.step_kernel(0, B, *args, *outputs)
@@ -559,6 +551,23 @@ def observe(params: PointingParams, state: PointingState) -> NDArray[np.float32]
     return _derived(params, state)[1]
 
 
+def state_arrays(state: PointingState) -> tuple[NDArray[Any], ...]:
+    """The state's arrays in the order the kernels take them (:data:`.kernels.StateArrays`):
+    time, gimbals, drones, tracks, who saw whom, the fixes and the bound."""
+    return (
+        state.t,
+        state.azimuth,
+        state.elevation,
+        state.drone_position,
+        state.drone_velocity,
+        state.track.x,
+        state.track.P,
+        state.seen,
+        state.fixed,
+        state.bound,
+    )
+
+
 def _sources(state: PointingState) -> tuple[object, ...]:
     """The field values the observation and diagnostics are computed from."""
     return (
@@ -587,19 +596,11 @@ def _derived(params: PointingParams, state: PointingState) -> tuple[Any, ...]:
         return d
     B = state.t.shape[0]
     obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
-    kernels.observe_kernel(
-        params._receivers,
-        params._constants,
-        _c(state.azimuth),
-        _c(state.elevation),
-        _c(state.track.x),
-        _c(state.track.P),
-        np.ascontiguousarray(state.seen, dtype=bool),
-        _c(state.drone_position),
-        np.ascontiguousarray(state.fixed, dtype=bool),
-        obs,
-        diag,
+    arrays = tuple(
+        np.ascontiguousarray(a, dtype=bool if a.dtype == bool else np.float64)
+        for a in map(np.asarray, state_arrays(state))
     )
+    kernels.observe_kernel(params._receivers, params.kernel_settings, arrays, obs, diag)
     d = (params, obs, diag, _sources(state))
     object.__setattr__(state, "_derived", d)
     return d
