@@ -205,7 +205,14 @@ def markdown_to_rst(lines: list[str]) -> list[str]:
 def process_docstring(
     app: Any, what: str, name: str, obj: Any, options: Any, lines: list[str]
 ) -> None:
-    """``autodoc-process-docstring``: Markdown sections and tables as reST, targets resolved."""
+    """``autodoc-process-docstring``: Markdown sections and tables as reST, targets resolved.
+
+    A method that inherits its docstring from a library class (``CoreEnv.step`` from
+    ``gymnasium.Env``, Google style) points to it instead of showing it."""
+    source = _inherited_from(obj, name) if what == "method" else None
+    if source is not None and not source.startswith("sensorgym."):
+        lines[:] = [f"As :py:meth:`{source}` (its docstring there)."]
+        return
     if inspect.ismodule(obj):
         module, cls = obj.__name__, None
     else:
@@ -236,6 +243,20 @@ def process_signature(
         return None if text is None else re.sub(r"TypeAliasForwardRef\('([^']+)'\)", r"\1", text)
 
     return clean(signature), clean(ret)
+
+
+def _inherited_from(obj: Any, name: str) -> str | None:
+    """Where a method without a docstring of its own inherits it from (``module.Class.name``)."""
+    if getattr(obj, "__doc__", None) or "." not in name:
+        return None
+    owner_path, attr = name.rsplit(".", 1)
+    owner = _lookup(owner_path)
+    if not inspect.isclass(owner):
+        return None
+    for base in owner.__mro__[1:]:
+        if getattr(vars(base).get(attr), "__doc__", None):
+            return f"{base.__module__}.{base.__qualname__}.{attr}"
+    return None
 
 
 def _numpy_sections(lines: list[str]) -> bool:
