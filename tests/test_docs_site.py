@@ -140,6 +140,13 @@ def test_markdown_tables_and_sections_become_rest_for_autodoc():
     assert not any(line.startswith("|") for line in rst)
 
 
+def test_rest_literal_blocks_become_markdown_code_on_the_env_pages():
+    text = "The prediction::\n\n    x = F x\n\n::\n\n    P = F P Fᵀ + Q\n"
+    assert ext._roles(text, "sensorgym.envs", None, myst=True) == (
+        "The prediction:\n\n    x = F x\n\n\n\n    P = F P Fᵀ + Q\n"
+    )
+
+
 def test_relative_targets_resolve_to_where_the_object_is_defined():
     module = "sensorgym.envs.stereo_pointing.crowded"
     assert ext.resolve_target(".simulation", module) == "sensorgym.envs.stereo_pointing.simulation"

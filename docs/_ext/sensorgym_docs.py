@@ -131,7 +131,13 @@ def _roles(text: str, module: str, cls: str | None, myst: bool) -> str:
             text = f"{target.lstrip('.')} <{full}>"
         return f"{{py:{kind}}}`{text}`" if myst else f":py:{kind}:`{text}`"
 
-    return ROLE.sub(one, text)
+    text = ROLE.sub(one, text)
+    if myst:
+        # reST's "text::" before an indented literal block: Markdown shows the indented block
+        # as code by itself, and the paragraph ends in one colon (or none when "::" stands alone)
+        text = re.sub(r"^(\s*)::$", r"\1", text, flags=re.M)
+        text = re.sub(r"(\S)::$", r"\1:", text, flags=re.M)
+    return text
 
 
 # --- Markdown in reST docstrings (autodoc) ----------------------------------------------------
