@@ -160,9 +160,11 @@ def fly(
     c = finite_array(command, "action", tail=(2,))
     shape = np.broadcast_shapes(c.shape[:-1], np.shape(speed), np.shape(heading))
     shape = np.broadcast_shapes(shape, np.shape(position)[:-1])
-    p = np.array(np.broadcast_to(position, (*shape, 2)), dtype=np.float64)
-    h = np.array(np.broadcast_to(heading, shape), dtype=np.float64)
-    v = np.array(np.broadcast_to(speed, shape), dtype=np.float64)
+    # C order: the kernel writes through reshape(-1, …), which must be a view (a copy of a
+    # broadcast input keeps its zero strides' order and would reshape to a copy)
+    p = np.array(np.broadcast_to(position, (*shape, 2)), dtype=np.float64, order="C")
+    h = np.array(np.broadcast_to(heading, shape), dtype=np.float64, order="C")
+    v = np.array(np.broadcast_to(speed, shape), dtype=np.float64, order="C")
     # exact arc: Δp = v T sinc(ωT/2) (sin ψ_m, cos ψ_m), ψ_m = ψ₀ + ωT/2
     # (compiled: platform_kernels.fly_platform)
     fly_batch(

@@ -10,6 +10,7 @@ import pytest
 from sensorgym.envs.worlds.platform import (
     PlatformWorldParams,
     PlatformWorldState,
+    fly,
     noisy_bearings,
     rollout,
     step,
@@ -48,6 +49,26 @@ def test_constant_turn_flies_exact_circle():
     for _ in range(90):
         s2 = step(params_small, s2, [[omega, 0.0]])
     np.testing.assert_allclose(s2.platform_position, s.platform_position, rtol=1e-9)
+
+
+def test_fly_broadcasts_one_platform_over_many_commands():
+    # one platform state broadcast (zero strides) over (rows, commands): each command flies
+    # from that state, as the same arrays given in full do
+    params = PlatformWorldParams(dt=10.0, max_turn_rate=0.05)
+    n, C = 4, 3
+    command = np.zeros((n, C, 2))
+    command[..., 0] = np.linspace(-0.05, 0.05, C)
+    full = fly(np.zeros((n, C, 2)), np.zeros((n, C)), np.full((n, C), 10.0), command, params)
+    broadcast = fly(
+        np.broadcast_to(np.zeros((n, 1, 2)), (n, C, 2)),
+        np.broadcast_to(np.zeros((n, 1)), (n, C)),
+        np.broadcast_to(np.full((n, 1), 10.0), (n, C)),
+        command,
+        params,
+    )
+    for a, b in zip(full, broadcast, strict=True):
+        np.testing.assert_array_equal(a, b)
+    assert np.all(broadcast[0][..., 1] > 90.0)  # every platform moved ahead
 
 
 def test_action_limits_are_enforced():
