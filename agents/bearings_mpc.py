@@ -57,6 +57,19 @@ TUNED = {
 }
 
 
+def standoff_range(
+    params: ManeuverParams, L: FloatArray, margin: float, kappa: float
+) -> FloatArray:
+    """The range to keep from the estimated target (m), ``min_range + margin + κ σ_r`` per
+    estimate ``(N,)``: ``σ_r`` is the largest standard deviation of the estimate's position one
+    step ahead, ``P_pos + dt² P_vel`` from its square roots ``L (N, 4, 4)`` (block-diagonal:
+    the observation holds no cross-covariance), the step a played action commits to."""
+    P = L @ np.swapaxes(L, -1, -2)
+    ahead = P[:, :2, :2] + params.world.dt**2 * P[:, 2:, 2:]
+    sigma = np.sqrt(np.maximum(np.linalg.eigvalsh(ahead)[:, -1], 0.0))
+    return params.min_range + margin + kappa * sigma
+
+
 @dataclass(frozen=True)
 class PlanMemory:
     """:class:`RecedingPlan`'s state between calls, per scenario row ``n``."""
@@ -156,14 +169,9 @@ class RecedingPlan:
         return (out[0] if single else out), memory
 
     def standoff(self, L: FloatArray) -> float:
-        """The range kept on the estimated path (m): ``min_range + margin + κ σ_r``, ``σ_r``
-        the largest standard deviation of the estimate's position one step ahead,
-        ``P_pos + dt² P_vel`` from its square root ``L (4, 4)`` (block-diagonal: the
-        observation holds no cross-covariance), the step the played action commits to."""
-        P = L @ L.T
-        ahead = P[:2, :2] + self.params.world.dt**2 * P[2:, 2:]
-        sigma = float(np.sqrt(max(np.linalg.eigvalsh(ahead)[-1], 0.0)))
-        return self.params.min_range + self.margin + self.kappa * sigma
+        """The range kept on the estimated path (m), :func:`standoff_range` of one estimate's
+        square root ``L (4, 4)``."""
+        return float(standoff_range(self.params, L[None], self.margin, self.kappa)[0])
 
     def plan_row(
         self,
