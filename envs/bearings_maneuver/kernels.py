@@ -88,6 +88,22 @@ SETTINGS = np.dtype(
     align=True,
 )
 
+#: The settings as the kernels hold them: the fields of :data:`SETTINGS`, in locals.
+Settings = namedtuple("Settings", SETTINGS.names)
+
+
+@njit(**_INLINE)
+def read_settings(settings):
+    """The record ``settings[0]`` as a :data:`Settings` tuple of scalars (read once: the
+    compiled loops then keep them in registers)."""
+    r = settings[0]
+    return Settings(
+        r.dt, r.q_tilde, r.sigma, r.max_turn, r.max_dv, r.min_speed, r.max_speed, r.floor,
+        r.min_range, r.penalty, r.range_scale, r.speed_scale, r.clip, r.speed_mean,
+        r.speed_sigma, r.relative_range,
+    )  # fmt: skip
+
+
 #: The arrays of a :class:`.simulation.ManeuverState`, in the order the kernels take them:
 #: platforms ``pos (B, K, 2)``, ``heading``, ``speed`` ``(B, K)``, ``target (B, 4)``, the bank's
 #: log weights ``lw (B, N)``, means ``X (B, N, 4)``, covariances ``P (B, N, 4, 4)``, the bound's
@@ -162,7 +178,7 @@ def reset_kernel(settings, prior, state, eps):
     ``(3,)``, :attr:`.simulation.ManeuverParams.prior_cells`); the bound's square root ``L`` of
     the bank's moment-matched covariance; the other platforms' first bearings fused into both;
     the accuracy ``acc`` and the derived fields. ``settings`` is the params' record."""
-    p = settings[0]
+    p = read_settings(settings)
     s = StateArrays(*state)
     ws = workspace(s.lw.shape[1])
     for b in range(s.z.shape[0]):
@@ -189,7 +205,7 @@ def step_kernel(lo, hi, settings, old, action, draws, new, out):
     bearing_noise)``: ``(B, 4)`` standard normals (read when ``q̃ > 0``), ``G (4, 4)`` with
     ``G Gᵀ = Q``, ``(B, K)`` standard normals. ``settings`` is the params' record. Returns the
     number of non-finite action entries (the caller raises: the kernel trusts everything else)."""
-    p = settings[0]
+    p = read_settings(settings)
     s, s2 = StateArrays(*old), StateArrays(*new)
     target_noise, noise_factor, bearing_noise = draws
     reward, terminated = out
@@ -341,7 +357,7 @@ def reward_and_end(p, s, s2, b):
     return r - p.penalty * (1.0 if end else 0.0), end
 
 
-@njit(**_JIT)
+@njit(**_INLINE)
 def derive(p, s, b, ws):
     """Row ``b``'s derived fields of ``s`` (:func:`.reference.with_derived_fields`) from the
     bank's moment-matched estimate (into ``ws.x``, ``ws.Pe``): each platform's observation
@@ -553,7 +569,7 @@ def plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command, horiz
     (:func:`step_kernel`'s predict and bearing update on the true state). Writes the accuracy
     the reward measures at the end, ``out (B, C)``, or ``inf`` for a plan that comes within
     ``too_close`` (m). ``settings`` is the params' record."""
-    p = settings[0]
+    p = read_settings(settings)
     ws = plan_workspace(horizon, 0)
     track = ws.track
     late = p.q_tilde == 0.0
@@ -588,7 +604,7 @@ def joint_plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command,
     ``K = 1`` this is :func:`plan_kernel`'s argmin. Writes each platform's command index into
     ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out.
     ``settings`` is the params' record."""
-    p = settings[0]
+    p = read_settings(settings)
     K = heading.shape[1]
     ws = plan_workspace(horizon, K)
     tracks, track, info, others = ws.tracks, ws.track, ws.info, ws.others
@@ -645,7 +661,7 @@ def greedy_kernel(settings, obs, sd, delta, command, too_close, choice):
     platform ``k``'s frame into platform 1's (its heading relative to platform 1's, rad).
     Writes each platform's first best command index into ``choice (n, K)``. ``settings`` is
     the params' record."""
-    p = settings[0]
+    p = read_settings(settings)
     K = obs.shape[1]
     dt, sigma = p.dt, p.sigma
     range_scale, speed_scale = p.range_scale, p.speed_scale
