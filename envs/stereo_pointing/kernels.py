@@ -144,8 +144,8 @@ def workspace(n):
 
 @njit(**JIT)
 def step_kernel(lo, hi, receivers, settings, old, action, noise, new, out):
-    """One step of scenarios ``lo … hi − 1`` (:func:`.reference.step`, stage by stage): the
-    gimbals slew, the drones fly on, each receiver sees and measures them, each drone is
+    """One step of scenarios ``lo … hi − 1`` (:func:`.reference.step`, its stages in order):
+    the gimbals slew, the drones fly on, each receiver sees and measures them, each drone is
     fixed and its track predicted and updated, the bound and the reward; then the new state's
     observation and diagnostics. Reads the state ``old`` and writes the next into ``new``
     (tuples of arrays in the order of :data:`StateArrays`; ``new.velocity`` is
@@ -153,119 +153,108 @@ def step_kernel(lo, hi, receivers, settings, old, action, noise, new, out):
     float32, info (3, B))``. ``receivers (n, 3)``; ``settings`` the params' record;
     ``action (B, n, 2)`` raw actions; ``noise (B, n, m, 3)`` standard normal draws (ignored
     where ``σ_ang = 0``). No output may alias an input. Returns False (and stops) if an
-    action is NaN or infinite."""
+    action is NaN or infinite.
+
+    The arrays are taken out of their tuples once, into locals: a field read inside the loops
+    would count a reference each time."""
     p = settings[0]
-    s, s2 = StateArrays(*old), StateArrays(*new)
+    t, azimuth, elevation, position, velocity, x, P = old[:7]
+    t_out, az_out, el_out, p_out, _, x_out, P_out, seen, fixed, bound = new
     reward, obs, info = out
-    m = s.position.shape[1]
+    n, m = azimuth.shape[1], position.shape[1]
     for b in range(lo, hi):
-        for k in range(s.azimuth.shape[1]):
+        for k in range(n):
             if not (math.isfinite(action[b, k, 0]) and math.isfinite(action[b, k, 1])):
                 return False
-    ws = workspace(s.azimuth.shape[1])
+    slew, max_elevation, dt, q = p.slew, p.max_elevation, p.dt, p.q
+    cos_fov, sigma_ang, sigma_ref, reward_clip = p.cos_fov, p.sigma_ang, p.sigma_ref, p.reward_clip
+    (
+        ones,
+        u,
+        r,
+        z,
+        bore,
+        r_fix,
+        mask,
+        M,
+        G,
+        G_true,
+        R,
+        x_pred,
+        P_pred,
+        rhs,
+        LU,
+        piv,
+        S,
+        K,
+        work,
+        inv,
+    ) = workspace(n)
+    s2 = StateArrays(t_out, az_out, el_out, p_out, velocity, x_out, P_out, seen, fixed, bound)
     for b in range(lo, hi):
-        s2.t[b] = s.t[b] + p.dt
-        # 1. the gimbals slew, the drones fly on
-        slew(p, s, s2, action, b, ws)
+        t_out[b] = t[b] + dt
+        # 1. slew the gimbals (actions clipped to [−1, 1]), move the drones
+        for k in range(n):
+            az_out[b, k] = wrap_angle(azimuth[b, k] + clip(action[b, k, 0], -1.0, 1.0) * slew)
+            el_out[b, k] = clip(
+                elevation[b, k] + clip(action[b, k, 1], -1.0, 1.0) * slew,
+                -max_elevation,
+                max_elevation,
+            )
+            unit_from_angles(az_out[b, k], el_out[b, k], bore[k])
         total = 0.0
         for j in range(m):
-            fly(p, s, s2, b, j)
+            for i in range(3):
+                p_out[b, j, i] = position[b, j, i] + velocity[b, j, i] * dt
             # 2. who sees drone j, and what each receiver measures
-            measure(p, receivers, s2, noise, b, j, ws)
-            # 3. the fix, trusted only in front of its receivers; the track predicted, updated
-            track(p, receivers, s, s2, b, j, ws)
+            for k in range(n):
+                r[k] = line_of_sight(receivers[k], p_out[b, j], u[k])
+                mask[k] = in_view(bore[k], u[k], cos_fov)
+                seen[b, k, j] = mask[k]
+                if sigma_ang > 0.0:
+                    perturb_direction(u[k], noise[b, k, j], sigma_ang, z[k])
+                else:
+                    copy1(u[k], z[k])
+            # 3. the fix, trusted only in front of its receivers; the track predicted and updated
+            ok = weighted_fix(receivers, z, mask, ones, 2, M, G, r_fix, rhs, LU, piv)
+            ok = ok and fix_in_front(M, receivers, z, mask, MIN_FIX_RANGE)
+            fixed[b, j] = ok
+            cv_predict(x[b, j], P[b, j], dt, q, x_pred, P_pred)
+            if ok:
+                fix_covariance(G, sigma_ang, LU, piv, R)
+                cv_update(x_pred, P_pred, M, R, x_out[b, j], P_out[b, j], S, K, LU, piv, work)
+            else:
+                copy1(x_pred, x_out[b, j])
+                copy2(P_pred, P_out[b, j])
             # 4. the bound of the true geometry of the receivers that see the drone, the reward
-            total += score(p, s2, b, j, ws)
+            position_information(u, r, ones, mask, G_true)
+            ok_true = observable(G_true, count_views(mask))
+            bound[b, j] = position_sigma(G_true, ok_true, sigma_ang, LU, piv, inv)
+            total += log_ratio_reward(bound[b, j], sigma_ref, reward_clip)
         reward[b] = total / m
         # 5. what the new state shows: the observation and the diagnostics
-        observe_row(p, receivers, s2, b, obs, ws.x_pred, ws.P_pred, ws.u[0])
+        observe_row(p, receivers, s2, b, obs, x_pred, P_pred, u[0])
         info_row(s2, b, info)
     return True
 
 
 @njit(**INLINE)
-def slew(p, s, s2, action, b, ws):
-    """Row ``b``'s gimbals after the action, each entry clipped to ``[−1, 1]``
-    (:func:`.reference.slew`): ``α ← wrap(α + a₀ ω dt)``, ``ε ← clip(ε + a₁ ω dt, ±ε_max)``;
-    their boresights into ``ws.bore``."""
-    for k in range(s.azimuth.shape[1]):
-        s2.azimuth[b, k] = wrap_angle(s.azimuth[b, k] + clip(action[b, k, 0], -1.0, 1.0) * p.slew)
-        s2.elevation[b, k] = clip(
-            s.elevation[b, k] + clip(action[b, k, 1], -1.0, 1.0) * p.slew,
-            -p.max_elevation,
-            p.max_elevation,
-        )
-        unit_from_angles(s2.azimuth[b, k], s2.elevation[b, k], ws.bore[k])
-
-
-@njit(**INLINE)
-def fly(p, s, s2, b, j):
-    """Drone ``j`` of row ``b`` one step on its straight line: ``p ← p + v dt``
-    (:func:`.reference.fly`)."""
+def fix_covariance(G, sigma_ang, LU, piv, R):
+    """The fix's covariance ``R = σ² G⁻¹`` at its own ranges (:func:`.reference.fix_covariance`)."""
+    inverse3(G, LU, piv, R)
     for i in range(3):
-        s2.position[b, j, i] = s.position[b, j, i] + s.velocity[b, j, i] * p.dt
+        for col in range(3):
+            R[i, col] *= sigma_ang**2
 
 
 @njit(**INLINE)
-def measure(p, receivers, s2, noise, b, j, ws):
-    """Who sees drone ``j`` of row ``b`` and what each receiver measures
-    (:func:`.reference.lines_of_sight`, :func:`~.reference.in_view`,
-    :func:`~.reference.noisy_directions`): true lines of sight ``ws.u``, ranges ``ws.r``, the
-    view ``ws.mask`` (also into ``s2.seen``) and the measured directions ``ws.z``."""
-    for k in range(receivers.shape[0]):
-        ws.r[k] = line_of_sight(receivers[k], s2.position[b, j], ws.u[k])
-        ws.mask[k] = in_view(ws.bore[k], ws.u[k], p.cos_fov)
-        s2.seen[b, k, j] = ws.mask[k]
-        if p.sigma_ang > 0.0:
-            perturb_direction(ws.u[k], noise[b, k, j], p.sigma_ang, ws.z[k])
-        else:
-            copy1(ws.u[k], ws.z[k])
-
-
-@njit(**INLINE)
-def track(p, receivers, s, s2, b, j, ws):
-    """Drone ``j``'s fix (:func:`.reference.weighted_fix`), trusted only in front of its
-    receivers (:func:`~.reference.in_front`), and its track predicted and, with a trusted fix
-    of covariance ``R = σ² G⁻¹``, updated (:func:`~.reference.kalman_predict`,
-    :func:`~.reference.kalman_update`)."""
-    ok = weighted_fix(receivers, ws.z, ws.mask, ws.ones, 2, ws.M, ws.G, ws.r_fix, ws.rhs, ws.LU,
-                      ws.piv)  # fmt: skip
-    ok = ok and fix_in_front(ws.M, receivers, ws.z, ws.mask, MIN_FIX_RANGE)
-    s2.fixed[b, j] = ok
-    cv_predict(s.x[b, j], s.P[b, j], p.dt, p.q, ws.x_pred, ws.P_pred)
-    if ok:
-        # R = σ² G⁻¹ at the fix's own ranges
-        R = ws.R
-        inverse3(ws.G, ws.LU, ws.piv, R)
-        for i in range(3):
-            for col in range(3):
-                R[i, col] *= p.sigma_ang**2
-        cv_update(ws.x_pred, ws.P_pred, ws.M, R, s2.x[b, j], s2.P[b, j], ws.S, ws.K, ws.LU,
-                  ws.piv, ws.work)  # fmt: skip
-    else:
-        copy1(ws.x_pred, s2.x[b, j])
-        copy2(ws.P_pred, s2.P[b, j])
-
-
-@njit(**INLINE)
-def score(p, s2, b, j, ws):
-    """Drone ``j``'s bound of the true geometry of the receivers that see it, into
-    ``s2.bound[b, j]`` (:func:`.reference.position_bound`); returns its reward term
-    (:func:`~.reference.reward`)."""
-    position_information(ws.u, ws.r, ws.ones, ws.mask, ws.G_true)
-    ok_true = observable(ws.G_true, count_views(ws.mask))
-    s2.bound[b, j] = position_sigma(ws.G_true, ok_true, p.sigma_ang, ws.LU, ws.piv, ws.inv)
-    return log_ratio_reward(s2.bound[b, j], p.sigma_ref, p.reward_clip)
-
-
-@njit(**JIT)
 def observe_row(p, receivers, s, b, obs, x_pred, P_pred, u):
     """``simulation.observe`` of scenario ``b`` of the state ``s`` into ``obs[b]`` (float32,
     clipped to ``±OBS_CLIP``): gimbals, offsets of the predicted drones from each boresight and
     who saw whom, the predicted positions and velocities and their log accuracies. Scratch
     ``x_pred (6,)``, ``P_pred (6, 6)``, ``u (3,)``."""
-    n, m = s.azimuth.shape[1], s.x.shape[1]
-    azimuth, elevation = s.azimuth, s.elevation
+    azimuth, elevation, x, P, seen = s.azimuth, s.elevation, s.x, s.P, s.seen
+    n, m = azimuth.shape[1], x.shape[1]
     fov, length, speed, sigma_ref = p.fov, p.length_scale, p.velocity_scale, p.sigma_ref
     for k in range(n):
         obs[b, 3 * k] = clip(math.sin(azimuth[b, k]), -OBS_CLIP, OBS_CLIP)
@@ -273,14 +262,14 @@ def observe_row(p, receivers, s, b, obs, x_pred, P_pred, u):
         obs[b, 3 * k + 2] = clip(elevation[b, k] / (np.pi / 2), -OBS_CLIP, OBS_CLIP)
     for j in range(m):
         # the tracker's prediction for the next measurement time
-        cv_predict(s.x[b, j], s.P[b, j], p.dt, p.q, x_pred, P_pred)
+        cv_predict(x[b, j], P[b, j], p.dt, p.q, x_pred, P_pred)
         for k in range(n):
             line_of_sight(receivers[k], x_pred, u)
             d_az, d_el = pointing_offset(azimuth[b, k], elevation[b, k], u)
             col = 3 * n + 3 * (k * m + j)
             obs[b, col] = clip(d_az / fov, -OBS_CLIP, OBS_CLIP)
             obs[b, col + 1] = clip(d_el / fov, -OBS_CLIP, OBS_CLIP)
-            obs[b, col + 2] = 1.0 if s.seen[b, k, j] else 0.0
+            obs[b, col + 2] = 1.0 if seen[b, k, j] else 0.0
         col = 3 * n + 3 * n * m + 8 * j
         for i in range(3):
             obs[b, col + i] = clip(x_pred[i] / length, -OBS_CLIP, OBS_CLIP)
