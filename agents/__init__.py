@@ -7,7 +7,8 @@
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | :class:`HoldPosition`, :class:`CirclePlacement`, :class:`GreedyPlacement`, :class:`TruthGreedyPlacement` (truth-informed) |
 | ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | :class:`FullSweep`, :class:`CueFollowing`, :class:`OrthogonalSectors`, :class:`GreedyInformation`, :class:`TruthSectors` (truth-informed) |
 
-:mod:`.registry` maps env ids to rule factories (what ``sensorgym benchmark`` scores);
+:mod:`.registry` maps env ids to rule factories (``default_rules`` is what ``sensorgym
+benchmark`` scores unless ``--rule`` names others);
 :mod:`.protocol` is the ``predict`` interface they share with trained models.
 """
 
@@ -18,7 +19,7 @@ from sensorgym.agents.bearings_maneuver import (
     TruthLookahead,
 )
 from sensorgym.agents.protocol import MemorylessRule, PolicyPredictor
-from sensorgym.agents.registry import RULES, rules_for
+from sensorgym.agents.registry import ABLATIONS, RULES, default_rules, rules_for
 from sensorgym.agents.stereo_placement import (
     CirclePlacement,
     GreedyPlacement,
@@ -40,6 +41,7 @@ from sensorgym.agents.stereo_scanning import (
 )
 
 __all__ = [
+    "ABLATIONS",
     "RULES",
     "CirclePlacement",
     "CueFollowing",
@@ -60,5 +62,6 @@ __all__ = [
     "TruthGreedyPlacement",
     "TruthLookahead",
     "TruthSectors",
+    "default_rules",
     "rules_for",
 ]

@@ -91,6 +91,10 @@ POLICY_LABELS = {
     "cue-no-search": "`CueFollowing(sweep_every=NEVER)` (the same sectors, no search after the first two sweeps)",
     "orthogonal-sectors": "`OrthogonalSectors` (theory §10.1 OC-1: narrow sectors on the tracks with the most orthogonal lines of sight)",
     "full-sweep": "`FullSweep` (the papers' fixed sweep of the whole field of regard)",
+    "plan-horizon": "`PlanHorizon` (the assignment with the best planned return over 100 steps, 0.3 per receiver kept)",
+    "plan-acquire": "`PlanHorizon(acquisition=True)` (`plan-horizon`, each drone's planned return weighted by the chance its receivers find it)",
+    "plan-acquire-share": "`PlanHorizon(..., sharing=Sharing())` (`plan-acquire`, a receiver aiming between two drones that fit its field of view)",
+    "plan-fix-first": "`PlanHorizon(..., cue_steps=1)` (`plan-acquire-share` holding the cue's pairs for the first step)",
 }
 
 
@@ -127,8 +131,38 @@ ENV_LABELS = {
 }
 
 
+def _label(env: str, name: str) -> str:
+    """What the policy ``name`` of ``env``'s score file is, for the score tables."""
+    if ":" in name:
+        return f"trained (`{name}`; `train/hyperparams/`)"
+    label = GREEDY_LABELS[env] if name == "greedy-information" else POLICY_LABELS.get(name, name)
+    return ENV_LABELS.get((env, name), label)
+
+
+def _named(env: str, name: str) -> str:
+    """A rule's registered name, and what it is where the tables have a label for it."""
+    label = _label(env, name)
+    return f"`{name}`" if label == name else f"`{name}`: {label}"
+
+
+def _ablations(env: str) -> frozenset[str]:
+    """The rules of ``env`` left out of the benchmark's default set
+    (:data:`sensorgym.agents.registry.ABLATIONS`): shown once, in :func:`ablations`."""
+    from sensorgym.agents.registry import ABLATIONS
+
+    return ABLATIONS.get(f"sensorgym/{env}", frozenset())
+
+
+def _shown(env: str, results: dict) -> list[str]:
+    """The rows of ``env``'s score tables, best first: every policy but the ablations."""
+    left_out = _ablations(env)
+    ranked = sorted(results, key=lambda name: -results[name]["mean"])
+    return [name for name in ranked if name not in left_out]
+
+
 def scores(env: str) -> str:
-    """Mean return ± 95 % of every policy of ``docs/scores/<env>.json``, best first."""
+    """Mean return ± 95 % of every policy of ``docs/scores/<env>.json`` but the ablations, best
+    first."""
     doc = json.loads((SCORES / f"sensorgym__{env}.json").read_text())
     settings = doc["settings"]
     lines = [
@@ -138,14 +172,48 @@ def scores(env: str) -> str:
         "| policy | mean return | ± 95 % |",
         "| --- | ---: | ---: |",
     ]
-    for name, r in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"]):
-        label = (
-            GREEDY_LABELS[env] if name == "greedy-information" else POLICY_LABELS.get(name, name)
+    for name in _shown(env, doc["results"]):
+        r = doc["results"][name]
+        lines.append(f"| {_label(env, name)} | {r['mean']:.3f} | {r['ci95']:.3f} |")
+    return "\n".join(lines)
+
+
+def ablations(env: str) -> str:
+    """The rules of ``env`` outside the benchmark's default set, from ``docs/scores/<env>.json``:
+    each one's mean return ± 95 % and its paired difference to the best rule (mean and 95 %
+    interval, the episodes better and worse), best first."""
+    doc = _score_doc(env)
+    settings, best, paired = doc["settings"], doc.get("best_rule"), doc.get("paired", {})
+    ranked = sorted(doc["results"], key=lambda name: -doc["results"][name]["mean"])
+    names = [name for name in ranked if name in _ablations(env)]
+    lines = [
+        f"Seed {settings['seed']}, {settings['episodes']} episodes "
+        f"(`docs/scores/sensorgym__{env}.json`); `sensorgym benchmark --rule NAME` scores one, "
+        f"the paired difference is per episode, on the same scenarios, to the best rule "
+        f"`{best}`:",
+        "",
+        "| rule | mean return | ± 95 % | paired − best rule | paired 95 % interval "
+        "| better / worse |",
+        "| --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for name in names:
+        r, d = doc["results"][name], paired.get(name)
+        cells = (
+            ["", "", ""]
+            if d is None
+            else [
+                f"{d['mean']:+.3f}",
+                f"[{d['mean'] - d['ci95']:+.3f}, {d['mean'] + d['ci95']:+.3f}]",
+                f"{d['better']} / {d['worse']}" if "better" in d else "",
+            ]
         )
-        label = ENV_LABELS.get((env, name), label)
-        if ":" in name:
-            label = f"trained (`{name}`; `train/hyperparams/`)"
-        lines.append(f"| {label} | {r['mean']:.3f} | {r['ci95']:.3f} |")
+        lines.append(
+            f"| {_named(env, name)} | {r['mean']:.3f} | {r['ci95']:.3f} | "
+            + " | ".join(cells)
+            + " |"
+        )
+    if not names:
+        lines.append("| (none in the committed scores) | | | | | |")
     return "\n".join(lines)
 
 
@@ -215,7 +283,8 @@ def results_summary() -> str:
 
 
 def results_env(env: str) -> str:
-    """Every policy of ``docs/scores/<env>.json`` with its paired difference to the best rule."""
+    """Every policy of ``docs/scores/<env>.json`` but the ablations (:func:`ablations`) with its
+    paired difference to the best rule, its headroom and its tail."""
     doc = _score_doc(env)
     settings, best, paired = doc["settings"], doc.get("best_rule"), doc.get("paired", {})
     lines = [
@@ -228,8 +297,9 @@ def results_env(env: str) -> str:
         "paired IQM | IQM 95 % interval | better / worse |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
-    for name, r in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"]):
-        d = paired.get(name)
+    order = _shown(env, doc["results"])
+    for name in order:
+        r, d = doc["results"][name], paired.get(name)
         if name == best:
             cells = ["(best rule)", "", "", "", ""]
         elif d is None:
@@ -246,7 +316,6 @@ def results_env(env: str) -> str:
         lines.append(
             f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |"
         )
-    order = [n for n, _ in sorted(doc["results"].items(), key=lambda kv: -kv[1]["mean"])]
     return "\n".join(lines + _headroom_lines(doc, order) + _tail_lines(doc, order))
 
 
@@ -740,7 +809,7 @@ def held_out(env: str) -> str:
     head = " | ".join(f"seed {s}: trained | best rule | paired difference [95 %]" for s in seeds)
     lines = [
         "Source: `docs/scores/` (seed 10000) and `docs/scores/seed31337/` (`sensorgym benchmark "
-        "--episodes 256 --seed 31337 --out docs/scores/seed31337`).",
+        "--episodes 256 --all-rules --seed 31337 --out docs/scores/seed31337`).",
         "",
         f"| run | {head} |",
         "| --- |" + " ---: |" * (3 * len(docs)),
@@ -777,6 +846,9 @@ TABLES = {
     "scores-crowded": lambda: scores("StereoPointingCrowded-v0"),
     "scores-placement": lambda: scores("StereoPlacement-v0"),
     "scores-scanning": lambda: scores("StereoScanning-v0"),
+    "ablations-book": lambda: ablations("BearingsManeuverBook-v0"),
+    "ablations-pointing": lambda: ablations("StereoPointing-v0"),
+    "ablations-crowded": lambda: ablations("StereoPointingCrowded-v0"),
     "headroom-share": headroom_share,
     **{f"headroom-gap-{env.split('-')[0]}": (lambda e=env: headroom_gap(e)) for env in SCORE_ENVS},
     "results-summary": results_summary,

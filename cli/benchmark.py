@@ -1,7 +1,9 @@
-"""``sensorgym benchmark``: score every rule and trained policy on every env — the main job.
+"""``sensorgym benchmark``: score the rules and trained policies on every env — the main job.
 
-Every env registered under ``sensorgym/`` (or those given with ``--env``) is scored: every rule
-registered for it in :mod:`sensorgym.agents.registry`, every policy shipped with sensorgym
+Every env registered under ``sensorgym/`` (or those given with ``--env``) is scored: its default
+rule set (:func:`sensorgym.agents.registry.default_rules`: the fieldable rules to compare
+against and the truth-informed ones; ``--rule NAME`` scores the named rules instead, ablations
+included, ``--all-rules`` every registered one), every policy shipped with sensorgym
 (:mod:`sensorgym.train.shipped`) and every model given with ``--model``, each evaluated with one
 seed over the same scenarios, in the same order (:func:`sensorgym.train.evaluation.evaluate` on
 the native vector env). One table per env shows mean return, the 95 % confidence half-width and
@@ -18,7 +20,10 @@ per-episode ``returns`` and the paired differences (``paired``); the numbers go 
 p10 and the median, p90 and CVaR₅ % of the env's accuracy measures in metres
 (:mod:`sensorgym.train.tail`); the per-env JSON holds every policy's per-episode values
 (``results[policy]["tails"]``) and those statistics (``tail``). ``--param NAME=VALUE`` scores the env at another size or setting
-(every rule; a trained policy only if it was trained with the same params).
+(every rule; a trained policy only if it was trained with the same params). The best rule a
+policy is paired with is the best of the rules scored; the headroom needs the env's passive rule
+among them (:data:`sensorgym.train.bounds.PASSIVE_RULES`, in every default set), and a
+platform-manoeuvre env's hindsight bound starts from the actions of the policies scored.
 
 The default seed 10000 is held out: no training run draws its scenarios from it or is chosen
 on it (``sensorgym train`` trains on its ``--seed`` and evaluates on the tuning seed 500), so a
@@ -36,7 +41,7 @@ from sensorgym.cli import args as types
 from sensorgym.cli.console import Steps, make_console, print_written
 from sensorgym.cli.params import add_param_argument, params_from
 
-HELP = "Score every rule and trained policy on every env (seeded, same scenarios), with a chart."
+HELP = "Score the rules and trained policies on every env (seeded, same scenarios), with a chart."
 
 #: the help of ``--unsafe-pickle`` (benchmark and render)
 UNSAFE_PICKLE_HELP = (
@@ -80,6 +85,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--no-shipped", action="store_true", help="leave out the policies shipped with sensorgym"
     )
+    rules = parser.add_mutually_exclusive_group()
+    rules.add_argument(
+        "--rule",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="score this registered rule, an ablation too; repeatable; every name must be "
+        "registered for every env scored; shipped policies (unless --no-shipped) and --model "
+        "runs are scored beside them (default: each env's default set, its fieldable rules to "
+        "compare against and the truth-informed ones: sensorgym.agents.registry.default_rules; "
+        "a name not registered lists those that are)",
+    )
+    rules.add_argument(
+        "--all-rules",
+        action="store_true",
+        help="score every registered rule, the ablations included (what docs/scores holds)",
+    )
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--no-chart", action="store_true", help="write no PNG chart")
     parser.add_argument("--out", type=Path, default=Path("results/benchmark"))
@@ -105,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--env: not a registered env: {unknown}; known: {known}")
     if args.param and not args.env:
         raise SystemExit("--param: name the env(s) it sets with --env")
+    args.rules = {env_id: _rules_of(env_id, args) for env_id in env_ids}
     args.params = {
         env_id: params_from(env_id, args.param, scenarios=args.n_envs) for env_id in env_ids
     }
@@ -170,6 +193,26 @@ def _kept_scores(summary: Path, settings: dict[str, Any], args: argparse.Namespa
     return {k: v for k, v in kept.items() if k not in args.env} if isinstance(kept, dict) else {}
 
 
+def _rules_of(env_id: str, args: argparse.Namespace) -> list[str]:
+    """The rules scored on ``env_id``: those of ``--rule`` (``SystemExit`` naming the registered
+    ones if one is not registered for it), every registered one with ``--all-rules``, else the
+    env's default set."""
+    from sensorgym.agents.registry import RULES, default_rules
+
+    known = list(RULES.get(env_id, {}))
+    if args.all_rules:
+        return known
+    if args.rule is None:
+        return default_rules(env_id)
+    unknown = [name for name in args.rule if name not in known]
+    if unknown:
+        raise SystemExit(
+            f"--rule: {', '.join(unknown)} not registered for {env_id}; "
+            f"known: {', '.join(known) or 'none'}"
+        )
+    return list(dict.fromkeys(args.rule))  # each once, in the order given
+
+
 def _check_model(path: Path, env_ids: list[str], args: argparse.Namespace) -> None:
     """``SystemExit`` with one line unless the run folder ``path`` loads for one of
     ``env_ids`` at the ``--param`` settings: its config, its weights and the model they build
@@ -198,7 +241,7 @@ def _check_model(path: Path, env_ids: list[str], args: argparse.Namespace) -> No
 def _benchmark(
     env_id: str, args: argparse.Namespace, console: Any
 ) -> tuple[dict[str, dict[str, Any]], dict[str, Any] | None] | None:
-    """Score every policy of ``env_id`` and print its table: the results and, for an env whose
+    """Score the policies of ``env_id`` and print its table: the results and, for an env whose
     bound is computed from what the policies played, its summary; ``None`` when it has no
     policy."""
     from rich.table import Table
@@ -215,7 +258,7 @@ def _benchmark(
     from sensorgym.train.models import RunFolderError, check_model_params, read_config, run_dir_of
 
     params = args.params[env_id]
-    specs = policies_for(env_id, args.model, shipped=not args.no_shipped)
+    specs = policies_for(env_id, args.model, shipped=not args.no_shipped, rules=args.rules[env_id])
     for name, spec in list(specs.items()):
         if spec.kind != "model":
             continue

@@ -111,12 +111,17 @@ def warm(env_ids: list[str], events: Any = None) -> tuple[list[str], float, int]
     from gymnasium.envs.registration import load_env_creator
 
     import sensorgym.envs  # noqa: F401  (registers the ids)
+    from sensorgym.agents.registry import RULES
     from sensorgym.envs.shells.normals import COMPILED_MIN_DRAWS, standard_normal_rows
     from sensorgym.train.benchmark import NotApplicable, policies_for, score
 
     t0 = time.perf_counter()
     played = 0
-    specs = {env_id: policies_for(env_id, shipped=False) for env_id in env_ids}
+    # every registered rule, ablations too: `benchmark --rule NAME` plays them compiled
+    specs = {
+        env_id: policies_for(env_id, shipped=False, rules=RULES.get(env_id, {}))
+        for env_id in env_ids
+    }
     variants = {  # read off the env class: making an env here would compile its kernels
         env_id: getattr(
             load_env_creator(gym.spec(env_id).entry_point).simulation, "COMPILE_VARIANTS", ()

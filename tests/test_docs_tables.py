@@ -45,3 +45,29 @@ def test_committed_paired_differences_follow_from_the_committed_returns():
                 assert committed[key] == pytest.approx(value, rel=1e-9, abs=1e-9), (
                     f"{path}: {name} {key}"
                 )
+
+
+def test_an_ablation_appears_once_in_the_generated_tables():
+    """The per-env score tables show the benchmark's default set; each ablation of
+    ``agents.registry.ABLATIONS`` in the committed scores is in its env's ablation table
+    only."""
+    import json
+
+    from sensorgym.agents.registry import ABLATIONS
+
+    spec = importlib.util.spec_from_file_location("tables", ROOT / "benchmarks" / "tables.py")
+    tables = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tables)
+    for env in tables.SCORE_ENVS:
+        env_id = f"sensorgym/{env}"
+        scored = json.loads((tables.SCORES / f"sensorgym__{env}.json").read_text())["results"]
+        shown = [tables.TABLES[f"results-{env.split('-')[0]}"]()]
+        shown += [fn() for key, fn in tables.TABLES.items() if key.startswith("scores-")]
+        shown = [t for t in shown if f"sensorgym__{env}.json" in t]
+        assert len(shown) == 2, env  # the env's score table and its paired table
+        for name in ABLATIONS.get(env_id, ()):
+            assert all(f"`{name}`" not in t and f"| {name} |" not in t for t in shown), name
+        if ABLATIONS.get(env_id):
+            table = tables.ablations(env)
+            for name in ABLATIONS[env_id] & set(scored):
+                assert table.count(f"| `{name}`") == 1, name

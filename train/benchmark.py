@@ -9,6 +9,7 @@ and ``sensorgym sweep`` fans out as Ray tasks.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,16 +46,28 @@ def registered_envs() -> list[str]:
 
 
 def policies_for(
-    env_id: str, models: list[Path] | tuple[Path, ...] = (), shipped: bool = True
+    env_id: str,
+    models: list[Path] | tuple[Path, ...] = (),
+    shipped: bool = True,
+    rules: Iterable[str] | None = None,
 ) -> dict[str, PolicySpec]:
-    """Display name → spec of every policy scored on ``env_id``: its registered rules, the
-    shipped policies (``shipped:<run>``, unless ``shipped`` is false) and those of ``models``
-    (run folders) trained on it (``model:<run>``)."""
-    from sensorgym.agents.registry import RULES
+    """Display name → spec of every policy scored on ``env_id``: the rules ``rules`` (default:
+    the env's default set, :func:`~sensorgym.agents.registry.default_rules`; ``KeyError``
+    naming the registered ones for a name not registered for it), the shipped policies
+    (``shipped:<run>``, unless ``shipped`` is false) and those of ``models`` (run folders)
+    trained on it (``model:<run>``)."""
+    from sensorgym.agents.registry import RULES, default_rules
     from sensorgym.train.models import read_config, run_dir_of
     from sensorgym.train.shipped import shipped_policies
 
-    specs = {name: PolicySpec("rule", name) for name in RULES.get(env_id, {})}
+    names = default_rules(env_id) if rules is None else list(rules)
+    unknown = [name for name in names if name not in RULES.get(env_id, {})]
+    if unknown:
+        raise KeyError(
+            f"no rule {', '.join(unknown)} registered for {env_id}; "
+            f"known: {', '.join(RULES.get(env_id, {})) or 'none'}"
+        )
+    specs = {name: PolicySpec("rule", name) for name in names}
     if shipped:
         for run, folder in shipped_policies(env_id).items():
             specs[f"shipped:{run}"] = PolicySpec("model", str(folder), shipped=True)

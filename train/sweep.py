@@ -11,8 +11,9 @@ folders are incomplete and left out of the aggregate).
 The sweep then aggregates the trials — per configuration, the mean over seeds of the trained
 policy's evaluation return with its 95 % interval across seeds (Student t), and the best
 configuration — and, with ``benchmark_episodes > 0``, fans the benchmark out as Ray tasks:
-every rule, every shipped policy and every seed's run of the best configuration, the episodes
-split into chunks (chunk ``k`` seeded ``eval_seed + k``, the same scenarios for every policy).
+the env's default rules, every shipped policy and every seed's run of the best configuration,
+the episodes split into chunks (chunk ``k`` seeded ``eval_seed + k``, the same scenarios for
+every policy).
 Ray runs on an instance of its own by default (``address=None`` starts one with
 ``address="local"``, so a stale cluster file another Ray head left in Ray's temp folder or a
 ``RAY_ADDRESS`` in the environment is never joined by accident) or on an existing cluster
@@ -352,9 +353,10 @@ def run_sweep(
 
 
 def fan_out_benchmark(settings: SweepSettings, runs: list[Path]) -> dict[str, dict[str, float]]:
-    """Score every rule, shipped policy and run of ``runs`` on ``benchmark_episodes`` episodes,
-    as Ray tasks of ``benchmark_chunk`` episodes each (chunk ``k`` on seed ``eval_seed + k``:
-    the same scenarios for every policy), pooled per policy."""
+    """Score the env's default rules (as ``sensorgym benchmark`` does), every shipped policy and
+    every run of ``runs`` on ``benchmark_episodes`` episodes, as Ray tasks of
+    ``benchmark_chunk`` episodes each (chunk ``k`` on seed ``eval_seed + k``: the same
+    scenarios for every policy), pooled per policy."""
     import ray
 
     from sensorgym.train.benchmark import policies_for, pool, score

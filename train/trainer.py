@@ -1,8 +1,9 @@
 """Train an SB3 algorithm on a registered env's native vector env, save it, score it.
 
 The run folder (:mod:`.models`) gets the policy weights (``policy.safetensors``: data, no
-pickle), the resolved configuration, an evaluation of the trained policy beside every heuristic
-rule registered for the env, all on one seed and the same evaluation scenarios (a seed disjoint
+pickle), the resolved configuration, an evaluation of the trained policy beside the heuristic
+rules of the env's default set (:func:`~sensorgym.agents.registry.default_rules`, what
+``sensorgym benchmark`` scores), all on one seed and the same evaluation scenarios (a seed disjoint
 from training's), and the learning curve on those scenarios (:mod:`.curves`). A run may act
 through wrappers (:mod:`.wrappers`) and imitate an expert before RL (:mod:`.experts`), as its
 hyperparameters say. What the run cost (wall-clock per phase, samples, the machine) goes to
@@ -25,7 +26,7 @@ from rich.progress import Progress
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sensorgym.agents.registry import RULES
+from sensorgym.agents.registry import RULES, default_rules
 from sensorgym.train.checkpoints import CHECKPOINT_DIR, Checkpointer, read_checkpoint
 from sensorgym.train.config import (
     ALGORITHMS,
@@ -93,7 +94,8 @@ class TrainResult:
     run_dir: Path
     """The run folder (policy weights, config, evaluation)."""
     evaluation: dict[str, dict[str, float]]
-    """Policy name → episode-return statistics (``"trained"`` and every rule)."""
+    """Policy name → episode-return statistics (``"trained"`` and every rule of the default
+    set)."""
     model: BaseAlgorithm | None = None
     """The trained model as it left training (what the run folder's weights reload)."""
 
@@ -273,9 +275,9 @@ def _train(
     )  # fmt: skip
     rules_begin = time.perf_counter()
     rule_scores: dict[str, dict[str, Any]] = {}
-    for rule, make in RULES.get(env_id, {}).items():
+    for rule in default_rules(env_id):  # the benchmark's default set: its best rule among them
         try:
-            policy = make(env_params(eval_env), simulator_state(eval_env))
+            policy = RULES[env_id][rule](env_params(eval_env), simulator_state(eval_env))
         except ValueError:  # a rule that does not apply to these params (e.g. one platform)
             continue
         rule_scores[rule] = evaluate(policy, eval_env, eval_episodes, eval_seed).as_dict()

@@ -217,3 +217,34 @@ def test_argument_types_accept_what_they_should():
     assert types.seed("0") == 0 and types.seed(str(types.MAX_SEED)) == types.MAX_SEED
     assert types.positive_int("3") == 3 and types.non_negative_int("0") == 0
     assert types.positive_float("0.5") == 0.5 and math.isclose(types.fps("2.5"), 2.5)
+
+
+def test_benchmark_rule_scores_exactly_the_named_rules(tmp_path):
+    """``--rule`` (repeatable) scores those rules, an ablation among them, and no other; the
+    best rule is the best of them."""
+    from sensorgym.agents.registry import ABLATIONS
+    from sensorgym.cli.main import main
+
+    env_id = "sensorgym/BearingsManeuverBook-v0"
+    assert "paper002" in ABLATIONS[env_id]
+    out = tmp_path / "b"
+    argv = ["benchmark", "--env", env_id, "--episodes", "4", "--n-envs", "2", "--no-shipped",
+            "--no-chart", "--rule", "paper002", "--rule", "straight-course", "--out", str(out)]  # fmt: skip
+    assert main(argv) == 0
+    doc = json.loads((out / f"{env_id.replace('/', '__')}.json").read_text())
+    assert set(doc["results"]) == {"paper002", "straight-course"}
+    assert doc["best_rule"] == max(doc["results"], key=lambda n: doc["results"][n]["mean"])
+    assert all(r["episodes"] == 4 for r in doc["results"].values())
+
+
+def test_benchmark_refuses_an_unknown_rule_and_lists_the_known_ones(tmp_path, no_work):
+    from sensorgym.agents.registry import RULES
+
+    argv = [*_commands(tmp_path)["benchmark"], "--rule", "plan-search"]
+    message = _fails(argv, "--rule", "plan-search", "not registered for", BEARINGS, "known:")
+    assert all(name in message for name in RULES[BEARINGS])
+    # every name must hold for every env scored
+    argv = ["benchmark", "--env", POINTING, "--env", BEARINGS, "--rule", "plan-search",
+            "--out", str(tmp_path / "c")]  # fmt: skip
+    _fails(argv, "--rule", "plan-search", "not registered for", BEARINGS)
+    _fails([*_commands(tmp_path)["benchmark"], "--rule", "paper002", "--all-rules"], "--all-rules")
