@@ -12,7 +12,9 @@ decisions of every rule at each params variant in the simulation module's ``COMP
 searches at many receivers), so that no run stalls midway on them. With a warm cache it only
 loads (seconds: the rules' episodes are played all the same); with ``--stamp FILE`` it does
 nothing when FILE holds the digest of the current sources (:func:`source_digest`) — the set-up
-scripts run it that way after every install.
+scripts run it that way after every install — and when a kernel source changed since FILE was
+written, it first deletes every cached kernel (:func:`clear_kernel_caches`: numba would keep a
+caller compiled with an old callee from another file).
 """
 
 from __future__ import annotations
@@ -57,6 +59,53 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 #: the subpackages whose sources the compiled kernels come from
 PACKAGES = ("envs", "agents", "trackers", "train")
+
+
+def package_roots() -> list[Path]:
+    """The source folders of :data:`PACKAGES`, found without importing them."""
+    import importlib.util
+
+    roots = []
+    for name in PACKAGES:
+        spec = importlib.util.find_spec(f"sensorgym.{name}")
+        roots += [Path(r) for r in (spec.submodule_search_locations or ())] if spec else []
+    return roots
+
+
+def kernel_sources(roots: list[Path]) -> list[Path]:
+    """The ``.py`` files under ``roots`` that define numba kernels (``@njit``)."""
+    return [p for root in roots for p in sorted(root.rglob("*.py")) if "@njit" in p.read_text()]
+
+
+def kernel_digest(roots: list[Path]) -> str:
+    """SHA-256 of every kernel source under ``roots`` (:func:`kernel_sources`, path and bytes)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for path in kernel_sources(roots):
+        h.update(path.as_posix().encode())
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def clear_kernel_caches(roots: list[Path], cache_dir: str | None = None) -> int:
+    """Delete numba's cached kernels (``*.nbi`` index and ``*.nbc`` code files) of the sources
+    under ``roots`` — in the ``__pycache__`` folders beside them, or in ``cache_dir``'s mirror of
+    their paths when numba caches there (``NUMBA_CACHE_DIR``). Returns how many files went.
+
+    Numba keys a cached kernel on its own file only: after an edit to a kernel it calls in
+    another file, the caller would load from the cache with the old callee compiled in. So when
+    any kernel source changes, every kernel is compiled again."""
+    removed = 0
+    for root in roots:
+        where = root.resolve()
+        if cache_dir:
+            where = Path(cache_dir) / where.relative_to(where.anchor)
+        for pattern in ("*.nbi", "*.nbc"):
+            for path in where.rglob(pattern) if where.is_dir() else ():
+                path.unlink(missing_ok=True)
+                removed += 1
+    return removed
 
 
 def source_digest() -> str:
@@ -276,10 +325,17 @@ class _Bars:
 def run(args: argparse.Namespace) -> int:
     if args.stamp is not None:
         digest = source_digest()
-        if args.stamp.is_file() and args.stamp.read_text().strip() == digest:
+        recorded = args.stamp.read_text().split() if args.stamp.is_file() else []
+        if recorded[:1] == [digest]:
             if not args.quiet:
                 print(f"{args.stamp}: the sources are unchanged since the last compile")
             return 0
+        roots = package_roots()
+        kernels = kernel_digest(roots)
+        if recorded[1:2] != [kernels]:
+            removed = clear_kernel_caches(roots, os.environ.get("NUMBA_CACHE_DIR"))
+            if removed and not args.quiet:
+                print(f"kernel sources changed: {removed} cached kernel files removed")
     from sensorgym.train.benchmark import registered_envs
 
     known = registered_envs()
@@ -297,5 +353,5 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(f"{wall:7.1f} s  wall, {min(jobs, len(tasks))} processes")
     if args.stamp is not None:
-        args.stamp.write_text(digest + "\n")
+        args.stamp.write_text(f"{digest}\n{kernels}\n")
     return 0

@@ -6,7 +6,16 @@ import queue
 
 import pytest
 
-from sensorgym.cli.compile import decide, groups, warm
+from sensorgym.cli.compile import (
+    clear_kernel_caches,
+    decide,
+    groups,
+    kernel_digest,
+    kernel_sources,
+    package_roots,
+    source_digest,
+    warm,
+)
 from sensorgym.cli.main import main
 from sensorgym.train.benchmark import registered_envs
 
@@ -72,25 +81,51 @@ def test_compile_command_runs_and_refuses_unknown_ids(capsys):
 
 
 def test_a_stamp_of_the_current_sources_skips_the_compile(tmp_path, capsys):
-    from sensorgym.cli.compile import source_digest
 
     stamp = tmp_path / "compiled"
     stamp.write_text(source_digest() + "\n")
     assert main(["compile", "--stamp", str(stamp)]) == 0
     assert "unchanged" in capsys.readouterr().out
     # another digest (sources edited since): compiles, then records the current one
-    stamp.write_text("0" * 64 + "\n")
+    # (the kernels' digest kept: a changed one would clear the tree's cached kernels)
+    stamp.write_text("0" * 64 + "\n" + kernel_digest(package_roots()) + "\n")
     env_id = "sensorgym/StereoPlacement-v0"
     assert main(["compile", "--env", env_id, "--jobs", "1", "--stamp", str(stamp)]) == 0
     assert env_id in capsys.readouterr().out
-    assert stamp.read_text().strip() == source_digest()
+    digest, kernels = stamp.read_text().split()
+    assert digest == source_digest() and kernels == kernel_digest(package_roots())
+
+
+def test_a_changed_kernel_source_clears_every_cached_kernel(tmp_path, monkeypatch):
+    # numba keys a cached kernel on its own file: a caller compiled with an old callee from
+    # another file would load stale, so any kernel edit clears them all
+    root = tmp_path / "pkg"
+    (root / "sub" / "__pycache__").mkdir(parents=True)
+    (root / "kernels.py").write_text("from numba import njit\n\n@njit\ndef f(x):\n    return x\n")
+    (root / "plain.py").write_text("x = 1\n")
+    cached = [root / "sub" / "__pycache__" / f"kernels.f-3.py311.{e}" for e in ("nbi", "1.nbc")]
+    for path in cached:
+        path.write_bytes(b"cache")
+    other = root / "sub" / "__pycache__" / "plain.cpython-311.pyc"
+    other.write_bytes(b"pyc")
+    assert kernel_sources([root]) == [root / "kernels.py"]
+    before = kernel_digest([root])
+    (root / "plain.py").write_text("x = 2\n")
+    assert kernel_digest([root]) == before  # a file without kernels does not count
+    (root / "kernels.py").write_text((root / "kernels.py").read_text() + "\n# edited\n")
+    assert kernel_digest([root]) != before
+    assert clear_kernel_caches([root]) == 2
+    assert not any(p.exists() for p in cached) and other.exists()
+    # with NUMBA_CACHE_DIR numba mirrors the source path under it
+    mirror = tmp_path / "cache" / root.resolve().relative_to(root.resolve().anchor) / "sub"
+    mirror.mkdir(parents=True)
+    (mirror / "kernels.f-3.py311.nbi").write_bytes(b"cache")
+    assert clear_kernel_caches([root], str(tmp_path / "cache")) == 1
 
 
 def test_the_digest_changes_with_any_source_file_and_only_with_sources(tmp_path, monkeypatch):
     import importlib.util
     from types import SimpleNamespace
-
-    from sensorgym.cli.compile import source_digest
 
     real = source_digest()
     assert len(real) == 64 and source_digest() == real
