@@ -166,6 +166,10 @@ def plan_workspace(horizon, platforms):
 
 
 # --- the contract: reset and step ---------------------------------------------------------------
+#
+# The kernels take the state's arrays out of their tuples once and hand each stage the arrays
+# it reads and writes: a tuple handed to a stage, or a field read from one, counts a reference
+# to each of its arrays every time, which the loops over rows would pay.
 
 
 @njit(**_JIT)
@@ -180,19 +184,21 @@ def reset_kernel(settings, prior, state, eps):
     the accuracy ``acc`` and the derived fields. ``settings`` is the params' record."""
     p = read_settings(settings)
     s = StateArrays(*state)
-    ws = workspace(s.lw.shape[1])
-    for b in range(s.z.shape[0]):
-        take_bearings(p, s, eps, b)
-        prior_bank(p, prior, s, b)
+    pos, _, _, target, lw, X, P, L, acc, z = state[:10]
+    ws = workspace(lw.shape[1])
+    x, Pe, w, L_in, A_update = ws.x, ws.Pe, ws.w, ws.L_pred, ws.A_update
+    for b in range(z.shape[0]):
+        take_bearings(p, target, pos, eps, b, z)
+        prior_bank(p, prior, z, pos, b, lw, X, P)
         # P_0 = P_prior, the bank's covariance, which already holds platform 1's first bearing;
         # then P_0 = (P_prior⁻¹ + Σ_{k≥2} I_k(x_0))⁻¹: the other platforms' first bearings
-        bank_estimate(s.lw[b], s.X[b], s.P[b], ws.x, ws.Pe, ws.w)
-        psd_square_root(ws.Pe, s.L[b])
-        for k in range(1, s.z.shape[1]):
-            update_bank(p, s, b, k)
-            copy2(s.L[b], ws.L_pred)
-            update_bound(p, ws.L_pred, s, b, k, ws)
-        s.acc[b] = row_accuracy(p, s, b)
+        bank_estimate(lw[b], X[b], P[b], x, Pe, w)
+        psd_square_root(Pe, L[b])
+        for k in range(1, z.shape[1]):
+            update_bank(p, lw[b], X[b], P[b], z[b, k], pos, b, k)
+            copy2(L[b], L_in)
+            update_bound(p, L_in, target, pos, b, k, L[b], A_update)
+        acc[b] = row_accuracy(p, L[b], target, pos, b)
         derive(p, s, b, ws)
 
 
@@ -206,24 +212,28 @@ def step_kernel(lo, hi, settings, old, action, draws, new, out):
     ``G Gᵀ = Q``, ``(B, K)`` standard normals. ``settings`` is the params' record. Returns the
     number of non-finite action entries (the caller raises: the kernel trusts everything else)."""
     p = read_settings(settings)
-    s, s2 = StateArrays(*old), StateArrays(*new)
+    pos, heading, speed, target, lw, X, P, L, acc = old[:9]
+    pos2, heading2, speed2, target2, lw2, X2, P2, L2, acc2, z2 = new[:10]
+    s2 = StateArrays(*new)
     target_noise, noise_factor, bearing_noise = draws
     reward, terminated = out
-    ws = workspace(s.lw.shape[1])
+    ws = workspace(lw.shape[1])
+    spare, L_pred, A_pred, A_update = ws.x, ws.L_pred, ws.A_pred, ws.A_update
     bad = 0
     for b in range(lo, hi):
         # 1. the platforms fly the commanded arcs, the target moves on
-        bad += fly(p, s, s2, action, b)
-        move_target(p, s, s2, target_noise, noise_factor, b, ws)
+        bad += fly(p, pos, heading, speed, action, b, pos2, heading2, speed2)
+        move_target(p, target[b], target_noise, noise_factor, b, target2[b], spare)
         # 2. every platform takes a bearing; the bank predicts, then fuses them in turn
-        take_bearings(p, s2, bearing_noise, b)
-        track(p, s, s2, b)
+        take_bearings(p, target2, pos2, bearing_noise, b, z2)
+        track(p, lw[b], X[b], P[b], z2, pos2, b, lw2[b], X2[b], P2[b])
         # 3. the bound on the true state: P̄ = F P Fᵀ + Q, then each platform's bearing
-        s2.acc[b] = bound(p, s, s2, b, ws)
+        bound_predict(L[b], p.dt, p.q_tilde, L_pred, A_pred)
+        acc2[b] = bound(p, L_pred, target2, pos2, b, L2[b], A_update)
         # 4. what the agents see (and info reads), from the bank's estimate
         derive(p, s2, b, ws)
         # 5. reward and episode end: a platform within the stand-off min_range
-        reward[b], terminated[b] = reward_and_end(p, s, s2, b)
+        reward[b], terminated[b] = reward_and_end(p, acc[b], acc2[b], target2, pos2, b)
     return bad
 
 
@@ -241,39 +251,38 @@ def fly_step(p, px, py, heading, speed, turn, dv):
 
 
 @njit(**_INLINE)
-def fly(p, s, s2, action, b):
+def fly(p, pos, heading, speed, action, b, pos2, heading2, speed2):
     """Row ``b``'s platforms fly the commanded arcs ``(a₀ ω_max, a₁ Δv_max)``, ``a`` clipped to
-    ``[−1, 1]`` (:func:`.reference.fly`), from ``s`` into ``s2``. Returns the number of
-    non-finite action entries."""
+    ``[−1, 1]`` (:func:`.reference.fly`), into ``pos2``, ``heading2``, ``speed2``. Returns the
+    number of non-finite action entries."""
     bad = 0
-    for k in range(s.heading.shape[1]):
+    for k in range(heading.shape[1]):
         a0, a1 = action[b, k, 0], action[b, k, 1]
         if not (np.isfinite(a0) and np.isfinite(a1)):
             bad += 1
         a0 = min(max(a0, -1.0), 1.0)
         a1 = min(max(a1, -1.0), 1.0)
-        s2.pos[b, k, 0], s2.pos[b, k, 1], s2.heading[b, k], s2.speed[b, k] = fly_step(
-            p, s.pos[b, k, 0], s.pos[b, k, 1], s.heading[b, k], s.speed[b, k],
-            a0 * p.max_turn, a1 * p.max_dv,
+        pos2[b, k, 0], pos2[b, k, 1], heading2[b, k], speed2[b, k] = fly_step(
+            p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k], a0 * p.max_turn,
+            a1 * p.max_dv,
         )  # fmt: skip
     return bad
 
 
 @njit(**_INLINE)
-def move_target(p, s, s2, noise, G, b, ws):
-    """Row ``b``'s target one step on (:func:`.reference.move_target`): ``x' = F x + G ε``
-    (``ε = noise[b]``, read only when ``q̃ > 0``)."""
-    propagate_target(s.target[b], noise[b] if p.q_tilde > 0.0 else ws.x, G, p.dt, p.q_tilde,
-                     s2.target[b])  # fmt: skip
+def move_target(p, x, noise, G, b, out, spare):
+    """The target ``x (4,)`` one step on into ``out`` (:func:`.reference.move_target`):
+    ``x' = F x + G ε`` (``ε = noise[b]``, read only when ``q̃ > 0``; ``spare`` stands in)."""
+    propagate_target(x, noise[b] if p.q_tilde > 0.0 else spare, G, p.dt, p.q_tilde, out)
 
 
 @njit(**_INLINE)
-def take_bearings(p, s, noise, b):
-    """Row ``b``'s noisy bearings ``z = wrap(β + σ ε)`` of the target from every platform of
-    ``s`` (:func:`.reference.take_bearings`), written into ``s.z[b]``."""
-    for k in range(s.z.shape[1]):
-        s.z[b, k] = noisy_bearing(
-            s.target[b, 0], s.target[b, 1], s.pos[b, k, 0], s.pos[b, k, 1], p.sigma, noise[b, k]
+def take_bearings(p, target, pos, noise, b, z):
+    """Row ``b``'s noisy bearings ``z = wrap(β + σ ε)`` of the target from every platform
+    (:func:`.reference.take_bearings`), written into ``z[b]``."""
+    for k in range(z.shape[1]):
+        z[b, k] = noisy_bearing(
+            target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], p.sigma, noise[b, k]
         )
 
 
@@ -281,129 +290,125 @@ def take_bearings(p, s, noise, b):
 
 
 @njit(**_INLINE)
-def prior_bank(p, prior, s, b):
+def prior_bank(p, prior, z, pos, b, lw, X, P):
     """Row ``b``'s bank from platform 1's first bearing (:func:`.reference.prior_bank`): range
     cells and spread factors ``prior``, the speed prior of the settings, course mean = the
     bearing."""
     r, sr, lw0, pos_f, vel_f = prior
-    z = s.z[b, 0]
-    range_bank_prior(z, s.pos[b, 0, 0], s.pos[b, 0, 1], r, sr, lw0, pos_f, p.speed_mean,
-                     p.speed_sigma, z, vel_f, s.lw[b], s.X[b], s.P[b])  # fmt: skip
+    z0 = z[b, 0]
+    range_bank_prior(z0, pos[b, 0, 0], pos[b, 0, 1], r, sr, lw0, pos_f, p.speed_mean,
+                     p.speed_sigma, z0, vel_f, lw[b], X[b], P[b])  # fmt: skip
 
 
 @njit(**_INLINE)
-def update_bank(p, s, b, k):
-    """Row ``b``'s bank fuses platform ``k``'s bearing (:func:`.reference.update_bank`)."""
-    bank_update(s.lw[b], s.X[b], s.P[b], s.z[b, k], s.pos[b, k, 0], s.pos[b, k, 1], p.sigma)
+def update_bank(p, lw, X, P, z, pos, b, k):
+    """The bank ``lw``, ``X``, ``P`` of one row fuses platform ``k``'s bearing ``z``
+    (:func:`.reference.update_bank`)."""
+    bank_update(lw, X, P, z, pos[b, k, 0], pos[b, k, 1], p.sigma)
 
 
 @njit(**_INLINE)
-def track(p, s, s2, b):
-    """Row ``b``'s bank predicts from ``s`` (:func:`.reference.predict_bank`) and fuses the
-    bearings of ``s2`` in platform order, into ``s2``."""
-    copy1(s.lw[b], s2.lw[b])
-    bank_predict(s.X[b], s.P[b], p.dt, p.q_tilde, s2.X[b], s2.P[b])
-    for k in range(s2.z.shape[1]):
-        update_bank(p, s2, b, k)
+def track(p, lw, X, P, z, pos, b, lw2, X2, P2):
+    """One row's bank predicts (:func:`.reference.predict_bank`) into ``lw2``, ``X2``, ``P2``
+    and fuses the new bearings ``z[b]``, taken from ``pos[b]``, in platform order."""
+    copy1(lw, lw2)
+    bank_predict(X, P, p.dt, p.q_tilde, X2, P2)
+    for k in range(z.shape[1]):
+        update_bank(p, lw2, X2, P2, z[b, k], pos, b, k)
 
 
 # --- the bound: posterior CRLB on the true state, square-root form (theory §7.8, §11.2) --------
 
 
 @njit(**_INLINE)
-def update_bound(p, L_pred, s, b, k, ws):
-    """``s.L[b]``, the square root of ``(P̄⁻¹ + Hᵀ H / σ²)⁻¹`` from ``L_pred`` (the root of
-    ``P̄``) after platform ``k``'s bearing at the true target (:func:`.reference.update_bound`)."""
-    bound_update(L_pred, s.target[b, 0], s.target[b, 1], s.pos[b, k, 0], s.pos[b, k, 1],
-                 p.sigma, s.L[b], ws.A_update)  # fmt: skip
+def update_bound(p, L_pred, target, pos, b, k, out, A):
+    """``out``, the square root of ``(P̄⁻¹ + Hᵀ H / σ²)⁻¹`` from ``L_pred`` (the root of ``P̄``)
+    after platform ``k``'s bearing at the true target (:func:`.reference.update_bound`)."""
+    bound_update(L_pred, target[b, 0], target[b, 1], pos[b, k, 0], pos[b, k, 1], p.sigma, out, A)
 
 
 @njit(**_INLINE)
-def row_accuracy(p, s, b):
-    """The accuracy ``m(P)`` the reward measures of row ``b``'s bound
+def row_accuracy(p, L, target, pos, b):
+    """The accuracy ``m(P)`` the reward measures of row ``b``'s bound root ``L``
     (:func:`.reference.accuracy`): relative range from platform 1, or the position RMS."""
-    return accuracy(p.relative_range, s.L[b], s.target[b, 0], s.target[b, 1], s.pos[b, 0, 0],
-                    s.pos[b, 0, 1], p.floor)  # fmt: skip
+    return accuracy(p.relative_range, L, target[b, 0], target[b, 1], pos[b, 0, 0], pos[b, 0, 1],
+                    p.floor)  # fmt: skip
 
 
 @njit(**_INLINE)
-def bound(p, s, s2, b, ws):
-    """Row ``b``'s bound one step on, into ``s2``: ``P̄ = F P Fᵀ + Q``
-    (:func:`.reference.predict_bound`), then each platform's bearing information in turn.
-    Returns its accuracy."""
-    bound_predict(s.L[b], p.dt, p.q_tilde, ws.L_pred, ws.A_pred)
-    K = s2.z.shape[1]
+def bound(p, L_pred, target, pos, b, out, A):
+    """Row ``b``'s bound after the prediction ``L_pred`` (the root of ``P̄ = F P Fᵀ + Q``,
+    :func:`.reference.predict_bound`): each platform's bearing information in turn, into
+    ``out``. Returns its accuracy."""
+    K = pos.shape[1]
     for k in range(K):
-        update_bound(p, ws.L_pred, s2, b, k, ws)
+        update_bound(p, L_pred, target, pos, b, k, out, A)
         if k + 1 < K:
-            copy2(s2.L[b], ws.L_pred)
-    return row_accuracy(p, s2, b)
+            copy2(out, L_pred)
+    return row_accuracy(p, out, target, pos, b)
 
 
 # --- reward, observation -----------------------------------------------------------------------
 
 
 @njit(**_INLINE)
-def reward_and_end(p, s, s2, b):
+def reward_and_end(p, m_before, m_after, target, pos, b):
     """Row ``b``'s ``(reward, terminated)`` (:func:`.reference.reward`): ``ln m_k − ln m_{k+1}``,
-    less ``close_penalty`` when a platform of ``s2`` came within ``min_range``."""
-    r = math.log(s.acc[b]) - math.log(s2.acc[b])
+    less ``close_penalty`` when a platform came within ``min_range``."""
+    r = math.log(m_before) - math.log(m_after)
     end = False
-    for k in range(s2.pos.shape[1]):
-        if math.hypot(s2.target[b, 0] - s2.pos[b, k, 0], s2.target[b, 1] - s2.pos[b, k, 1]) < (
-            p.min_range
-        ):
+    for k in range(pos.shape[1]):
+        if math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]) < p.min_range:
             end = True
     return r - p.penalty * (1.0 if end else 0.0), end
 
 
 @njit(**_INLINE)
 def derive(p, s, b, ws):
-    """Row ``b``'s derived fields of ``s`` (:func:`.reference.with_derived_fields`) from the
-    bank's moment-matched estimate (into ``ws.x``, ``ws.Pe``): each platform's observation
-    (:func:`observe_platform`), the nearest platform's range ``min_k ‖x_t − p_k‖`` and the
-    estimate's position error ``‖x̂ − x_t‖``."""
-    bank_estimate(s.lw[b], s.X[b], s.P[b], ws.x, ws.Pe, ws.w)
-    K = s.heading.shape[1]
+    """Row ``b``'s derived fields of the state ``s`` (:func:`.reference.with_derived_fields`)
+    from the bank's moment-matched estimate (into ``ws.x``, ``ws.Pe``): each platform's
+    observation (:func:`observe_platform`), the nearest platform's range
+    ``min_k ‖x_t − p_k‖`` and the estimate's position error ``‖x̂ − x_t‖``."""
+    pos, heading, speed, target, z, obs = s.pos, s.heading, s.speed, s.target, s.z, s.obs
+    x, Pe = ws.x, ws.Pe
+    bank_estimate(s.lw[b], s.X[b], s.P[b], x, Pe, ws.w)
+    K = heading.shape[1]
     for k in range(K):
-        observe_platform(p, s, b, k, ws.x, ws.Pe)
+        observe_platform(p, pos, heading, speed, z, b, k, x, Pe, obs)
     r = np.inf
     for k in range(K):
-        r = min(r, math.hypot(s.target[b, 0] - s.pos[b, k, 0], s.target[b, 1] - s.pos[b, k, 1]))
+        r = min(r, math.hypot(target[b, 0] - pos[b, k, 0], target[b, 1] - pos[b, k, 1]))
     s.nearest[b] = r
-    s.error[b] = math.hypot(ws.x[0] - s.target[b, 0], ws.x[1] - s.target[b, 1])
+    s.error[b] = math.hypot(x[0] - target[b, 0], x[1] - target[b, 1])
 
 
 @njit(**_INLINE)
-def observe_platform(p, s, b, k, x, Pe):
-    """Platform ``k``'s observation ``s.obs[b, k]`` (float32, the table of
+def observe_platform(p, pos, heading, speed, z, b, k, x, Pe, obs):
+    """Platform ``k``'s observation ``obs[b, k]`` (float32, the table of
     :func:`.simulation.observe_agents`, every entry clipped to ``±clip``) from the estimate
     ``x``, ``Pe``: the bearing relative to the heading, the own speed, the estimated target's
     position and velocity relative to the platform, in its frame, their spreads, and each other
     platform's position relative to this one, in platform order."""
-    obs, clip = s.obs, p.clip
-    range_scale, speed_scale = p.range_scale, p.speed_scale
-    psi = s.heading[b, k]
+    clip, range_scale, speed_scale = p.clip, p.range_scale, p.speed_scale
+    psi = heading[b, k]
     sn, co = math.sin(psi), math.cos(psi)
-    rel = s.z[b, k] - psi
+    rel = z[b, k] - psi
     _put(obs, b, k, 0, math.sin(rel), clip)
     _put(obs, b, k, 1, math.cos(rel), clip)
-    _put(obs, b, k, 2, s.speed[b, k] / max(p.max_speed, 1e-12), clip)
-    r0, r1 = body_frame(sn, co, x[0] - s.pos[b, k, 0], x[1] - s.pos[b, k, 1])
+    _put(obs, b, k, 2, speed[b, k] / max(p.max_speed, 1e-12), clip)
+    r0, r1 = body_frame(sn, co, x[0] - pos[b, k, 0], x[1] - pos[b, k, 1])
     _put(obs, b, k, 3, r0 / range_scale, clip)
     _put(obs, b, k, 4, r1 / range_scale, clip)
-    v0, v1 = body_frame(sn, co, x[2] - s.speed[b, k] * sn, x[3] - s.speed[b, k] * co)
+    v0, v1 = body_frame(sn, co, x[2] - speed[b, k] * sn, x[3] - speed[b, k] * co)
     _put(obs, b, k, 5, v0 / speed_scale, clip)
     _put(obs, b, k, 6, v1 / speed_scale, clip)
     # the position and the velocity covariance in the platform frame, as spreads
     _put_spread(obs, b, k, 7, sn, co, Pe[0, 0], Pe[0, 1], Pe[1, 1], range_scale, clip)
     _put_spread(obs, b, k, 10, sn, co, Pe[2, 2], Pe[2, 3], Pe[3, 3], speed_scale, clip)
     i = 13
-    for j in range(s.heading.shape[1]):
+    for j in range(heading.shape[1]):
         if j != k:
-            o0, o1 = body_frame(
-                sn, co, s.pos[b, j, 0] - s.pos[b, k, 0], s.pos[b, j, 1] - s.pos[b, k, 1]
-            )
+            o0, o1 = body_frame(sn, co, pos[b, j, 0] - pos[b, k, 0], pos[b, j, 1] - pos[b, k, 1])
             _put(obs, b, k, i, o0 / range_scale, clip)
             _put(obs, b, k, i + 1, o1 / range_scale, clip)
             i += 2
@@ -454,13 +459,12 @@ def _fly_hold(p, px, py, h, v, turn, dv, out):
         out[s, 0], out[s, 1] = px, py
 
 
-# the target's mean path x' = F x (no noise draw) from x0 (4,): ``ws.path (H, 4)``
+# the target's mean path x' = F x (no noise draw) from x0 (4,): ``path (H, 4)``
 @njit(**_JIT)
-def _mean_path(p, x0, ws):
-    x, x_next, path = ws.x, ws.x_next, ws.path
+def _mean_path(p, x0, path, x, x_next, G):
     copy1(x0, x)
     for s in range(path.shape[0]):
-        propagate_target(x, x, ws.G, p.dt, 0.0, x_next)
+        propagate_target(x, x, G, p.dt, 0.0, x_next)
         copy1(x_next, x)
         copy1(x, path[s])
 
@@ -490,20 +494,20 @@ def _fuse_position_information(L_pred, i00, i01, i11, out, A):
 
 
 @njit(**_JIT)
-def _plan_accuracy(p, L0, track, others, use_others, too_close, origin, ws):
+def _plan_accuracy(p, L0, path, track, others, use_others, too_close, origin, Lc, L_pred, A_pred,
+                   A_update):  # fmt: skip
     """The bound recursion of :func:`step_kernel` along a plan: from the square root ``L0``,
     each step predicts and fuses the bearing from ``track[s]`` on the target's mean path
-    ``ws.path[s]``; with ``use_others``, together with the other platforms' position
+    ``path[s]``; with ``use_others``, together with the other platforms' position
     information ``others[s]`` (``(i00, i01, i11)``): the 2×2 sum enters as two rank-one
     updates, the columns of its Cholesky factor (information adds, so this is the env's
     sequential fusion of every bearing). Returns the accuracy the reward measures at the end
     (relative range from ``origin[-1]``), or ``inf`` when the track comes within
     ``too_close`` of the path."""
-    path, Lc, L_pred = ws.path, ws.Lc, ws.L_pred
     copy2(L0, Lc)
     close = False
     for s in range(path.shape[0]):
-        bound_predict(Lc, p.dt, p.q_tilde, L_pred, ws.A_pred)
+        bound_predict(Lc, p.dt, p.q_tilde, L_pred, A_pred)
         dx, dy = path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]
         if use_others:
             r = math.hypot(dx, dy)
@@ -512,10 +516,10 @@ def _plan_accuracy(p, L0, track, others, use_others, too_close, origin, ws):
             i00 = others[s, 0] + a * n0 * n0
             i01 = others[s, 1] + a * n0 * n1
             i11 = others[s, 2] + a * n1 * n1
-            _fuse_position_information(L_pred, i00, i01, i11, Lc, ws.A_update)
+            _fuse_position_information(L_pred, i00, i01, i11, Lc, A_update)
         else:
             bound_update(L_pred, path[s, 0], path[s, 1], track[s, 0], track[s, 1], p.sigma, Lc,
-                         ws.A_update)  # fmt: skip
+                         A_update)  # fmt: skip
         if math.hypot(dx, dy) < too_close:
             close = True
     if close:
@@ -527,23 +531,20 @@ def _plan_accuracy(p, L0, track, others, use_others, too_close, origin, ws):
 
 # q̃ = 0: the plan's own bearings fuse last (trackers.bearings.kernels.late_bearing_information),
 # so the recursion of the prior and the other platforms' bearings runs once per platform, not
-# once per candidate: ``ws.Lo`` is its square root at the end of the horizon
+# once per candidate: ``Lo`` is its square root at the end of the horizon
 @njit(**_JIT)
-def _others_root(p, L0, others, ws):
-    Lo = ws.Lo
+def _others_root(p, L0, others, Lo, L_pred, A_pred, A_update):
     copy2(L0, Lo)
-    for s in range(ws.path.shape[0]):
-        bound_predict(Lo, p.dt, p.q_tilde, ws.L_pred, ws.A_pred)
-        _fuse_position_information(ws.L_pred, others[s, 0], others[s, 1], others[s, 2], Lo,
-                                   ws.A_update)  # fmt: skip
+    for s in range(others.shape[0]):
+        bound_predict(Lo, p.dt, p.q_tilde, L_pred, A_pred)
+        _fuse_position_information(L_pred, others[s, 0], others[s, 1], others[s, 2], Lo, A_update)
 
 
 @njit(**_JIT)
-def _late_plan_accuracy(p, track, too_close, origin, ws):
-    """:func:`_plan_accuracy` for ``q̃ = 0`` from the others' root ``ws.Lo``
+def _late_plan_accuracy(p, Lo, path, track, too_close, origin, C, u, Lc):
+    """:func:`_plan_accuracy` for ``q̃ = 0`` from the others' root ``Lo``
     (:func:`_others_root`): the plan's bearings enter at the end in one update (equal up to
     rounding)."""
-    path, C = ws.path, ws.C
     H = path.shape[0]
     for i in range(STATE_DIM):
         for j in range(STATE_DIM):
@@ -551,10 +552,10 @@ def _late_plan_accuracy(p, track, too_close, origin, ws):
     for s in range(H):
         if math.hypot(path[s, 0] - track[s, 0], path[s, 1] - track[s, 1]) < too_close:
             return np.inf
-        late_bearing_information(ws.Lo, path[s, 0], path[s, 1], track[s, 0], track[s, 1],
-                                 p.sigma, (H - 1 - s) * p.dt, C, ws.u)  # fmt: skip
-    late_update_root(ws.Lo, C, ws.Lc)
-    return accuracy(p.relative_range, ws.Lc, path[H - 1, 0], path[H - 1, 1], origin[-1, 0],
+        late_bearing_information(Lo, path[s, 0], path[s, 1], track[s, 0], track[s, 1], p.sigma,
+                                 (H - 1 - s) * p.dt, C, u)  # fmt: skip
+    late_update_root(Lo, C, Lc)
+    return accuracy(p.relative_range, Lc, path[H - 1, 0], path[H - 1, 1], origin[-1, 0],
                     origin[-1, 1], p.floor)  # fmt: skip
 
 
@@ -570,20 +571,22 @@ def plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command, horiz
     the reward measures at the end, ``out (B, C)``, or ``inf`` for a plan that comes within
     ``too_close`` (m). ``settings`` is the params' record."""
     p = read_settings(settings)
-    ws = plan_workspace(horizon, 0)
-    track = ws.track
+    x, x_next, G, path, track, _, _, others, none, Lc, L_pred, A_pred, A_update, Lo, C, u = (
+        plan_workspace(horizon, 0)
+    )
     late = p.q_tilde == 0.0
     for b in range(lo, hi):
-        _mean_path(p, target[b], ws)
+        _mean_path(p, target[b], path, x, x_next, G)
         if late:
-            _others_root(p, L[b], ws.others, ws)
+            _others_root(p, L[b], others, Lo, L_pred, A_pred, A_update)
         for j in range(command.shape[0]):
             _fly_hold(p, pos[b, 0, 0], pos[b, 0, 1], heading[b, 0], speed[b, 0], command[j, 0],
                       command[j, 1], track)  # fmt: skip
             if late:
-                out[b, j] = _late_plan_accuracy(p, track, too_close, track, ws)
+                out[b, j] = _late_plan_accuracy(p, Lo, path, track, too_close, track, C, u, Lc)
             else:
-                out[b, j] = _plan_accuracy(p, L[b], track, ws.none, False, too_close, track, ws)
+                out[b, j] = _plan_accuracy(p, L[b], path, track, none, False, too_close, track, Lc,
+                                           L_pred, A_pred, A_update)  # fmt: skip
 
 
 @njit(**_JIT)
@@ -606,34 +609,36 @@ def joint_plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command,
     ``settings`` is the params' record."""
     p = read_settings(settings)
     K = heading.shape[1]
-    ws = plan_workspace(horizon, K)
-    tracks, track, info, others = ws.tracks, ws.track, ws.info, ws.others
+    x, x_next, G, path, track, tracks, info, others, _, Lc, L_pred, A_pred, A_update, Lo, C, u = (
+        plan_workspace(horizon, K)
+    )
     late = p.q_tilde == 0.0
     for b in range(lo, hi):
-        _mean_path(p, target[b], ws)
+        _mean_path(p, target[b], path, x, x_next, G)
         for k in range(K):
             _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k], 0.0, 0.0,
                       tracks[k])  # fmt: skip
-            _bearing_information(ws.path, tracks[k], p.sigma, info[k])
+            _bearing_information(path, tracks[k], p.sigma, info[k])
         for k in range(K):
             _sum_others(info, k, others)
             if late:
-                _others_root(p, L[b], others, ws)
+                _others_root(p, L[b], others, Lo, L_pred, A_pred, A_update)
             best, best_value = 0, np.inf
             for j in range(command.shape[0]):
                 _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
                           command[j, 0], command[j, 1], track)  # fmt: skip
                 origin = track if k == 0 else tracks[0]
                 if late:
-                    value = _late_plan_accuracy(p, track, too_close, origin, ws)
+                    value = _late_plan_accuracy(p, Lo, path, track, too_close, origin, C, u, Lc)
                 else:
-                    value = _plan_accuracy(p, L[b], track, others, K > 1, too_close, origin, ws)
+                    value = _plan_accuracy(p, L[b], path, track, others, K > 1, too_close, origin,
+                                           Lc, L_pred, A_pred, A_update)  # fmt: skip
                 if value < best_value:
                     best, best_value = j, value
             choice[b, k] = best
             _fly_hold(p, pos[b, k, 0], pos[b, k, 1], heading[b, k], speed[b, k],
                       command[best, 0], command[best, 1], tracks[k])  # fmt: skip
-            _bearing_information(ws.path, tracks[k], p.sigma, info[k])
+            _bearing_information(path, tracks[k], p.sigma, info[k])
 
 
 # the information of every platform's bearings but platform k's, summed: ``others (H, 3)``
