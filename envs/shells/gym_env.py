@@ -67,7 +67,7 @@ class CoreEnv(gym.Env[NDArray[np.float32], NDArray[np.float32]]):
             raise RuntimeError("step: call reset() first")
         a = check_action(action, self.action_space.shape)
         self._state, reward, terminated = self.core.step(self._state, a[None], self.np_random)
-        self._frames.add(self._state)
+        self._frames.add(self._state, float(reward[0]))
         # truncation=False: the time limit is the TimeLimit wrapper added by gym.make
         obs = self.core.observe(self._state)[0]
         return obs, float(reward[0]), bool(terminated[0]), False, self._info()

@@ -144,7 +144,7 @@ class CoreParallelEnv(ParallelEnv):
                 raise ValueError(f"actions[{agent!r}]: {exc}") from None
         joint = np.stack(rows)
         self._state, reward, terminated = self.core.step(self._state, joint[None], self._rng)
-        self._frames.add(self._state)
+        self._frames.add(self._state, float(reward[0]))
         self._steps += 1
         ended, timed_out = bool(terminated[0]), self._steps >= self.max_episode_steps
         rewards = {agent: float(reward[0]) for agent in self.agents}
