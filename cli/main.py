@@ -1,7 +1,7 @@
 """``sensorgym`` command line: one parser, one module per subcommand.
 
 Each subcommand module exposes ``HELP`` (one line), ``add_arguments(parser)`` and
-``run(args) -> int``. Every module is imported to build the parser, so subcommand modules
+``run(args) -> int``, and may name other names of the command in ``ALIASES``. Every module is imported to build the parser, so subcommand modules
 keep their module-level imports light and import heavy libraries inside ``run``.
 """
 
@@ -40,7 +40,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name, module_name in COMMANDS.items():
         module = importlib.import_module(module_name)
-        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
+        aliases = getattr(module, "ALIASES", [])
+        p = sub.add_parser(name, aliases=aliases, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser

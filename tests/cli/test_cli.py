@@ -145,3 +145,41 @@ def test_render_writes_an_animated_episode(tmp_path, capsys):
     assert "return" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="rule"):
         main(["render", "--rule", "nonsense", "--out", str(out)])
+
+
+def test_record_plays_several_episodes_into_one_video(tmp_path, capsys):
+    import imageio.v2 as imageio
+
+    out = tmp_path / "episodes.mp4"
+    args = ["--rule", "paper002", "--episodes", "2", "--every", "10", "--out", str(out)]
+    assert main(["record", *args]) == 0  # rl-baselines3-zoo's name for `render`
+    printed = capsys.readouterr().out
+    returns = [line for line in printed.splitlines() if ": return " in line]
+    assert [line.split(", ")[-1].split(":")[0] for line in returns] == ["episode 1", "episode 2"]
+    assert "mean return" in printed
+    with imageio.get_reader(out) as video:
+        assert video.count_frames() == 8  # each episode: reset, steps 10 and 20, the last (30)
+        assert video.get_meta_data()["size"] == (480, 480)
+    # the same seed plays the same episodes
+    assert main(["render", *args[:-1], str(tmp_path / "again.gif")]) == 0
+    assert [line for line in capsys.readouterr().out.splitlines() if ": return " in line] == returns
+
+
+def test_record_falls_back_to_a_gif_without_a_video_writer(tmp_path, capsys, monkeypatch):
+    from PIL import Image
+
+    from sensorgym.cli import render
+
+    monkeypatch.setattr(render, "video_writer_missing", lambda: "imageio_ffmpeg not installed")
+    out = tmp_path / "episode.mp4"
+    assert main(["enjoy", "--rule", "paper002", "--every", "15", "--out", str(out)]) == 0
+    assert "no MP4" in capsys.readouterr().out and not out.exists()
+    with Image.open(out.with_suffix(".gif")) as gif:
+        assert gif.n_frames == 3
+
+
+def test_enjoy_plays_a_shipped_policy(tmp_path, capsys):
+    out = tmp_path / "last.png"
+    argv = ["enjoy", "--model", "ppo_seed0", "--episodes", "2", "--out", str(out)]
+    assert main(argv) == 0
+    assert out.is_file() and capsys.readouterr().out.count(": return ") == 2
