@@ -53,7 +53,7 @@ class PlanHorizon:
     steps (:func:`~sensorgym.agents.stereo_pointing.plan_values` on the tracker's estimate),
     plus ``keep_bonus`` per receiver it leaves on a drone it is aimed at, is best; re-planned
     every step. ``horizon`` and ``keep_bonus`` were chosen on tuning seeds 500 and 600 (see
-    ``docs/environments.md``)."""
+    ``research/stereo_pointing/README.md``)."""
 
     params: PointingParams = field(default_factory=PointingParams)
     """Env settings (receiver layout, noise, slew limit, reward, observation layout)."""
