@@ -44,6 +44,11 @@ Documented choices for the gaps (theory §13.16–13.21):
   documented fallback, never NaN.
 * Before the first estimate (fewer than ``N + 1`` samples) :meth:`ABCPredictor.predict` holds
   the latest measurement.
+* 20 — azimuths near ±90° of ``OY`` stay singular in the paper's frame. The construction is the
+  same in any frame turned about ``OZ`` (three rays and a uniformly travelled line do not know
+  where azimuth is counted from), so a tracker that runs long keeps its target near ``OY``:
+  :func:`recentre` expresses a state in a frame turned by ψ, and the predictions, plus ψ, are
+  the same (theory §13.20).
 
 Time: every :meth:`ABCPredictor.update` call is one frame for every track of the batch. A track
 whose image is lost (``mask`` False) coasts along its conditional trajectory, so
@@ -317,3 +322,33 @@ class ABCPredictor:
         pos = np.where(ready, pos, hold[(slice(None), *extra)])
         # θ_пр = atan2(X, Y);  ϕ_пр = atan2(Z, OS′),  OS′ = √(X² + Y²)
         return zup_angles_from_unit(pos)
+
+
+def recentre(state: ABCState, angle: ArrayLike) -> ABCState:
+    """``state`` expressed in the carrier frame turned about ``OZ`` by ``angle`` ``(B,)`` (rad):
+    azimuths counted from the old azimuth ``ψ`` (``θ′ = θ − ψ``); elevations unchanged.
+
+    A point ``(X, Y)`` at azimuth θ and horizontal range ρ becomes
+    ``X′ = ρ sin(θ − ψ) = X cos ψ − Y sin ψ``, ``Y′ = Y cos ψ + X sin ψ``, and the trajectory's
+    direction ``α`` (from ``OX``) becomes ``α + ψ`` (modulo π); the window, the point C and the
+    increments δ turn alike, so :meth:`ABCPredictor.predict` of the result plus ψ equals that of
+    ``state`` (theory §13.20: keep the target away from azimuth ±90°). Later updates agree
+    exactly without noise; with noise the scale rule ``Y_C ← Y_C + δ̂_Y`` counts Y in the
+    turned frame, which moves the smoothed increments by a small fraction of the noise.
+    """
+    psi = np.broadcast_to(finite_array(angle, "angle"), (state.batch_size,))
+    c, s = np.cos(psi)[:, None], np.sin(psi)[:, None]
+
+    def turn(v: FloatArray) -> FloatArray:
+        # (X′, Y′) = (X cos ψ − Y sin ψ, Y cos ψ + X sin ψ), Z unchanged
+        x, y = v[:, :1], v[:, 1:2]
+        return np.concatenate([x * c - y * s, y * c + x * s, v[:, 2:]], axis=1)
+
+    return ABCState(
+        azimuth_window=wrap_angle(state.azimuth_window - psi[:, None]),
+        elevation_window=state.elevation_window,
+        count=state.count,
+        slope_angle=wrap_half_turn(state.slope_angle + psi),
+        delta=turn(state.delta),
+        anchor=turn(state.anchor),
+    )
