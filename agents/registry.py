@@ -23,6 +23,7 @@ from typing import Any
 from sensorgym.agents import bearings_maneuver as maneuver
 from sensorgym.agents import bearings_mpc as mpc
 from sensorgym.agents import book_maneuver as book
+from sensorgym.agents import gimbal_tracking as gimbal
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
 from sensorgym.agents import stereo_pointing_horizon as pointing_horizon
@@ -110,6 +111,14 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "orthogonal-sectors": lambda params, _: scanning.OrthogonalSectors(params),
         "greedy-information": lambda params, _: scanning.GreedyInformation(params),
         "truth-sectors": lambda params, state_fn: scanning.TruthSectors(state_fn, params),
+    },
+    "sensorgym/GimbalTracking-v0": {
+        "hold-still": lambda params, _: gimbal.HoldStill(params),
+        "paper001-servo": lambda params, _: gimbal.Paper001Servo(params),
+        "hold-last-rate": lambda params, _: gimbal.HoldLastRate(params),
+        "kalman-servo": lambda params, _: gimbal.KalmanServo(params),
+        "carrier-feedforward": lambda params, _: gimbal.CarrierFeedForward(params),
+        "truth-servo": lambda params, state_fn: gimbal.TruthServo(params, state_fn),
     },
 }
 

@@ -12,6 +12,7 @@ length is set; the vector and PettingZoo doors read it from there.
 | ``sensorgym/StereoPointingCrowded-v0`` | :mod:`.stereo_pointing.crowded` | ``stereo_pointing.crowded`` |
 | ``sensorgym/StereoPlacement-v0`` | :mod:`.stereo_placement` | ``stereo_placement`` |
 | ``sensorgym/StereoScanning-v0`` | :mod:`.stereo_scanning` | ``stereo_scanning`` |
+| ``sensorgym/GimbalTracking-v0`` | :mod:`.gimbal_tracking` | ``gimbal_tracking`` |
 
 Each module of the last column has PettingZoo's three constructors: ``parallel_env`` (the
 native parallel env), ``env`` (the AEC env, agents acting in turn) and ``raw_env`` (the AEC
@@ -63,6 +64,12 @@ _ENVS = [
         "vector_entry_point": "sensorgym.envs.stereo_scanning.stereo_scanning:StereoScanningVectorEnv",
         "max_episode_steps": 40,
     },
+    {
+        "id": "sensorgym/GimbalTracking-v0",
+        "entry_point": "sensorgym.envs.gimbal_tracking.gimbal_tracking:GimbalTrackingEnv",
+        "vector_entry_point": "sensorgym.envs.gimbal_tracking.gimbal_tracking:GimbalTrackingVectorEnv",
+        "max_episode_steps": 500,
+    },
 ]
 
 for _spec in _ENVS:
@@ -73,6 +80,7 @@ ENV_IDS = [spec["id"] for spec in _ENVS]
 
 from sensorgym.envs import (  # noqa: E402
     bearings_maneuver,
+    gimbal_tracking,
     stereo_placement,
     stereo_pointing,
     stereo_scanning,
@@ -82,6 +90,12 @@ from sensorgym.envs.bearings_maneuver import (  # noqa: E402  (registered first)
     BearingsManeuverParallelEnv,
     BearingsManeuverVectorEnv,
     ManeuverParams,
+)
+from sensorgym.envs.gimbal_tracking import (  # noqa: E402
+    GimbalParams,
+    GimbalTrackingEnv,
+    GimbalTrackingParallelEnv,
+    GimbalTrackingVectorEnv,
 )
 from sensorgym.envs.stereo_placement import (  # noqa: E402
     PlacementParams,
@@ -111,6 +125,7 @@ PARALLEL_ENVS = {
     "sensorgym/StereoPointingCrowded-v0": stereo_pointing.crowded_parallel_env,
     "sensorgym/StereoPlacement-v0": stereo_placement.parallel_env,
     "sensorgym/StereoScanning-v0": stereo_scanning.parallel_env,
+    "sensorgym/GimbalTracking-v0": gimbal_tracking.parallel_env,
 }
 
 __all__ = [
@@ -119,6 +134,10 @@ __all__ = [
     "BearingsManeuverEnv",
     "BearingsManeuverParallelEnv",
     "BearingsManeuverVectorEnv",
+    "GimbalParams",
+    "GimbalTrackingEnv",
+    "GimbalTrackingParallelEnv",
+    "GimbalTrackingVectorEnv",
     "ManeuverParams",
     "PlacementParams",
     "PointingParams",
@@ -133,6 +152,7 @@ __all__ = [
     "StereoScanningParallelEnv",
     "StereoScanningVectorEnv",
     "bearings_maneuver",
+    "gimbal_tracking",
     "stereo_placement",
     "stereo_pointing",
     "stereo_scanning",

@@ -51,6 +51,7 @@ PASSIVE_RULES: dict[str, str] = {
     "sensorgym/StereoPointingCrowded-v0": "hold-still",
     "sensorgym/StereoPlacement-v0": "hold-position",
     "sensorgym/StereoScanning-v0": "full-sweep",
+    "sensorgym/GimbalTracking-v0": "hold-still",
 }
 
 #: an episode whose bound exceeds the passive rule's return by less than this has no headroom:

@@ -16,6 +16,7 @@ ENV_IDS = [
     "sensorgym/StereoPointing-v0",
     "sensorgym/StereoPlacement-v0",
     "sensorgym/StereoScanning-v0",
+    "sensorgym/GimbalTracking-v0",
 ]
 
 

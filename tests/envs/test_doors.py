@@ -142,6 +142,51 @@ OTHER_VALUES: dict[str, dict[str, object]] = {
 }
 
 
+OTHER_VALUES["sensorgym/GimbalTracking-v0"] = {
+    "frame_period": 0.02,
+    "field_of_view": 0.03,
+    "max_rate": 1.5,
+    "max_acceleration": 6.0,
+    "elevation_limits": (-0.1, 1.4),
+    "roll_amplitude": (0.05, 0.0),
+    "roll_period": (7.0, 3.0),
+    "pitch_amplitude": (0.02, 0.01),
+    "pitch_period": (5.0, 2.0),
+    "yaw_amplitude": (0.0, 0.01),
+    "yaw_period": (12.0, 4.0),
+    "start_range": (3000.0, 5000.0),
+    "start_azimuth": (-0.5, 0.5),
+    "start_elevation": (0.1, 0.3),
+    "target_speed": (50.0, 100.0),
+    "target_aspect": (0.5, 2.5),
+    "target_climb": (0.0, 0.1),
+    "turn_rate": (0.05, 0.2),
+    "turn_start": (10, 20),
+    "turn_length": (5, 10),
+    "occlusion_gap": (3, 8),
+    "occlusion_length": (1, 3),
+    "cue_error": 0.001,
+    "channel_contrast": (4.0, 2.0),
+    "channel_noise": (1.0, 1.5),
+    "lose_probability": (0.1, 0.2),
+    "return_probability": (0.5, 0.3),
+    "aspect_change_probability": (0.1, 0.05),
+    "target_size": 0.003,
+    "blur": 0.0007,
+    "pixel_pitch": 0.0002,
+    "gate_pixels": 40,
+    "vignetting": 0.3,
+    "residual_std": 0.003,
+    "residual_correlation": 0.95,
+    "sensor_noise": 0.0,
+    "predictor_window": 20,
+    "predictor_memory": 5.0,
+    "sigma_ref": 0.002,
+    "reward_clip": 3.0,
+    "reacquire_limit": 10,
+}
+
+
 # the crowded variant: StereoPointing's values, but 2 drones (3 is its own default)
 OTHER_VALUES["sensorgym/StereoPointingCrowded-v0"] = {
     **OTHER_VALUES["sensorgym/StereoPointing-v0"],

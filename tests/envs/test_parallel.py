@@ -14,6 +14,7 @@ from sensorgym.envs import (
     ENV_IDS,
     PARALLEL_ENVS,
     bearings_maneuver,
+    gimbal_tracking,
     stereo_placement,
     stereo_pointing,
     stereo_scanning,
@@ -34,6 +35,7 @@ from sensorgym.envs.stereo_pointing.simulation import PointingParams
         lambda: stereo_pointing.parallel_env(max_episode_steps=40),
         lambda: stereo_pointing.parallel_env(n_receivers=3, n_drones=1, max_episode_steps=20),
         lambda: stereo_placement.parallel_env(max_episode_steps=30),
+        lambda: gimbal_tracking.parallel_env(max_episode_steps=40),
     ],
 )
 def test_pettingzoo_api_and_seed_tests_pass(make):
@@ -205,7 +207,10 @@ def test_a_bad_agent_action_gets_the_gymnasium_doors_error(env_id):
     assert set(obs) == set(env.possible_agents)
 
 
-ENV_MODULES = [bearings_maneuver, book, stereo_pointing, crowded, stereo_placement, stereo_scanning]
+ENV_MODULES = [
+    bearings_maneuver, book, stereo_pointing, crowded, stereo_placement, stereo_scanning,
+    gimbal_tracking,
+]  # fmt: skip
 
 
 @pytest.mark.parametrize("module", ENV_MODULES, ids=lambda m: m.__name__.rsplit(".", 1)[1])

@@ -11,7 +11,13 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from sensorgym.envs import ManeuverParams, PlacementParams, PointingParams, ScanningParams
+from sensorgym.envs import (
+    GimbalParams,
+    ManeuverParams,
+    PlacementParams,
+    PointingParams,
+    ScanningParams,
+)
 from sensorgym.envs.worlds.platform import PlatformWorldParams
 
 STEPS = 200
@@ -38,6 +44,7 @@ def _runs_finite_or_names_a_field(env_id: str, make_params) -> None:
         fields |= {f.name for f in dataclasses.fields(PlacementParams)}
         fields |= {f.name for f in dataclasses.fields(ScanningParams)}
         fields |= {f.name for f in dataclasses.fields(PlatformWorldParams)}
+        fields |= {f.name for f in dataclasses.fields(GimbalParams)}
         named = str(exc).split(":")[0].split("/")[0].split(".")[-1].split(" ")[0]
         assert named in fields or any(f in str(exc) for f in fields), str(exc)
         return
@@ -165,3 +172,35 @@ def test_stereo_scanning_params(kappa, position_sigma, period, drones, clutter, 
         )
 
     _runs_finite_or_names_a_field("sensorgym/StereoScanning-v0", make)
+
+
+@SETTINGS
+@given(
+    fov=log_uniform(1e-3, 0.5),
+    rate=log_uniform(0.01, 5.0),
+    noise=st.one_of(st.just(0.0), log_uniform(1e-7, 1e-2)),
+    contrast=st.lists(log_uniform(0.1, 100.0), min_size=1, max_size=4),
+    ranges=span(200.0, 30_000.0),
+    speeds=span(1.0, 600.0),
+    turn=span(0.0, 0.5),
+    window=st.integers(1, 30).map(lambda n: 2 * n),
+)
+def test_gimbal_tracking_params(fov, rate, noise, contrast, ranges, speeds, turn, window):
+    def make():
+        n = len(contrast)
+        return GimbalParams(
+            field_of_view=fov,
+            max_rate=rate,
+            sensor_noise=noise,
+            channel_contrast=tuple(contrast),
+            channel_noise=(1.0,) * n,
+            lose_probability=(0.05,) * n,
+            return_probability=(0.2,) * n,
+            aspect_change_probability=(0.02,) * n,
+            start_range=ranges,
+            target_speed=speeds,
+            turn_rate=turn,
+            predictor_window=window,
+        )
+
+    _runs_finite_or_names_a_field("sensorgym/GimbalTracking-v0", make)

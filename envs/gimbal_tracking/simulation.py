@@ -1,0 +1,572 @@
+"""Simulation core of GimbalTracking: keep a narrow field of view on an air target through losses.
+
+The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pure functions
+over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`
+(:func:`start` builds scenarios from a given target), :func:`step`, :func:`observe`,
+:func:`observe_agents` and :func:`info`. One step is one video frame; its stages, in order,
+are the functions of :mod:`.reference` (theory §11.1):
+
+1. the two-axis gimbal (azimuth α, elevation β, body frame) drives under the rate command
+   ``a · max_rate``, each axis's rate changing by at most ``max_acceleration · T`` per frame;
+2. the air target flies on (straight relative to the carrier, a level turn in a random
+   interval), the carrier rolls, pitches and yaws (sums of sinusoids with random phases);
+3. occlusions (random onset and length) hide the target; each imaging channel's view of it
+   follows its Markov chain (paper 004: background, bright, dark); it is imaged only inside
+   the square field of view, with less contrast off axis (vignetting);
+4. the tracker: paper 004's fused tracker (:class:`~sensorgym.trackers.fusion.tracker.
+   FusionTracker`, one per image plane) measures the target's offset from paper 001's
+   predicted direction, weighting the channels by their posterior detection probabilities
+   × view transitions; where detected (MAP: an object view in some channel, in both planes)
+   the fused direction — plus the angle sensors' noise — is paper 001's predictor's
+   (:class:`~sensorgym.trackers.angles.prediction.ABCPredictor`) measurement, otherwise the
+   predictor coasts along its conditional trajectory (theory §8.6 step 7);
+5. the reward ``clip(ln(σ_ref/σ_LOS), −R, R)`` with ``σ_LOS`` the fused direction's angular
+   error bound, ``−R`` while the target is out of the field of view; the episode terminates
+   when it has been out of view for more than ``reacquire_limit`` frames.
+
+This first version steps in numpy (:mod:`.reference`); the compiled step follows (issue 40).
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sensorgym.envs.gimbal_tracking import reference
+from sensorgym.envs.shells.contract import EnvSpaces, clip_observation
+from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
+from sensorgym.envs.worlds.imaging import box_profile
+from sensorgym.trackers.angles.prediction import ABCPredictor, ABCState
+from sensorgym.trackers.fusion.tracker import FusionModel, FusionTracker
+from sensorgym.trackers.geometry import unit_from_zup_angles, wrap_angle, zup_angles_from_unit
+from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
+from sensorgym.trackers.validation import check_fields, finite_array
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+#: attitude (rad) and attitude rates (rad/s) are observed divided by this
+ATTITUDE_SCALE = 0.1
+
+#: no settings take paths the defaults do not (the step is numpy; issue 40's compiled step
+#: will name its variants here)
+COMPILE_VARIANTS: tuple[dict[str, object], ...] = ()
+
+
+def _deg(x: float) -> float:
+    return float(np.deg2rad(x))
+
+
+@dataclass(frozen=True)
+class GimbalParams(FieldsOnlyPickle):
+    """Gimbal, carrier, target, losses, imaging channels, tracker and reward of GimbalTracking."""
+
+    frame_period: float = 0.04
+    """``T``: one step, one video frame, s (25 frames/s)."""
+    field_of_view: float = _deg(1.5)
+    """Full width of the square field of view, rad."""
+    max_rate: float = 1.0
+    """Rate limit of each drive, rad/s: the action ``±1``."""
+    max_acceleration: float = 4.0
+    """Acceleration limit of each drive, rad/s²."""
+    elevation_limits: tuple[float, float] = (_deg(-10.0), _deg(85.0))
+    """Stops of the elevation axis (body frame), rad."""
+    roll_amplitude: tuple[float, ...] = (_deg(5.0), _deg(1.5))
+    """Amplitudes of the carrier's roll sinusoids, rad (one per term; empty: no roll)."""
+    roll_period: tuple[float, ...] = (8.0, 5.0)
+    """Periods of the roll sinusoids, s (one per amplitude)."""
+    pitch_amplitude: tuple[float, ...] = (_deg(2.0), _deg(0.7))
+    """Amplitudes of the carrier's pitch sinusoids, rad."""
+    pitch_period: tuple[float, ...] = (6.0, 4.0)
+    """Periods of the pitch sinusoids, s."""
+    yaw_amplitude: tuple[float, ...] = (_deg(1.0), _deg(0.3))
+    """Amplitudes of the carrier's yaw sinusoids (about its mean heading), rad."""
+    yaw_period: tuple[float, ...] = (10.0, 6.0)
+    """Periods of the yaw sinusoids, s."""
+    start_range: tuple[float, float] = (4000.0, 8000.0)
+    """Target range at frame 0, drawn uniformly, m."""
+    start_azimuth: tuple[float, float] = (-np.pi, np.pi)
+    """Target azimuth at frame 0 (level frame, from the carrier's mean heading), uniform, rad."""
+    start_elevation: tuple[float, float] = (_deg(2.0), _deg(15.0))
+    """Target elevation at frame 0, uniform, rad."""
+    target_speed: tuple[float, float] = (100.0, 250.0)
+    """Target speed relative to the carrier, uniform, m/s."""
+    target_aspect: tuple[float, float] = (_deg(30.0), _deg(150.0))
+    """Angle between the target's horizontal velocity and the horizontal line of sight from the
+    carrier, uniform, on a random side, rad (0: flying away, π: approaching). Near-radial paths
+    make paper 001's elevation predictor ill-conditioned (theory §13.20), hence the default."""
+    target_climb: tuple[float, float] = (_deg(-10.0), _deg(10.0))
+    """Climb angle of the target's path, uniform, rad."""
+    turn_rate: tuple[float, float] = (0.0, 0.1)
+    """Magnitude of the target's level turn rate (uniform, random sign), rad/s; (0, 0): none."""
+    turn_start: tuple[int, int] = (0, 400)
+    """Frame after which the turn begins, uniform (inclusive), frames."""
+    turn_length: tuple[int, int] = (25, 100)
+    """Length of the turn, uniform (inclusive), frames."""
+    occlusion_gap: tuple[int, int] = (50, 200)
+    """Frames from the previous occlusion's end (frame 0 for the first) to the next onset,
+    uniform (inclusive), frames."""
+    occlusion_length: tuple[int, int] = (5, 40)
+    """Length of an occlusion, uniform (inclusive), frames; (0, 0): no occlusions."""
+    cue_error: float = 0.002
+    """Standard deviation of the gimbal's pointing error at frame 0, per axis, rad."""
+    channel_contrast: tuple[float, ...] = (5.0, 3.0)
+    """Contrast of the target in each imaging channel (e.g. visible, infrared), in pixel-noise
+    units of 1: its bright view has ``+c``, its dark view ``−c``."""
+    channel_noise: tuple[float, ...] = (1.0, 1.0)
+    """Pixel noise σ_n of each channel (same unit as the contrast)."""
+    lose_probability: tuple[float, ...] = (0.02, 0.05)
+    """Per channel, probability per frame that the target's view turns to background."""
+    return_probability: tuple[float, ...] = (0.3, 0.2)
+    """Per channel, probability per frame that a background view turns to an object view."""
+    aspect_change_probability: tuple[float, ...] = (0.05, 0.02)
+    """Per channel, probability per frame of a change between the bright and dark views."""
+    target_size: float = 0.002
+    """Angular size of the target in each image plane, rad."""
+    blur: float = 0.0005
+    """Standard deviation of the optics' Gaussian blur, rad."""
+    pixel_pitch: float = 0.00025
+    """Angular size of one pixel, rad."""
+    gate_pixels: int = 32
+    """Pixels across the tracking gate in each plane (the gate spans ``gate_pixels · pitch``)."""
+    vignetting: float = 0.8
+    """Contrast lost at the edge of the field of view: factor ``1 − v (ρ/h)²``, in [0, 1]."""
+    residual_std: float = 0.002
+    """σ_λ: prior standard deviation of the target's offset from the predicted direction,
+    rad (paper 004's σ_λ; the fused variance grows back towards it through a loss)."""
+    residual_correlation: float = 0.99
+    """R_λ: frame-to-frame correlation of that offset (paper 004's R_λ), in [0, 1)."""
+    sensor_noise: float = _deg(0.001)
+    """Angle-sensor noise of each measured angle, rad (paper 001's σ = 0.001°)."""
+    predictor_window: int = 50
+    """Paper 001's N: frames between the samples A and C (even)."""
+    predictor_memory: float = 10.0
+    """Effective memory of paper 001's exponential filter, frames."""
+    sigma_ref: float = 0.001
+    """Angular error that earns zero reward, rad."""
+    reward_clip: float = 5.0
+    """``R``: the reward is clipped to ``[−R, R]``; ``−R`` while the target is out of view."""
+    reacquire_limit: int = 50
+    """The episode terminates once the target has been out of view for more frames than this."""
+
+    def __post_init__(self) -> None:
+        check_fields(self)  # every field of its annotated type: no bool for a count or a number
+        positive = (
+            "frame_period", "field_of_view", "max_rate", "max_acceleration", "target_size",
+            "blur", "pixel_pitch", "residual_std", "sigma_ref", "reward_clip",
+        )  # fmt: skip
+        for name in positive:
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name}: must be positive and finite, got {value!r}")
+        for name in ("cue_error", "sensor_noise"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name}: must be finite and >= 0, got {value!r}")
+        if not self.field_of_view < np.pi / 2:
+            raise ValueError(f"field_of_view: must be below π/2 rad, got {self.field_of_view!r}")
+        lo, hi = self.elevation_limits
+        if not -np.pi / 2 < lo < hi < np.pi / 2:
+            raise ValueError(f"elevation_limits: need −π/2 < low < high < π/2, got {(lo, hi)}")
+        for axis in ("roll", "pitch", "yaw"):
+            amp, per = getattr(self, f"{axis}_amplitude"), getattr(self, f"{axis}_period")
+            if len(amp) != len(per):
+                raise ValueError(f"{axis}_period: one period per amplitude, got {per!r}")
+            if not all(np.isfinite(a) and 0.0 <= a < 1.0 for a in amp):
+                raise ValueError(f"{axis}_amplitude: need values in [0, 1) rad, got {amp!r}")
+            if not all(np.isfinite(p) and p > 0.0 for p in per):
+                raise ValueError(f"{axis}_period: need positive values, got {per!r}")
+        for name in ("start_range", "target_speed"):
+            lo, hi = getattr(self, name)
+            if not (np.isfinite(lo) and np.isfinite(hi) and 0.0 < lo <= hi):
+                raise ValueError(f"{name}: need finite 0 < low <= high, got {(lo, hi)}")
+        for name in ("start_azimuth", "target_aspect", "target_climb", "start_elevation"):
+            lo, hi = getattr(self, name)
+            if not (np.isfinite(lo) and np.isfinite(hi) and lo <= hi):
+                raise ValueError(f"{name}: need finite low <= high, got {(lo, hi)}")
+        for name in ("target_climb", "start_elevation"):
+            lo, hi = getattr(self, name)
+            if not -np.pi / 2 < lo <= hi < np.pi / 2:
+                raise ValueError(f"{name}: must lie within (−π/2, π/2), got {(lo, hi)}")
+        lo, hi = self.turn_rate
+        if not (np.isfinite(hi) and 0.0 <= lo <= hi):
+            raise ValueError(f"turn_rate: need finite 0 <= low <= high, got {(lo, hi)}")
+        for name in ("turn_start", "turn_length", "occlusion_gap", "occlusion_length"):
+            lo, hi = getattr(self, name)
+            if not 0 <= lo <= hi:
+                raise ValueError(f"{name}: need 0 <= low <= high, got {(lo, hi)}")
+        if self.occlusion_gap[0] < 1:
+            raise ValueError(f"occlusion_gap: need at least 1 frame, got {self.occlusion_gap}")
+        n = len(self.channel_contrast)
+        per_channel = (
+            "channel_noise", "lose_probability", "return_probability", "aspect_change_probability",
+        )  # fmt: skip
+        if n < 1:
+            raise ValueError("channel_contrast: need at least one channel")
+        for name in per_channel:
+            if len(getattr(self, name)) != n:
+                raise ValueError(
+                    f"{name}: one value per channel ({n}), got {getattr(self, name)!r}"
+                )
+        if not all(np.isfinite(c) and c > 0.0 for c in self.channel_contrast):
+            raise ValueError(
+                f"channel_contrast: need positive values, got {self.channel_contrast!r}"
+            )
+        if not all(np.isfinite(s) and s > 0.0 for s in self.channel_noise):
+            raise ValueError(f"channel_noise: need positive values, got {self.channel_noise!r}")
+        for lose, back, change in zip(
+            self.lose_probability,
+            self.return_probability,
+            self.aspect_change_probability,
+            strict=True,
+        ):
+            if not (0.0 <= lose and 0.0 <= change and lose + change <= 1.0 and 0.0 <= back <= 1.0):
+                raise ValueError(
+                    "lose_probability, return_probability, aspect_change_probability: need "
+                    f"probabilities with lose + change <= 1, got {(lose, back, change)}"
+                )
+        if self.gate_pixels < 4:
+            raise ValueError(f"gate_pixels: need at least 4, got {self.gate_pixels}")
+        if not 0.0 <= self.vignetting <= 1.0:
+            raise ValueError(f"vignetting: must lie in [0, 1], got {self.vignetting!r}")
+        if not 0.0 <= self.residual_correlation < 1.0:
+            raise ValueError(
+                f"residual_correlation: must lie in [0, 1), got {self.residual_correlation!r}"
+            )
+        if self.predictor_window < 2 or self.predictor_window % 2:
+            raise ValueError(
+                f"predictor_window: must be an even integer >= 2, got {self.predictor_window}"
+            )
+        if not (np.isfinite(self.predictor_memory) and self.predictor_memory >= 1.0):
+            raise ValueError(f"predictor_memory: must be >= 1 frame, got {self.predictor_memory}")
+        if not 0.0 < self.reward_clip <= MAX_REWARD_CLIP:
+            raise ValueError(
+                f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
+            )
+        if self.reacquire_limit < 0:
+            raise ValueError(f"reacquire_limit: must be >= 0, got {self.reacquire_limit}")
+
+    @property
+    def n_channels(self) -> int:
+        """Number of imaging channels ``N``."""
+        return len(self.channel_contrast)
+
+    @property
+    def half_field(self) -> float:
+        """Half the field of view ``h``, rad."""
+        return 0.5 * self.field_of_view
+
+    @functools.cached_property
+    def motion_terms(self) -> tuple[FloatArray, FloatArray, IntArray]:
+        """The carrier's sinusoids, all axes: amplitudes ``A`` (rad), angular frequencies
+        ``2π/T`` (rad/s) and axis (0 roll, 1 pitch, 2 yaw), each ``(K,)``."""
+        amp = np.array([*self.roll_amplitude, *self.pitch_amplitude, *self.yaw_amplitude])
+        per = np.array([*self.roll_period, *self.pitch_period, *self.yaw_period])
+        axis = np.repeat(
+            np.arange(3),
+            [len(self.roll_amplitude), len(self.pitch_amplitude), len(self.yaw_amplitude)],
+        )
+        return amp, 2.0 * np.pi / per if per.size else per, axis
+
+    @functools.cached_property
+    def view_transition(self) -> FloatArray:
+        """``π[n, μ, m]``: each channel's view chain (0 background, 1 bright, 2 dark),
+        ``(N, 3, 3)``, row-stochastic."""
+        rows = []
+        for lose, back, change in zip(
+            self.lose_probability,
+            self.return_probability,
+            self.aspect_change_probability,
+            strict=True,
+        ):
+            stay = 1.0 - lose - change
+            rows.append(
+                [[1.0 - back, 0.5 * back, 0.5 * back], [lose, stay, change], [lose, change, stay]]
+            )
+        return np.array(rows)
+
+    @functools.cached_property
+    def model_transition(self) -> FloatArray:
+        """The tracker's view chain ``(N, 3, 3)``: the true one with occlusions folded into the
+        loss of the object view — an occlusion shows as background in every channel, its onset
+        rate ``1/mean gap`` per frame — so that the tracker can declare the target lost even
+        where a channel itself never loses it."""
+        onset = 0.0
+        if self.occlusion_length[1] > 0:
+            onset = 1.0 / (0.5 * (self.occlusion_gap[0] + self.occlusion_gap[1]))
+        pi = self.view_transition.copy()
+        # P(background | object) = 1 − (1 − lose)(1 − onset), the rest scaled to keep the row
+        for m in (1, 2):
+            lose = pi[:, m, 0]
+            pi[:, m, 1:] *= 1.0 - onset
+            pi[:, m, 0] = 1.0 - (1.0 - lose) * (1.0 - onset)
+        return pi
+
+    @functools.cached_property
+    def view_contrast(self) -> FloatArray:
+        """Contrast of each channel's views ``(N, 3)``: background 0, bright ``+c``, dark ``−c``."""
+        c = np.array(self.channel_contrast)
+        return np.stack([np.zeros_like(c), c, -c], -1)
+
+    @functools.cached_property
+    def gate_centres_mrad(self) -> FloatArray:
+        """Angular positions of the gate's pixel centres from its centre ``(J,)``, mrad."""
+        J = self.gate_pixels
+        return (np.arange(J) - 0.5 * (J - 1)) * self.pixel_pitch * reference.MRAD
+
+    @functools.cached_property
+    def fusion_tracker(self) -> FusionTracker:
+        """Paper 004's tracker, its model matched to the channels (nominal contrast: it does not
+        know the vignetting), in mrad."""
+        value, slope = box_profile(
+            self.gate_centres_mrad, self.target_size * reference.MRAD, self.blur * reference.MRAD
+        )
+        c = self.view_contrast[..., None]
+        model = FusionModel(
+            templates=c * value,
+            template_slopes=c * slope,
+            noise_std=np.array(self.channel_noise, dtype=np.float64),
+            transition=self.model_transition,
+            correlation=self.residual_correlation,
+            prior_std=self.residual_std * reference.MRAD,
+        )
+        return FusionTracker(model)
+
+    @functools.cached_property
+    def predictor(self) -> ABCPredictor:
+        """Paper 001's predictor with ``N = predictor_window`` and ``predictor_memory``."""
+        return ABCPredictor(window=self.predictor_window, memory=self.predictor_memory)
+
+    @property
+    def obs_dim(self) -> int:
+        """Observation length ``21 + N`` (23 for two channels, see :func:`observe`)."""
+        return 21 + self.n_channels
+
+
+@dataclass(frozen=True)
+class GimbalState:
+    """``B`` scenarios after frame ``frame``."""
+
+    frame: IntArray
+    """(B,) frames since the episode start."""
+    target_position: FloatArray = field(repr=False)
+    """(B, 3) target position, level frame, m (ground truth: never observed)."""
+    target_velocity: FloatArray = field(repr=False)
+    """(B, 3) target velocity relative to the carrier, m/s (ground truth)."""
+    turn_rate: FloatArray = field(repr=False)
+    """(B,) the target's level turn rate during its turn, rad/s (ground truth)."""
+    turn_start: IntArray = field(repr=False)
+    """(B,) the turn covers frames ``turn_start + 1 … turn_end``."""
+    turn_end: IntArray = field(repr=False)
+    """(B,) last frame of the turn."""
+    carrier_phase: FloatArray = field(repr=False)
+    """(B, K) phases of the carrier's sinusoids, rad."""
+    gimbal_angles: FloatArray
+    """(B, 2) gimbal azimuth α and elevation β, body frame, rad."""
+    gimbal_rates: FloatArray
+    """(B, 2) their rates, rad/s."""
+    views: IntArray = field(repr=False)
+    """(B, N) each channel's true view (0 background, 1 bright, 2 dark)."""
+    occlusion_start: IntArray = field(repr=False)
+    """(B,) first frame of the current or next occlusion."""
+    occlusion_end: IntArray = field(repr=False)
+    """(B,) the frame after it."""
+    out_of_view: IntArray
+    """(B,) consecutive frames, up to this one, with the target out of the field of view."""
+    since_detection: IntArray
+    """(B,) frames since the tracker last detected the target (0: detected this frame)."""
+    fusion_variance: FloatArray
+    """(B, 2) paper 004's posterior variance ``d`` in the azimuth and elevation planes, mrad²."""
+    view_posterior: FloatArray = field(repr=False)
+    """(B, 2, N, 3) paper 004's view posteriors per plane and channel."""
+    predictor: ABCState = field(repr=False)
+    """Paper 001's predictor, in the level frame turned by ``predictor_origin``."""
+    predictor_origin: FloatArray = field(repr=False)
+    """(B,) level azimuth of the ``OY`` axis of the predictor's frame, rad."""
+    reference: FloatArray = field(repr=False)
+    """(B, 2) level azimuth and elevation the gate was centred on this frame (the prediction), rad."""
+    estimate: FloatArray
+    """(B, 2) the tracker's level azimuth and elevation of the target this frame, rad."""
+    predicted: FloatArray
+    """(B, 2) its prediction for the next frame, rad."""
+    detected: BoolArray
+    """(B,) the tracker measured the target this frame (else its predictor coasted)."""
+    in_view: BoolArray
+    """(B,) the target lies in the field of view (ground truth)."""
+    occluded: BoolArray = field(repr=False)
+    """(B,) the target is occluded this frame (ground truth)."""
+    visible: BoolArray = field(repr=False)
+    """(B, N) the target stands out in channel n this frame (ground truth)."""
+    sigma_los: FloatArray
+    """(B,) ``σ_LOS``, the fused direction's angular error bound, rad."""
+
+    @property
+    def batch_size(self) -> int:
+        """Number of scenarios ``B``."""
+        return int(self.frame.shape[0])
+
+
+def spaces(params: GimbalParams) -> EnvSpaces:
+    """One agent, ``gimbal_0``, commanding the rates of both axes; its view is :func:`observe`."""
+    return EnvSpaces.build("gimbal", 1, params.obs_dim, params.obs_dim, 2)
+
+
+def draw_target(
+    params: GimbalParams, rng: np.random.Generator, batch: int
+) -> tuple[FloatArray, FloatArray]:
+    """Target position and velocity ``(B, 3)`` (level frame) at frame 0, drawn in this order:
+    range, azimuth, elevation, speed, aspect, its side, climb."""
+    rng_range = rng.uniform(*params.start_range, batch)
+    az = rng.uniform(*params.start_azimuth, batch)
+    el = rng.uniform(*params.start_elevation, batch)
+    speed = rng.uniform(*params.target_speed, batch)
+    heading = az + rng.uniform(*params.target_aspect, batch) * reference.draw_signs(rng, batch)
+    climb = rng.uniform(*params.target_climb, batch)
+    ce, cc = np.cos(el), np.cos(climb)
+    p = rng_range[:, None] * np.stack([ce * np.sin(az), ce * np.cos(az), np.sin(el)], -1)
+    v = speed[:, None] * np.stack([cc * np.sin(heading), cc * np.cos(heading), np.sin(climb)], -1)
+    return p, v
+
+
+def start(
+    params: GimbalParams,
+    target_position: ArrayLike,
+    target_velocity: ArrayLike,
+    rng: np.random.Generator,
+) -> GimbalState:
+    """Scenarios from a given target ``(B, 3)`` position (m) and velocity (m/s), level frame,
+    at frame 0 (the rest drawn: :func:`.reference.start`)."""
+    p = finite_array(target_position, "target_position", tail=(3,))
+    v = finite_array(target_velocity, "target_velocity", tail=(3,))
+    if p.ndim != 2 or v.shape != p.shape:
+        raise ValueError(f"target_position, target_velocity: expected equal (B, 3), got {p.shape}")
+    if np.any(np.linalg.norm(p, axis=-1) == 0.0):
+        raise ValueError("target_position: the target cannot start at the carrier")
+    return reference.start(params, p, v, rng)
+
+
+def reset(
+    params: GimbalParams, rng: np.random.Generator, batch: int, like: GimbalState | None = None
+) -> GimbalState:
+    """``batch`` fresh scenarios after lock-on. Scenarios share nothing: ``like`` is unused."""
+    if batch < 1:
+        raise ValueError(f"batch: must be >= 1, got {batch}")
+    p, v = draw_target(params, rng, batch)
+    return reference.start(params, p, v, rng)
+
+
+def step(
+    params: GimbalParams, state: GimbalState, action: ArrayLike, rng: np.random.Generator
+) -> tuple[GimbalState, FloatArray, BoolArray]:
+    """Advance every scenario one frame under ``action`` ``(B, 1, 2)`` (or ``(B, 2)``): gimbal
+    rate commands in ``[−1, 1]`` (clipped); NaN or infinite values raise ``ValueError``.
+    Returns ``(state, reward (B,), terminated (B,))``; the time limit is the shells'."""
+    B = state.batch_size
+    try:
+        a = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"action: cannot be read as floats ({exc})") from None
+    if a.size != 2 * B:
+        raise ValueError(f"action: expected {2 * B} values (B, 1, 2), got shape {a.shape}")
+    a = a.reshape(B, 1, 2)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("action: contains NaN or infinite values")
+    return reference.step(params, state, a, rng)
+
+
+def carrier_attitude(params: GimbalParams, state: GimbalState) -> tuple[FloatArray, FloatArray]:
+    """Attitude ``(B, 3)`` (roll, pitch, yaw, rad) and its rates (rad/s) at the state's frame:
+    known to the tracker (paper 001's assumption), observed."""
+    return reference.carrier_attitude(params, state.carrier_phase, state.frame)
+
+
+def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """The agent's observation ``(B, 21 + N)`` float32 — own drives, the carrier's attitude and
+    the tracker's output, no ground truth. ``h`` is half the field of view; "body offset" of a
+    level direction is its body-frame (azimuth, elevation) minus the gimbal's (α, β), azimuth
+    wrapped.
+
+    | index      | meaning                                                                   |
+    |------------|---------------------------------------------------------------------------|
+    | 0, 1       | gimbal ``α/π``, ``β/(π/2)``                                                  |
+    | 2, 3       | gimbal rates ``/ max_rate``                                                 |
+    | 4–6        | carrier roll, pitch, yaw ``/ 0.1`` rad                                      |
+    | 7–9        | their rates ``/ 0.1`` rad/s                                                 |
+    | 10, 11     | body offset of the tracker's estimate this frame ``/ h``                    |
+    | 12, 13     | body offset of its prediction for the next frame, at this frame's attitude ``/ h`` |
+    | 14, 15     | the estimate's level ``θ/π``, ``ϕ/(π/2)``                                   |
+    | 16, 17     | the prediction's level ``θ/π``, ``ϕ/(π/2)``                                 |
+    | 18         | ``ln(σ_LOS/σ_ref)``                                                          |
+    | 19 … 18+N  | each channel's posterior object probability (mean of the two planes)        |
+    | 19+N       | 1.0 if the tracker detected the target this frame                           |
+    | 20+N       | frames since the last detection ``/ reacquire_limit`` (``+ 1``)              |
+
+    Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
+    """
+    attitude, rates = carrier_attitude(params, state)
+    g = state.gimbal_angles
+    h = params.half_field
+    scale = np.array([np.pi, np.pi / 2])
+
+    def offset(angles: FloatArray) -> FloatArray:
+        d = reference.body_angles(unit_from_zup_angles(angles[:, 0], angles[:, 1]), attitude) - g
+        d[:, 0] = wrap_angle(d[:, 0])
+        return d / h
+
+    probability = 1.0 - state.view_posterior[..., 0]  # (B, 2, N)
+    obs = np.concatenate(
+        [
+            g / scale,
+            state.gimbal_rates / params.max_rate,
+            attitude / ATTITUDE_SCALE,
+            rates / ATTITUDE_SCALE,
+            offset(state.estimate),
+            offset(state.predicted),
+            state.estimate / scale,
+            state.predicted / scale,
+            np.log(state.sigma_los / params.sigma_ref)[:, None],
+            probability.mean(1),
+            state.detected[:, None].astype(np.float64),
+            (state.since_detection / (params.reacquire_limit + 1))[:, None],
+        ],
+        -1,
+    )
+    return clip_observation(obs)
+
+
+def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """The one gimbal's view ``(B, 1, obs_dim)``: :func:`observe`."""
+    return observe(params, state)[:, None, :]
+
+
+def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
+    """Diagnostics (ground truth included: for evaluation, never for the policy): the angle
+    between the tracker's estimate and the target (``los_error``, rad), between the boresight
+    and the target (``pointing_error``, rad), the estimate's azimuth and elevation errors
+    (``estimate_error_azimuth``, ``estimate_error_elevation``, rad: paper 001's prediction
+    error through a loss), ``σ_LOS`` (rad), whether the target is in view, occluded, detected,
+    and how many channels it stands out in."""
+    los = state.target_position / np.linalg.norm(state.target_position, axis=-1, keepdims=True)
+    est = unit_from_zup_angles(state.estimate[:, 0], state.estimate[:, 1])
+    attitude, _ = carrier_attitude(params, state)
+    boresight = reference.level_direction(state.gimbal_angles, attitude)
+    truth = np.stack(zup_angles_from_unit(los), -1)
+
+    def angle(u: FloatArray, w: FloatArray) -> FloatArray:
+        return np.arctan2(np.linalg.norm(np.cross(u, w), axis=-1), np.sum(u * w, -1))
+
+    return {
+        "los_error": angle(est, los),
+        "pointing_error": angle(boresight, los),
+        "estimate_error_azimuth": wrap_angle(state.estimate[:, 0] - truth[:, 0]),
+        "estimate_error_elevation": state.estimate[:, 1] - truth[:, 1],
+        "sigma_los": state.sigma_los,
+        "in_view": state.in_view.astype(np.float64),
+        "occluded": state.occluded.astype(np.float64),
+        "detected": state.detected.astype(np.float64),
+        "visible_channels": state.visible.sum(-1).astype(np.float64),
+    }
