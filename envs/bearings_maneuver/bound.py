@@ -67,7 +67,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import minimize
 
 from sensorgym.envs.bearings_maneuver import simulation
-from sensorgym.envs.bearings_maneuver.kernels import fly_step, read_settings
+from sensorgym.envs.bearings_maneuver.kernels import fly_step
 from sensorgym.envs.bearings_maneuver.simulation import ManeuverParams, ManeuverState
 from sensorgym.trackers.bearings.kernels import STATE_DIM, accuracy, bound_predict, bound_update
 from sensorgym.trackers.stereo.kernels import copy2
@@ -96,7 +96,7 @@ def returns_kernel(settings, pos0, heading0, speed0, L0, acc0, path, actions, re
     included), ``ln m(P_T)`` of the full horizon ignoring termination ``log_final (S,)``, every
     range ``ranges (S, T, K)`` and the step count at the end ``ended (S,)`` (``T`` when the
     stand-off was kept); ``settings`` is the params' record (:data:`.kernels.SETTINGS`)."""
-    p = read_settings(settings)
+    p = settings[0]
     S, T, K = actions.shape[0], actions.shape[1], actions.shape[2]
     dt, q_tilde, sigma = p.dt, p.q_tilde, p.sigma
     L = np.empty((STATE_DIM, STATE_DIM))

@@ -88,22 +88,6 @@ SETTINGS = np.dtype(
     align=True,
 )
 
-#: The settings as the kernels hold them: the fields of :data:`SETTINGS`, in locals.
-Settings = namedtuple("Settings", SETTINGS.names)
-
-
-@njit(**_INLINE)
-def read_settings(settings):
-    """The record ``settings[0]`` as a :data:`Settings` tuple of scalars (read once: the
-    compiled loops then keep them in registers)."""
-    r = settings[0]
-    return Settings(
-        r.dt, r.q_tilde, r.sigma, r.max_turn, r.max_dv, r.min_speed, r.max_speed, r.floor,
-        r.min_range, r.penalty, r.range_scale, r.speed_scale, r.clip, r.speed_mean,
-        r.speed_sigma, r.relative_range,
-    )  # fmt: skip
-
-
 #: The arrays of a :class:`.simulation.ManeuverState`, in the order the kernels take them:
 #: platforms ``pos (B, K, 2)``, ``heading``, ``speed`` ``(B, K)``, ``target (B, 4)``, the bank's
 #: log weights ``lw (B, N)``, means ``X (B, N, 4)``, covariances ``P (B, N, 4, 4)``, the bound's
@@ -182,7 +166,7 @@ def reset_kernel(settings, prior, state, eps):
     ``(3,)``, :attr:`.simulation.ManeuverParams.prior_cells`); the bound's square root ``L`` of
     the bank's moment-matched covariance; the other platforms' first bearings fused into both;
     the accuracy ``acc`` and the derived fields. ``settings`` is the params' record."""
-    p = read_settings(settings)
+    p = settings[0]
     s = StateArrays(*state)
     pos, _, _, target, lw, X, P, L, acc, z = state[:10]
     ws = workspace(lw.shape[1])
@@ -211,7 +195,7 @@ def step_kernel(lo, hi, settings, old, action, draws, new, out):
     bearing_noise)``: ``(B, 4)`` standard normals (read when ``q̃ > 0``), ``G (4, 4)`` with
     ``G Gᵀ = Q``, ``(B, K)`` standard normals. ``settings`` is the params' record. Returns the
     number of non-finite action entries (the caller raises: the kernel trusts everything else)."""
-    p = read_settings(settings)
+    p = settings[0]
     pos, heading, speed, target, lw, X, P, L, acc = old[:9]
     pos2, heading2, speed2, target2, lw2, X2, P2, L2, acc2, z2 = new[:10]
     s2 = StateArrays(*new)
@@ -570,7 +554,7 @@ def plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command, horiz
     (:func:`step_kernel`'s predict and bearing update on the true state). Writes the accuracy
     the reward measures at the end, ``out (B, C)``, or ``inf`` for a plan that comes within
     ``too_close`` (m). ``settings`` is the params' record."""
-    p = read_settings(settings)
+    p = settings[0]
     x, x_next, G, path, track, _, _, others, none, Lc, L_pred, A_pred, A_update, Lo, C, u = (
         plan_workspace(horizon, 0)
     )
@@ -607,7 +591,7 @@ def joint_plan_kernel(lo, hi, settings, pos, heading, speed, target, L, command,
     ``K = 1`` this is :func:`plan_kernel`'s argmin. Writes each platform's command index into
     ``choice (B, K)``; a plan within ``too_close`` (m) of the target's mean path is ruled out.
     ``settings`` is the params' record."""
-    p = read_settings(settings)
+    p = settings[0]
     K = heading.shape[1]
     x, x_next, G, path, track, tracks, info, others, _, Lc, L_pred, A_pred, A_update, Lo, C, u = (
         plan_workspace(horizon, K)
@@ -666,7 +650,7 @@ def greedy_kernel(settings, obs, sd, delta, command, too_close, choice):
     platform ``k``'s frame into platform 1's (its heading relative to platform 1's, rad).
     Writes each platform's first best command index into ``choice (n, K)``. ``settings`` is
     the params' record."""
-    p = read_settings(settings)
+    p = settings[0]
     K = obs.shape[1]
     dt, sigma = p.dt, p.sigma
     range_scale, speed_scale = p.range_scale, p.speed_scale
