@@ -75,3 +75,29 @@ def test_wheel_contains_only_sensorgym(tmp_path):
     for p in shipped:
         rel = p.relative_to(policies).as_posix()
         assert f"sensorgym/train/policies/{rel}" in names, f"{rel} missing from the wheel"
+
+
+@pytest.mark.slow
+def test_sdist_holds_what_its_tests_read_and_not_the_lab(tmp_path):
+    import tarfile
+
+    subprocess.run(
+        [sys.executable, "-m", "build", "--sdist", "-o", str(tmp_path), str(ROOT)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    (sdist,) = tmp_path.glob("sensorgym-*.tar.gz")
+    with tarfile.open(sdist) as tar:
+        names = {n.split("/", 1)[1] for n in tar.getnames() if "/" in n}
+    # the tests and every file of the repository they read (MANIFEST.in)
+    wanted = ["tests/golden/episodes.npz", "tests/conftest.py", "docs/theory.md", "docs/conf.py",
+              "benchmarks/tables.py", "scripts/docs.sh", ".ci/run", ".gitignore", "README.md",
+              "CHANGELOG.md", "train/hyperparams/ppo.yml"]  # fmt: skip
+    wanted += [p.relative_to(ROOT).as_posix() for p in (ROOT / "examples").glob("*.py")]
+    wanted += [p.relative_to(ROOT).as_posix() for p in (ROOT / "tests").glob("test_*.py")]
+    assert not [w for w in wanted if w not in names], "missing from the sdist"
+    # not shipped: the lab, the docs site's build and generated pages, local runs, caches
+    for top in ("research/", "docs/_build/", "docs/envs/", "results/", "build/"):
+        assert not [n for n in names if n.startswith(top)], f"{top} in the sdist"
+    assert not [n for n in names if "__pycache__" in n or n.endswith(".pyc")]
