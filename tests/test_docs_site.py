@@ -18,6 +18,7 @@ import pytest
 from PIL import Image
 
 from sensorgym.envs import ENV_IDS
+from tests.pending import having
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
@@ -36,9 +37,10 @@ def _extension():
 ext = _extension()
 
 
-def test_the_envs_registered_are_the_six_the_site_documents():
-    assert set(ENV_IDS) == set(_pictures_script_rules())
-    assert len(ENV_IDS) == 6
+def test_the_envs_registered_are_the_seven_the_site_documents():
+    # every env's page is generated; the pictures' rules cover all but the pending pictures
+    assert set(having("picture", ENV_IDS)) == set(_pictures_script_rules())
+    assert len(ENV_IDS) == 7
 
 
 def _pictures_script_rules() -> dict[str, str]:
@@ -93,7 +95,7 @@ def test_a_section_left_to_the_base_env_comes_from_its_docstring():
     assert "From the docstring of" in action and "BearingsManeuverEnv" in action
 
 
-@pytest.mark.parametrize("env_id", ENV_IDS)
+@pytest.mark.parametrize("env_id", having("picture", ENV_IDS))
 def test_every_env_has_a_committed_picture(env_id):
     path = ext.picture_path(env_id)
     assert path.is_file(), f"{path.relative_to(ROOT)}: run .venv/bin/python docs/make_pictures.py"

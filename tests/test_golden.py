@@ -17,6 +17,7 @@ import pytest
 import sensorgym.envs as envs
 from sensorgym.envs.bearings_maneuver import book_parallel_env
 from sensorgym.envs.bearings_maneuver import parallel_env as maneuver_parallel
+from sensorgym.envs.gimbal_tracking import parallel_env as gimbal_parallel
 from sensorgym.envs.stereo_placement import parallel_env as placement_parallel
 from sensorgym.envs.stereo_pointing import crowded_parallel_env
 from sensorgym.envs.stereo_pointing import parallel_env as pointing_parallel
@@ -33,6 +34,7 @@ from tests.golden_record import (
     single_episodes,
     vector_episodes,
 )
+from tests.pending import having
 
 PARALLEL_FACTORIES = {
     "sensorgym/BearingsManeuver-v0": functools.partial(maneuver_parallel, platforms=2),
@@ -41,7 +43,11 @@ PARALLEL_FACTORIES = {
     "sensorgym/StereoPointingCrowded-v0": crowded_parallel_env,
     "sensorgym/StereoPlacement-v0": placement_parallel,
     "sensorgym/StereoScanning-v0": scanning_parallel,
+    "sensorgym/GimbalTracking-v0": gimbal_parallel,
 }
+
+#: the envs with recordings (tests/pending.py lists those whose recordings are to come)
+RECORDED_ENVS = having("golden", envs.ENV_IDS)
 
 
 @pytest.fixture(scope="module")
@@ -55,21 +61,21 @@ pytestmark = pytest.mark.arithmetic
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+@pytest.mark.parametrize("env_id", RECORDED_ENVS)
 def test_single_env_episodes_unchanged(recorded, env_id, seed):
     name = env_id.split("/")[1]
     assert_episodes_close(single_episodes(env_id, seed), recorded, f"{name}/single/{seed}")
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+@pytest.mark.parametrize("env_id", RECORDED_ENVS)
 def test_vector_env_episodes_unchanged(recorded, env_id, seed):
     name = env_id.split("/")[1]
     assert_episodes_close(vector_episodes(env_id, seed), recorded, f"{name}/vector/{seed}")
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("env_id", envs.ENV_IDS)
+@pytest.mark.parametrize("env_id", RECORDED_ENVS)
 def test_parallel_env_episodes_unchanged(recorded, env_id, seed):
     name = env_id.split("/")[1]
     got = parallel_episodes(PARALLEL_FACTORIES[env_id], seed)
