@@ -141,7 +141,7 @@ def test_render_writes_an_animated_episode(tmp_path, capsys):
     assert main(["render", *args]) == 0
     with Image.open(out) as gif:
         assert gif.n_frames == 4  # the reset frame, steps 10 and 20, the last step (30)
-        assert gif.size == (480, 480)
+        assert gif.size == (480, 528)  # the legend below the axes
     assert "return" in capsys.readouterr().out
     with pytest.raises(SystemExit, match="rule"):
         main(["render", "--rule", "nonsense", "--out", str(out)])
@@ -159,7 +159,7 @@ def test_record_plays_several_episodes_into_one_video(tmp_path, capsys):
     assert "mean return" in printed
     with imageio.get_reader(out) as video:
         assert video.count_frames() == 8  # each episode: reset, steps 10 and 20, the last (30)
-        assert video.get_meta_data()["size"] == (480, 480)
+        assert video.get_meta_data()["size"] == (480, 528)
     # the same seed plays the same episodes
     assert main(["render", *args[:-1], str(tmp_path / "again.gif")]) == 0
     assert [line for line in capsys.readouterr().out.splitlines() if ": return " in line] == returns

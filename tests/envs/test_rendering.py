@@ -14,7 +14,12 @@ import pytest
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.envs.shells.rendering import sigma_ellipse, status_line
 
-SCENE_ENVS = ["sensorgym/StereoPointing-v0", "sensorgym/StereoScanning-v0"]
+SCENE_ENVS = [
+    "sensorgym/BearingsManeuver-v0",
+    "sensorgym/StereoPointing-v0",
+    "sensorgym/StereoPlacement-v0",
+    "sensorgym/StereoScanning-v0",
+]
 
 
 def _episode(env_id: str, seed: int, steps: int) -> tuple[gym.Env, list[np.ndarray]]:

@@ -168,7 +168,7 @@ def test_gymnasium_env_and_rendering_at_sixteen_receivers():
         obs, reward, terminated, _, _ = env.step(env.action_space.sample())
         assert np.isfinite(reward) and np.all(np.isfinite(obs)) and not terminated
     frame = env.render()
-    assert frame.shape == (480, 480, 3) and frame.std() > 0
+    assert frame.shape == (528, 480, 3) and frame.std() > 0  # the legend below
 
 
 # --- rules at many receivers ------------------------------------------------------------------
