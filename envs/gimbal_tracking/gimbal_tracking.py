@@ -40,10 +40,12 @@ class GimbalTrackingEnv(CoreEnv):
     by their posterior detection probabilities and view transitions (theory §9.2); while it
     detects the target, the fused direction is the measurement of paper 001's angle predictor
     (:class:`~sensorgym.trackers.angles.prediction.ABCPredictor`, conditional trajectory and
-    exponential smoothing, theory §8.3–8.6), which carries the track through a loss. The agent
-    commands the drives; the tracker works wherever the target is in view, but the optics lose
-    contrast off axis (``vignetting``) and a target out of view is not seen at all. Simulation
-    core: :mod:`sensorgym.envs.gimbal_tracking.simulation` (stages in :mod:`.reference`).
+    exponential smoothing, theory §8.3–8.6), which carries the track through a short loss. Once
+    the target has gone undetected for ``search_after`` frames (25: 1 s) the gate searches at
+    the boresight instead: re-acquisition takes pointing the field of view's centre at the
+    target. The agent commands the drives; the optics lose contrast off axis (``vignetting``)
+    and a target out of view is not seen at all. Simulation core:
+    :mod:`sensorgym.envs.gimbal_tracking.simulation` (stages in :mod:`.reference`).
 
     ## Action Space
 

@@ -6,8 +6,9 @@ rolls, pitches and yaws (:func:`carrier_attitude`); occlusions (:func:`schedule_
 each channel's Markov chain of views (:func:`step_views`) decide what can be seen; the target's
 place in the field of view (:func:`view_geometry`) decides whether it is in view and how much
 contrast the off-axis optics leave; each channel images the tracking gate
-(:func:`render_gate`); paper 004's fused tracker measures the target's offset from paper 001's
-predicted direction (:func:`fuse_channels`); the predictor takes the fused direction as its
+(:func:`render_gate`), centred on paper 001's predicted direction or, in search, on the
+boresight (:func:`gate_centre`); paper 004's fused tracker measures the target's offset from it
+(:func:`fuse_channels`); the predictor takes the fused direction as its
 measurement, or coasts through a loss (:func:`advance_predictor`); the reward reads the fused
 estimate's angular error bound (:func:`reward`).
 
@@ -228,6 +229,20 @@ def view_geometry(
 # -- the tracker ----------------------------------------------------------------------------
 
 
+def gate_centre(
+    params: GimbalParams, state: GimbalState, gimbal: FloatArray, attitude: FloatArray
+) -> FloatArray:
+    """Level angles ``(B, 2)`` the tracking gate is centred on this frame: paper 001's
+    prediction, or — once the target has gone undetected for ``search_after`` frames — the
+    boresight (the gimbal's angles ``gimbal (B, 2)`` seen from ``attitude (B, 3)``, both known
+    to the tracker): a coasted prediction that has missed the target no longer finds it, and
+    re-acquisition takes pointing the field of view's centre at it."""
+    searching = state.since_detection >= params.search_after
+    boresight = level_direction(gimbal, attitude)
+    az, el = zup_angles_from_unit(boresight)
+    return np.where(searching[:, None], np.stack([az, el], -1), state.predicted)
+
+
 def render_gate(
     params: GimbalParams,
     residual: FloatArray,
@@ -406,9 +421,9 @@ def step(
     _, in_view, gain = view_geometry(params, position, attitude, gimbal)
     visible = (views > 0) & (in_view & ~occluded)[:, None]
 
-    # the gate is centred on paper 001's prediction for this frame; the target's offset from
-    # it, in the level frame's image plane (the image derotated with the known attitude)
-    reference = state.predicted
+    reference = gate_centre(params, state, gimbal, attitude)
+    # the target's offset from the gate centre, in the level frame's image plane (the image
+    # derotated with the known attitude)
     los = position / np.linalg.norm(position, axis=-1, keepdims=True)
     residual = tangent_offsets(los, reference) * MRAD
     images = render_gate(params, residual, views, visible, gain, rng)

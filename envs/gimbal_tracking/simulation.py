@@ -19,7 +19,8 @@ are the functions of :mod:`.reference` (theory §11.1):
    × view transitions; where detected (MAP: an object view in some channel, in both planes)
    the fused direction — plus the angle sensors' noise — is paper 001's predictor's
    (:class:`~sensorgym.trackers.angles.prediction.ABCPredictor`) measurement, otherwise the
-   predictor coasts along its conditional trajectory (theory §8.6 step 7);
+   predictor coasts along its conditional trajectory (theory §8.6 step 7); after
+   ``search_after`` frames without detection the gate searches at the boresight;
 5. the reward ``clip(ln(σ_ref/σ_LOS), −R, R)`` with ``σ_LOS`` the fused direction's angular
    error bound, ``−R`` while the target is out of the field of view; the episode terminates
    when it has been out of view for more than ``reacquire_limit`` frames.
@@ -150,6 +151,9 @@ class GimbalParams(FieldsOnlyPickle):
     """Angular error that earns zero reward, rad."""
     reward_clip: float = 5.0
     """``R``: the reward is clipped to ``[−R, R]``; ``−R`` while the target is out of view."""
+    search_after: int = 25
+    """Frames without detection after which the tracking gate leaves the coasting prediction
+    for the boresight (search: re-acquisition where the gimbal points), frames."""
     reacquire_limit: int = 50
     """The episode terminates once the target has been out of view for more frames than this."""
 
@@ -247,6 +251,8 @@ class GimbalParams(FieldsOnlyPickle):
             raise ValueError(
                 f"reward_clip: must lie in (0, {MAX_REWARD_CLIP}], got {self.reward_clip}"
             )
+        if self.search_after < 1:
+            raise ValueError(f"search_after: must be >= 1 frame, got {self.search_after}")
         if self.reacquire_limit < 0:
             raise ValueError(f"reacquire_limit: must be >= 0, got {self.reacquire_limit}")
 

@@ -183,6 +183,7 @@ OTHER_VALUES["sensorgym/GimbalTracking-v0"] = {
     "predictor_memory": 5.0,
     "sigma_ref": 0.002,
     "reward_clip": 3.0,
+    "search_after": 5,
     "reacquire_limit": 10,
 }
 

@@ -307,3 +307,29 @@ def test_paper_001_scenario_predicts_like_the_reproduction():
             # RMS of n Gaussian errors: relative standard error ≈ 1/√(2n), each side
             tol = 4.0 * np.hypot(rms_env, rms_rep) / np.sqrt(2 * runs)
             assert abs(rms_env - rms_rep) < tol, (k, key, rms_env, rms_rep)
+
+
+def test_a_long_loss_moves_the_gate_to_the_boresight():
+    """After ``search_after`` frames without detection the gate searches at the boresight
+    (frames 10–49 occluded, search from frame 15): pointed at the target (truth-servo), the
+    tracker re-acquires it on the first frame the occlusion is over."""
+    params = GimbalParams(
+        **{**CALM, "occlusion_gap": (10, 10), "occlusion_length": (40, 40)}, search_after=5
+    )
+    rng = np.random.default_rng(4)
+    state = core.reset(params, rng, 3)
+    truth = RULES[ENV_ID]["truth-servo"](params, lambda: state)
+    for frame in range(1, 51):
+        before = state
+        action, _ = truth.predict(core.observe(params, state))
+        state, _, _ = core.step(params, state, action[:, None, :], rng)
+        attitude, _ = core.carrier_attitude(params, state)
+        axis = reference.level_direction(state.gimbal_angles, attitude)
+        on_axis = reference.tangent_offsets(axis, state.reference)
+        if 16 <= frame <= 49:  # searching: the gate on the gimbal's axis, not the prediction
+            assert np.all(before.since_detection >= params.search_after)
+            np.testing.assert_allclose(on_axis, 0.0, atol=1e-12)
+            assert np.all(np.abs(state.reference - before.predicted).max(-1) > 0.0)
+        if frame <= 14:  # not yet: the gate on paper 001's prediction
+            np.testing.assert_array_equal(state.reference, before.predicted)
+    assert state.detected.all() and not state.occluded.any()
