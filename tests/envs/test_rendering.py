@@ -19,6 +19,7 @@ SCENE_ENVS = [
     "sensorgym/StereoPointing-v0",
     "sensorgym/StereoPlacement-v0",
     "sensorgym/StereoScanning-v0",
+    "sensorgym/GimbalTracking-v0",
 ]
 
 
