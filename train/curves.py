@@ -189,6 +189,25 @@ def wall_clock_axis(ax: Any, points: list[dict[str, float]]) -> Any:
     return top
 
 
+#: the trained policy's colour in ``curve.png``
+POLICY_COLOUR = "#e8833a"
+#: rule colours nearer than this to the policy's (Euclidean distance in RGB, 0–1 per channel)
+#: are left out of the rules' palette
+COLOUR_GAP = 0.25
+
+
+def rule_colours() -> list[str]:
+    """The palette of the rules' lines in ``curve.png``: matplotlib's colour cycle without the
+    colours that read as the policy's (:data:`POLICY_COLOUR`; tab10's orange), so that no
+    rule's line is taken for the curve."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import to_rgb
+
+    policy = np.array(to_rgb(POLICY_COLOUR))
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    return [c for c in cycle if np.linalg.norm(np.array(to_rgb(c)) - policy) >= COLOUR_GAP]
+
+
 def write_curve(
     run_dir: Path,
     title: str,
@@ -216,13 +235,13 @@ def write_curve(
     steps = [p["timesteps"] for p in points]
     mean = [p["mean"] for p in points]
     ci = [p["ci95"] for p in points]
-    ax.plot(steps, mean, color="#e8833a", marker="o", markersize=3, label="trained policy")
+    ax.plot(steps, mean, color=POLICY_COLOUR, marker="o", markersize=3, label="trained policy")
     lo = [m - c for m, c in zip(mean, ci, strict=True)]
     hi = [m + c for m, c in zip(mean, ci, strict=True)]
-    ax.fill_between(steps, lo, hi, color="#e8833a", alpha=0.2, linewidth=0)
+    ax.fill_between(steps, lo, hi, color=POLICY_COLOUR, alpha=0.2, linewidth=0)
     (y_lo, y_hi), shown, hidden = curve_window(points, rules)
     ax.set_ylim(y_lo, y_hi)
-    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colors = rule_colours()
     ranked = sorted(shown.items(), key=lambda kv: -kv[1])
     labels = []
     for k, (name, value) in enumerate(ranked):

@@ -14,7 +14,14 @@ from sensorgym.cli.main import main
 from sensorgym.envs import ENV_IDS
 from sensorgym.envs.bearings_maneuver.simulation import OBS_DIM
 from sensorgym.train.benchmark import best_rule, paired_difference, paired_to_best_rule, pool
-from sensorgym.train.curves import WINDOW_MARGIN, curve_window, spread_labels, write_curve
+from sensorgym.train.curves import (
+    POLICY_COLOUR,
+    WINDOW_MARGIN,
+    curve_window,
+    rule_colours,
+    spread_labels,
+    write_curve,
+)
 from sensorgym.train.evaluation import env_params, evaluate, make_sb3_env
 from sensorgym.train.experts import Pretrain, collect, expert_factory, pretrain
 from sensorgym.train.models import load_model
@@ -274,3 +281,13 @@ def test_paired_iqm_is_robust_to_a_few_large_episodes_and_reproducible():
     assert (same["iqm"], same["iqm_ci95"], same["better"], same["worse"]) == (0.0, [0.0, 0.0], 0, 0)
     with pytest.raises(ValueError, match="finite"):
         paired_difference([1.0, float("nan")], [1.0, 2.0])
+
+
+def test_no_rule_line_takes_the_policys_colour():
+    from matplotlib.colors import to_rgb
+
+    palette = rule_colours()
+    assert len(palette) >= 8  # tab10 without its orange
+    policy = np.array(to_rgb(POLICY_COLOUR))
+    assert min(np.linalg.norm(np.array(to_rgb(c)) - policy) for c in palette) >= 0.25
+    assert "#ff7f0e" not in palette  # tab10's orange, the colour that clashed
