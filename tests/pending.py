@@ -8,7 +8,7 @@ entry then, and the repository-wide tests take the env in) nor hide a part an en
 | part | what it is | where it lands |
 |------|------------|----------------|
 | ``golden`` | seeded episodes of every door | ``tests/golden/episodes.npz`` |
-| ``kernels`` | the compiled step (and its ``COMPILE_VARIANTS``) | ``envs/<env>/kernels.py`` |
+| ``kernels`` | the compiled step, its ``COMPILE_VARIANTS`` and ``test_reference.py`` | ``envs/<env>/kernels.py`` |
 | ``picture`` | the docs site's picture of a rule's episode | ``docs/make_pictures.py``, PNG |
 | ``ppo_recipe`` | a PPO recipe | ``train/hyperparams/ppo.yml`` |
 | ``scores`` | committed benchmark scores | ``docs/scores/<env>.json`` |
