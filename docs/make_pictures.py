@@ -26,6 +26,7 @@ RULES = {
     "sensorgym/StereoPointingCrowded-v0": "greedy-information",
     "sensorgym/StereoPlacement-v0": "greedy-information",
     "sensorgym/StereoScanning-v0": "greedy-information",
+    "sensorgym/GimbalTracking-v0": "carrier-feedforward",
 }
 
 
