@@ -6,7 +6,8 @@
 the readable numpy form, :mod:`.reference` (theory §2.5, §7.7–§7.9, §11.2), one compiled
 function per stage under the reference's name: :func:`fly`, :func:`move_target`,
 :func:`take_bearings`, :func:`prior_bank`, :func:`track` (the bank's predict and updates),
-:func:`bound` (its predict, updates and the accuracy), :func:`derive` (the observation) and
+:func:`bound` (the bearings' information after the predict, and the accuracy),
+:func:`derive` (the observation) and
 :func:`reward_and_end`. The stages are built from the primitives written once in
 :mod:`sensorgym.trackers.bearings.kernels` (prior, bank, bound, accuracy) and
 :mod:`sensorgym.envs.worlds.platform_kernels` (flight, target motion, bearings); the bank's
@@ -25,7 +26,8 @@ What the kernels take:
 - the **settings**: one record of dtype :data:`SETTINGS`, read by field name (``p.dt``,
   ``p.sigma``); :attr:`.simulation.ManeuverParams.kernel_constants` builds it once per params;
 - a **state** as the tuple of its arrays in the order of :data:`StateArrays` (what
-  :func:`.simulation.state_arrays` returns), which the kernels read by name;
+  :func:`.simulation.state_arrays` returns); each kernel takes it apart once per call and
+  hands every stage the arrays it reads and writes;
 - **scratch** from :func:`workspace` (the step and reset) and :func:`plan_workspace` (the
   planners), allocated once per call and reused over the rows.
 """

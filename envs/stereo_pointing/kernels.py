@@ -8,6 +8,13 @@ writes the new state's observation (:func:`observe_row`) and diagnostics (:func:
 that ``observe`` and ``info`` only read them. The random draws stay with numpy's Generator: the
 caller draws them (same order and shapes as the numpy form had) and passes them in.
 
+The step runs the stages of :func:`.reference.step` in its order (marked 1–5 in the loop). The
+settings come as one record of dtype :data:`SETTINGS`, read by field name
+(:attr:`.simulation.PointingParams.kernel_settings`); a state comes as the tuple of its arrays
+in the order of :data:`StateArrays` (:func:`.simulation.state_arrays`), and the scratch from
+:func:`workspace`. The step takes both apart into locals once per call: a field read from a
+tuple inside the loops would count a reference each time.
+
 Rows are independent, so the caller splits a large batch over threads
 (:func:`sensorgym.envs.shells.rows.run_drawn_rows`; the kernels release the GIL) with bit-identical
 results; ``prange`` is not used (seconds of cold compile, and numba's OpenMP layer kills any
