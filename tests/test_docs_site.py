@@ -2,8 +2,9 @@
 
 The site itself is built by ``scripts/docs.sh`` (Sphinx with ``-W``, in CI); these tests check,
 without Sphinx, what it is made of: the page generator of ``docs/_ext/sensorgym_docs.py``
-writes one page per id with the spec's sections, and ``docs/make_pictures.py`` has committed
-one picture per id.
+writes one page per id with the spec's sections, the env's default rules, its row of the
+committed results and its changelog section, and ``docs/make_pictures.py`` has committed one
+picture and one animated GIF per id.
 """
 
 from __future__ import annotations
@@ -109,6 +110,106 @@ def test_every_env_has_a_committed_picture(env_id):
     assert tracked.returncode == 0, f"{path.relative_to(ROOT)} is not committed"
     with Image.open(path) as im:
         assert im.format == "PNG" and min(im.size) >= 200
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_has_a_committed_animated_gif_under_1_mb(env_id):
+    path = ext.animation_path(env_id)
+    rel = path.relative_to(ROOT)
+    assert path.is_file(), f"{rel}: run .venv/bin/python docs/make_pictures.py --only gif"
+    assert path.stat().st_size < 1_000_000, f"{rel}: {path.stat().st_size} bytes"
+    tracked = subprocess.run(
+        ["git", "ls-files", "--error-unmatch", str(rel)], cwd=ROOT, capture_output=True
+    )
+    if tracked.returncode not in (0, 1):  # no git (an unpacked sdist): the file is enough
+        pytest.skip("not a git checkout")
+    assert tracked.returncode == 0, f"{rel} is not committed"
+    with Image.open(path) as im:
+        assert im.format == "GIF" and im.is_animated and im.n_frames > 1
+        assert min(im.size) >= 150
+    assert f"](../assets/envs/{ext.env_name(env_id)}.gif)" in ext.env_page(env_id)
+
+
+def _section(page: str, title: str) -> str:
+    assert f"\n## {title}\n" in page, f"no '## {title}' on the page"
+    return page.split(f"\n## {title}\n", 1)[1].split("\n## ", 1)[0]
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_page_lists_its_default_rules_one_line_each(env_id):
+    from sensorgym.agents.registry import ABLATIONS, default_rules
+
+    rules = _section(ext.env_page(env_id), "Rules")
+    lines = [line for line in rules.splitlines() if line.startswith("- `")]
+    assert [line.split("`")[1] for line in lines] == default_rules(env_id)
+    for line in lines:  # the rule's class and the first sentence of its docstring
+        assert re.match(r"- `[^`]+` \(\{py:class\}`~sensorgym\.agents\.[\w.]+`\): \S", line)
+    for name in ABLATIONS.get(env_id, ()):
+        assert f"`{name}`" in rules.split("ablations", 1)[1]
+
+
+def test_a_rule_line_is_the_first_sentence_of_its_class_docstring():
+    from sensorgym.agents.stereo_placement import HoldPosition
+
+    rules = _section(ext.env_page("sensorgym/StereoPlacement-v0"), "Rules")
+    first = ext.first_sentence(HoldPosition.__doc__)
+    assert first.endswith(".") and "\n" not in first
+    assert (
+        f"- `hold-position` ({{py:class}}`~{HoldPosition.__module__}.HoldPosition`): {first}"
+        in (rules)
+    )
+    assert ext.first_sentence("A (b. c) ``d. e``. F.") == "A (b. c) ``d. e``."
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_page_has_its_row_of_the_results_or_no_scores_yet(env_id):
+    import json
+
+    results = _section(ext.env_page(env_id), "Results")
+    path = ext.scores_path(env_id)
+    if not path.is_file():
+        assert "No scores yet" in results
+        return
+    doc = json.loads(path.read_text())
+    best = ext._tables()._score_doc(ext.env_name(env_id))["best_rule"]
+    assert f"| best rule `{best}` | {doc['results'][best]['mean']:.3f} |" in results
+    for name in (n for n in doc["results"] if ":" in n):
+        paired = doc["paired"][name]["mean"]
+        assert f"| `{name}` | {doc['results'][name]['mean']:.3f} |" in results
+        assert f"| {paired:+.3f} |" in results
+
+
+def test_an_env_without_committed_scores_says_so():
+    pending = [e for e in ENV_IDS if e not in having("scores", ENV_IDS)]
+    assert pending, "every env has scores: pick another check"
+    for env_id in pending:
+        assert not ext.scores_path(env_id).exists()
+        assert "No scores yet" in _section(ext.env_page(env_id), "Results")
+
+
+@pytest.mark.parametrize("env_id", ENV_IDS)
+def test_every_env_page_has_its_changelog_section(env_id):
+    changelog = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    environments = changelog.split("\n## Environments\n", 1)[1]
+    own = environments.split(f"### `{env_id}`\n", 1)[1].split("\n### ", 1)[0].split("\n## ")[0]
+    history = _section(ext.env_page(env_id), "Version History")
+    assert "### In CHANGELOG.md" in history
+    assert own.strip() in history
+
+
+def test_contributing_and_the_public_api_are_pages_of_the_site():
+    index = (DOCS / "index.md").read_text()
+    for page in ("contributing", "public-api", "changelog"):
+        assert f"\n{page}\n" in index, f"docs/{page}.md is not in the toctree"
+    assert "```{include} ../CONTRIBUTING.md" in (DOCS / "contributing.md").read_text()
+    assert "```{include} ../CHANGELOG.md" in (DOCS / "changelog.md").read_text()
+    public = (DOCS / "public-api.md").read_text()
+    start = re.search(r":start-after: (.+)", public).group(1).strip()
+    end = re.search(r":end-before: (.+)", public).group(1).strip()
+    readme = (ROOT / "README.md").read_text()
+    section = readme.split("\n## Public API\n", 1)[1].split("\n## ", 1)[0]
+    assert start in section and end in section
+    assert "| import | what it gives |" in section.split(start, 1)[1].split(end, 1)[0]
 
 
 def test_generated_pages_are_one_per_id_and_in_the_toctree(tmp_path, monkeypatch):

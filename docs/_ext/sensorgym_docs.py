@@ -10,8 +10,13 @@ Each registered env id gets a page generated at build time (``builder-inited``) 
 * the registration in :mod:`sensorgym.envs` (entry points, ``max_episode_steps``);
 * the PettingZoo door: the module's ``parallel_env`` / ``env`` and its ParallelEnv class's
   docstring;
-* the picture ``docs/assets/envs/<name>.png`` that ``docs/make_pictures.py`` rendered (the
-  build never renders).
+* the animation ``docs/assets/envs/<name>.gif`` and picture ``<name>.png`` that
+  ``docs/make_pictures.py`` rendered (the build never renders);
+* the rules of the env's default set, one line each from the rule class's docstring, and its
+  ablations by name (:mod:`sensorgym.agents.registry`);
+* its row of the results from the committed ``docs/scores/<id>.json`` (read through
+  ``benchmarks/tables.py``), or "no scores yet";
+* its version history: the env's section of ``CHANGELOG.md`` (under ``## Environments``).
 
 The docstrings are Markdown sections with reST roles (``:class:`~x```). The env pages are MyST:
 the roles become MyST roles. For autodoc (reST), :func:`markdown_to_rst` turns the ``## Section``
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import importlib.util
 import inspect
 import itertools
 import re
@@ -34,6 +40,10 @@ from pathlib import Path
 from typing import Any
 
 DOCS = Path(__file__).resolve().parents[1]
+ROOT = DOCS.parent
+#: the committed benchmark scores, one file per env id (``/`` written ``__``)
+SCORES = DOCS / "scores"
+CHANGELOG = ROOT / "CHANGELOG.md"
 #: the generated pages (git-ignored, rewritten by every build)
 PAGES = DOCS / "envs"
 #: the committed pictures, one per env id (``docs/make_pictures.py``)
@@ -61,6 +71,16 @@ def env_name(env_id: str) -> str:
 def picture_path(env_id: str) -> Path:
     """The committed picture of ``env_id``."""
     return PICTURES / f"{env_name(env_id)}.png"
+
+
+def animation_path(env_id: str) -> Path:
+    """The committed animated GIF of ``env_id``."""
+    return PICTURES / f"{env_name(env_id)}.gif"
+
+
+def scores_path(env_id: str) -> Path:
+    """The committed benchmark scores of ``env_id`` (``sensorgym benchmark --out docs/scores``)."""
+    return SCORES / f"{env_id.replace('/', '__')}.json"
 
 
 # --- names ------------------------------------------------------------------------------------
@@ -316,6 +336,143 @@ def _parallel_class(module: Any, env_id: str) -> Any:
     return cls
 
 
+def first_sentence(doc: str) -> str:
+    """The first sentence of a docstring's first paragraph (a full stop outside brackets and
+    code spans, followed by a space), on one line."""
+    text = " ".join(doc.strip().split("\n\n", 1)[0].split())
+    depth, fence, i = 0, "", 0
+    while i < len(text):
+        ch = text[i]
+        if ch == "`":
+            run = re.match(r"`+", text[i:]).group()  # a code span opens and closes with one run
+            fence = "" if run == fence else (fence or run)
+            i += len(run)
+            continue
+        if not fence:
+            if ch in "([":
+                depth += 1
+            elif ch in ")]":
+                depth = max(0, depth - 1)
+            elif depth == 0 and ch in ".!?" and text[i + 1 : i + 2] in (" ", ""):
+                return text[: i + 1]
+        i += 1
+    return text
+
+
+def rules_section(env_id: str) -> list[str]:
+    """The ``## Rules`` section: every rule of :func:`~sensorgym.agents.registry.default_rules`
+    with its class and the first sentence of the class's docstring, then the ablations by
+    name. Each rule is built for the registered default params (the registry maps names to
+    factories, not classes)."""
+    from sensorgym.agents.registry import ABLATIONS, RULES, default_rules
+
+    spec = _registration(env_id)
+    # what gym.make(env_id) plays: the params type's defaults with the registration's fields
+    params = _load(spec.entry_point).params_type(**spec.kwargs)
+    names = default_rules(env_id)
+    out = ["## Rules", ""]
+    if not names:
+        return [*out, "No rules are registered for this env.", ""]
+    out += [
+        "The rules `sensorgym benchmark` scores on this env by default "
+        "({py:func}`~sensorgym.agents.registry.default_rules`), in registration order; "
+        f"`sensorgym render --env {env_id} --rule NAME` plays one, `--rule NAME` of "
+        "`sensorgym benchmark` scores one. A rule named `truth-…` reads the simulator's true "
+        "state: it shows what knowing the truth buys, it is not fieldable.",
+        "",
+    ]
+    for name in names:
+        rule = type(RULES[env_id][name](params, lambda: None))
+        line = _roles(
+            first_sentence(inspect.getdoc(rule) or ""), rule.__module__, rule.__name__, True
+        )
+        out.append(f"- `{name}` ({{py:class}}`~{rule.__module__}.{rule.__qualname__}`): {line}")
+    ablations = [name for name in RULES[env_id] if name in ABLATIONS.get(env_id, frozenset())]
+    out.append("")
+    if ablations:
+        listed = ", ".join(f"`{name}`" for name in ablations)
+        out += [
+            "Also registered, left out of the default set as ablations of a default rule "
+            f"({{py:data}}`~sensorgym.agents.registry.ABLATIONS`): {listed}. "
+            "`sensorgym benchmark --rule NAME` (or `--all-rules`) scores them.",
+            "",
+        ]
+    else:
+        out += ["No ablations are registered for this env.", ""]
+    return out
+
+
+@functools.cache
+def _tables() -> Any:
+    """``benchmarks/tables.py``, which generates the docs' score tables from the same files."""
+    import sys
+
+    path = ROOT / "benchmarks" / "tables.py"
+    spec = importlib.util.spec_from_file_location("sensorgym_benchmark_tables", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def results_section(env_id: str) -> list[str]:
+    """The ``## Results`` section: the env's row of the committed benchmark — its best rule and
+    that rule's mean, each shipped policy's mean and paired difference to it — or "no scores
+    yet" when ``docs/scores/`` has no file for the env."""
+    path = scores_path(env_id)
+    rel = path.relative_to(ROOT).as_posix()
+    out = ["## Results", ""]
+    if not path.is_file():
+        return [*out, f"No scores yet: `{rel}` is not committed.", ""]
+    doc = _tables()._score_doc(env_name(env_id))
+    settings, results = doc["settings"], doc["results"]
+    best, paired = doc.get("best_rule"), doc.get("paired", {})
+    out += [
+        f"From `{rel}` (`sensorgym benchmark`, seed {settings['seed']}, "
+        f"{settings['episodes']} episodes): mean episode return with its 95 % interval; the "
+        f"paired difference is per episode, on the same scenarios, to the best rule `{best}`. "
+        "Every rule's score, the headroom and the tail are in [Results](../results.md).",
+        "",
+        "| policy | mean return | ± 95 % | paired − best rule | paired 95 % interval |",
+        "| --- | ---: | ---: | ---: | ---: |",
+    ]
+    if best in results:
+        r = results[best]
+        out.append(f"| best rule `{best}` | {r['mean']:.3f} | {r['ci95']:.3f} | | |")
+    shipped = sorted(name for name in results if ":" in name)
+    for name in shipped:
+        r, d = results[name], paired.get(name)
+        cells = (
+            ["", ""]
+            if d is None
+            else [
+                f"{d['mean']:+.3f}",
+                f"[{d['mean'] - d['ci95']:+.3f}, {d['mean'] + d['ci95']:+.3f}]",
+            ]
+        )
+        out.append(f"| `{name}` | {r['mean']:.3f} | {r['ci95']:.3f} | " + " | ".join(cells) + " |")
+    if not shipped:
+        out.append("| (no shipped policy) | | | | |")
+    return [*out, ""]
+
+
+def changelog_section(env_id: str) -> str | None:
+    """The text of ``env_id``'s section of ``CHANGELOG.md`` (``### `id``` under
+    ``## Environments``), its links made relative to an env page; ``None`` without one."""
+    text = CHANGELOG.read_text(encoding="utf-8")
+    envs = re.split(r"^## Environments\s*$", text, maxsplit=1, flags=re.M)
+    if len(envs) < 2:
+        return None
+    envs_text = re.split(r"^## ", envs[1], maxsplit=1, flags=re.M)[0]
+    parts = re.split(r"^### (.+?)\s*$", envs_text, flags=re.M)
+    for title, body in zip(parts[1::2], parts[2::2], strict=True):
+        if title.strip("` ") == env_id:
+            # a link relative to the repository's root, from docs/envs/
+            return re.sub(r"\]\((?![a-z]+:|#|/)([^)]+)\)", r"](../../\1)", body.strip())
+    return None
+
+
 def env_page(env_id: str) -> str:
     """The MyST page of one registered env id (what ``builder-inited`` writes)."""
     from sensorgym.envs import PARALLEL_ENVS
@@ -340,10 +497,14 @@ def env_page(env_id: str) -> str:
         "",
         roles(intro),
         "",
-        f'![{name}: a frame of render_mode="rgb_array"](../assets/envs/{name}.png)',
+        f'![{name}: one seeded episode, frames of render_mode="rgb_array"]'
+        f"(../assets/envs/{name}.gif)",
         "",
-        f'*The last frame of one seeded episode (`render_mode="rgb_array"`), drawn by '
-        f"`python docs/make_pictures.py`, which writes `docs/assets/envs/{name}.png`.*",
+        f'*One seeded episode (`render_mode="rgb_array"`, every few steps, half size) and, '
+        f"below, its last frame at full size, drawn by `python docs/make_pictures.py`, which "
+        f"writes `docs/assets/envs/{name}.gif` and `{name}.png`.*",
+        "",
+        f"![{name}: the last frame of the episode](../assets/envs/{name}.png)",
         "",
         "```python",
         "import gymnasium as gym",
@@ -384,6 +545,22 @@ def env_page(env_id: str) -> str:
                 if title in base_sections:
                     body, owner = base_sections[title], base
                     break
+        if title == "Version History":
+            changes = changelog_section(env_id)
+            if body is None and changes is None:
+                continue
+            out += [f"## {title}", ""]
+            if body is not None:
+                out += [roles(body, owner), ""]
+            out += [
+                "### In CHANGELOG.md",
+                "",
+                "*This env's section of `CHANGELOG.md` (under Environments).*",
+                "",
+                changes if changes is not None else "No entries.",
+                "",
+            ]
+            continue
         if body is None:
             continue
         out += [f"## {title}", ""]
@@ -393,6 +570,7 @@ def env_page(env_id: str) -> str:
                 note += f"; this env's time limit is {spec.max_episode_steps} steps (registration)"
             out += [note + ".*", ""]
         out += [roles(body, owner), ""]
+    out += rules_section(env_id) + results_section(env_id)
     out += [
         "## Registration",
         "",
@@ -499,7 +677,42 @@ def copy_html_images(app: Any, exception: Exception | None) -> None:
                 shutil.copyfile(image, target)
 
 
+#: the repository's root Markdown files that a page of the site includes (``{include}``),
+#: by the page: a link to one of them in an included text (``[CHANGELOG.md](CHANGELOG.md)`` in
+#: README.md) goes to that page
+ROOT_FILE_PAGES = {
+    "README.md": "index",
+    "CHANGELOG.md": "changelog",
+    "CONTRIBUTING.md": "contributing",
+}
+
+
+def _root_file_links() -> Any:
+    """A post-transform that runs before MyST resolves its links: a link to a root file of
+    :data:`ROOT_FILE_PAGES` (which is not a page of the site itself) becomes a link to the
+    page that includes it."""
+    from sphinx.transforms.post_transforms import SphinxPostTransform
+
+    class RootFileLinks(SphinxPostTransform):
+        default_priority = 8  # before myst_parser's MystReferenceResolver (9)
+
+        def run(self, **kwargs: Any) -> None:
+            from sphinx import addnodes
+
+            for node in self.document.findall(addnodes.pending_xref):
+                if node.get("reftype") != "myst" or node.get("refdomain"):
+                    continue
+                path, _, anchor = str(node["reftarget"]).partition("#")
+                page = ROOT_FILE_PAGES.get(path)
+                if page is not None and page in self.env.all_docs:
+                    node["refdomain"], node["reftarget"] = "doc", page
+                    node["reftargetid"] = anchor or None
+
+    return RootFileLinks
+
+
 def setup(app: Any) -> dict[str, Any]:
+    app.add_post_transform(_root_file_links())
     app.connect("builder-inited", write_env_pages)
     app.connect("build-finished", copy_html_images)
     app.connect("autodoc-process-docstring", process_docstring)
