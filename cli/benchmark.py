@@ -104,7 +104,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--unsafe-pickle", action="store_true", help=UNSAFE_PICKLE_HELP)
     parser.add_argument("--no-chart", action="store_true", help="write no PNG chart")
-    parser.add_argument("--out", type=Path, default=Path("results/benchmark"))
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results/benchmark"),
+        help="folder for the per-env score files, benchmark.json and the chart",
+    )
     add_param_argument(parser)
 
 

@@ -13,7 +13,7 @@ import os
 import sys
 from importlib.metadata import version
 
-from sensorgym.cli.args import OneLineParser
+from sensorgym.cli.args import DefaultsHelpFormatter, OneLineParser
 
 #: subcommand name -> module implementing it
 COMMANDS: dict[str, str] = {
@@ -41,7 +41,13 @@ def build_parser() -> argparse.ArgumentParser:
     for name, module_name in COMMANDS.items():
         module = importlib.import_module(module_name)
         aliases = getattr(module, "ALIASES", [])
-        p = sub.add_parser(name, aliases=aliases, help=module.HELP, description=module.HELP)
+        p = sub.add_parser(
+            name,
+            aliases=aliases,
+            help=module.HELP,
+            description=module.HELP,
+            formatter_class=DefaultsHelpFormatter,
+        )
         module.add_arguments(p)
         p.set_defaults(_run=module.run)
     return parser

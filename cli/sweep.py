@@ -92,7 +92,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="Ray CPUs per trial and task",
     )
     parser.add_argument("--verbose", type=int, default=0, choices=[0, 1, 2], help="Ray's output")
-    parser.add_argument("--out", type=Path, default=Path("results/sweep"))
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results/sweep"),
+        help="folder for the trials, sweep.json and sweep.png",
+    )
 
 
 def run(args: argparse.Namespace) -> int:

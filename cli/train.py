@@ -34,7 +34,7 @@ DEFAULT_ENV = "sensorgym/BearingsManeuver-v0"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--env", default=DEFAULT_ENV, help=f"env id (default {DEFAULT_ENV})")
-    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac", "ars"])
+    parser.add_argument("--algo", default="ppo", choices=["ppo", "sac", "ars"], help="trainer")
     parser.add_argument(
         "--timesteps", type=types.positive_int, default=None, help="override the YAML's"
     )
@@ -53,8 +53,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="torch intra-op threads (default 1: never slower for these small policies)",
     )
     parser.add_argument("--seed", type=types.seed, default=0)
-    parser.add_argument("--eval-episodes", type=types.positive_int, default=64)
-    parser.add_argument("--out", type=Path, default=Path("results/train"))
+    parser.add_argument(
+        "--eval-episodes",
+        type=types.positive_int,
+        default=64,
+        help="episodes of each evaluation (curve points and the final one)",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("results/train"),
+        help="runs go to OUT/<env id, / as __>/<algo>_seed<S>/",
+    )
     parser.add_argument(
         "--tensorboard",
         type=Path,

@@ -248,3 +248,27 @@ def test_benchmark_refuses_an_unknown_rule_and_lists_the_known_ones(tmp_path, no
             "--out", str(tmp_path / "c")]  # fmt: skip
     _fails(argv, "--rule", "plan-search", "not registered for", BEARINGS)
     _fails([*_commands(tmp_path)["benchmark"], "--rule", "paper002", "--all-rules"], "--all-rules")
+
+
+def test_every_option_with_a_default_states_it_in_its_help():
+    import argparse
+
+    from sensorgym.cli.main import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    checked = 0
+    for name, parser in sub.choices.items():
+        text = " ".join(parser.format_help().split())
+        for action in parser._actions:
+            default = action.default
+            if not action.option_strings or action.help == argparse.SUPPRESS:
+                continue
+            if default in (None, False, argparse.SUPPRESS) or default == []:
+                continue
+            help_text = " ".join((action.help or "").split())
+            assert "default" in help_text.lower() or f"(default: {default})" in text, (
+                name,
+                action.option_strings,
+            )
+            checked += 1
+    assert checked >= 20
