@@ -57,7 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--out",
         type=Path,
-        default=Path("results/render/episode.gif"),
+        default=Path("results/render/episode.mp4"),
         help="a .mp4 (needs the video extra; a .gif beside it otherwise), .gif or .png "
         "(the last frame)",
     )

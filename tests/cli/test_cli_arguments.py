@@ -272,3 +272,10 @@ def test_every_option_with_a_default_states_it_in_its_help():
             )
             checked += 1
     assert checked >= 20
+
+
+def test_record_writes_a_video_unless_told_otherwise():
+    from sensorgym.cli.main import build_parser
+
+    for command in ("render", "record", "enjoy"):
+        assert build_parser().parse_args([command]).out.suffix == ".mp4"
