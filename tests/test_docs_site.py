@@ -277,3 +277,18 @@ def test_the_site_build_is_wired_into_ci_and_the_docs_extra():
     assert "bash scripts/test.sh" in ci and "bash scripts/docs.sh" in ci
     assert ci.index("bash scripts/docs.sh") > ci.index("bash scripts/test.sh")
     assert "docs/_build/" in (ROOT / ".gitignore").read_text().splitlines()
+
+
+def test_every_rule_module_has_a_rule_family_page():
+    rules = DOCS / "api" / "rules"
+    pages = "\n".join(p.read_text() for p in sorted(rules.glob("*.md")))
+    agents = ROOT / "agents"
+    modules = sorted(
+        p.stem for p in agents.glob("*.py") if p.stem not in ("__init__", "registry", "protocol")
+    )
+    assert modules
+    for module in modules:
+        assert f".. automodule:: sensorgym.agents.{module}\n" in pages, module
+    toctree = (rules.parent / "agents.md").read_text()
+    for page in rules.glob("*.md"):
+        assert f"rules/{page.stem}\n" in toctree, page.name
