@@ -1,4 +1,4 @@
-"""One side of an A/B of the env step's CPU cost (BearingsManeuver's two envs, or ``--env pointing``).
+"""One side of an A/B of the env step's CPU cost (BearingsManeuver's two envs, or ``--env NAME``).
 
 Prints, on one line, the core step's best thread-CPU µs per scenario-step at 1 and at 1024
 scenarios for each env of the pair, on one thread. Run it alternately on the two trees compared
@@ -23,6 +23,8 @@ import sensorgym.envs  # noqa: F401  (registers the ids)
 PAIRS = {
     "bearings": ("sensorgym/BearingsManeuver-v0", "sensorgym/BearingsManeuverBook-v0"),
     "pointing": ("sensorgym/StereoPointing-v0", "sensorgym/StereoPointingCrowded-v0"),
+    "placement": ("sensorgym/StereoPlacement-v0",),
+    "scanning": ("sensorgym/StereoScanning-v0",),
 }
 
 
