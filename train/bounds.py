@@ -1,7 +1,7 @@
 """The headroom of a benchmark: each episode's true upper bound and the normalised score.
 
 An env with a proven bound on an episode's return (theory §11.3.1 for StereoPointing, §11.4.1
-for StereoPlacement, §11.5.1 for StereoScanning) names it in :data:`EPISODE_BOUNDS`: a function
+for StereoPlacement, §11.5.1 for StereoScanning, §11.8.1 for GimbalTracking) names it in :data:`EPISODE_BOUNDS`: a function
 ``episode_bound(params, state) -> (B,)`` of the batched simulator state an episode starts in,
 which no policy's return on that episode can exceed. The platform-manoeuvre envs' bound is
 the hindsight optimum (theory §11.2.1), computed once every policy has played the episode
@@ -31,6 +31,7 @@ EPISODE_BOUNDS: dict[str, str] = {
     "sensorgym/StereoPointingCrowded-v0": "sensorgym.envs.stereo_pointing.bound:episode_bound",
     "sensorgym/StereoPlacement-v0": "sensorgym.envs.stereo_placement.bound:episode_bound",
     "sensorgym/StereoScanning-v0": "sensorgym.envs.stereo_scanning.bound:episode_bound",
+    "sensorgym/GimbalTracking-v0": "sensorgym.envs.gimbal_tracking.bound:episode_bound",
 }
 
 #: env id → ``"module:function"`` of a bound computed after the policies have played: the

@@ -1,6 +1,6 @@
 """The readable reset and step of GimbalTracking: numpy over the batch, one stage a function.
 
-The stages run in the order of a frame (theory §8, §9, §11.1): the gimbal drives under the
+The stages run in the order of a frame (theory §8, §9, §11.8): the gimbal drives under the
 rate command (:func:`drive_gimbal`); the target flies on (:func:`fly_target`) and the carrier
 rolls, pitches and yaws (:func:`carrier_attitude`); occlusions (:func:`schedule_occlusions`) and
 each channel's Markov chain of views (:func:`step_views`) decide what can be seen; the target's
@@ -309,7 +309,7 @@ def los_sigma(params: GimbalParams, variance: FloatArray) -> FloatArray:
 
 def reward(params: GimbalParams, sigma: FloatArray, in_view: BoolArray) -> FloatArray:
     """``clip(ln(σ_ref/σ_LOS), −R, R)``, and ``−R`` while the target is out of the field of view
-    (theory §11.1)."""
+    (theory §11.8)."""
     R = params.reward_clip
     return np.where(in_view, np.clip(np.log(params.sigma_ref / sigma), -R, R), -R)
 

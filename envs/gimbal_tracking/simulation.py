@@ -4,7 +4,7 @@ The simulation contract of every env (:mod:`sensorgym.envs.shells.contract`): pu
 over frozen, batched values (leading axis ``B`` = scenario) — :func:`spaces`, :func:`reset`
 (:func:`start` builds scenarios from a given target), :func:`step`, :func:`observe`,
 :func:`observe_agents` and :func:`info`. One step is one video frame; its stages, in order,
-are the functions of :mod:`.reference` (theory §11.1):
+are the functions of :mod:`.reference` (theory §11.8):
 
 1. the two-axis gimbal (azimuth α, elevation β, body frame) drives under the rate command
    ``a · max_rate``, each axis's rate changing by at most ``max_acceleration · T`` per frame;
