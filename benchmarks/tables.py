@@ -25,6 +25,7 @@ DOCS = (
     ROOT / "docs" / "environments.md",
     ROOT / "docs" / "results.md",
     REPRODUCTION / "bot-control.md",
+    REPRODUCTION / "paper004.md",
 )
 ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement", "stereo_scanning")
 
@@ -645,6 +646,32 @@ HELD_OUT = ROOT / "docs" / "scores" / "seed31337"
 GAP = RESULTS / "headroom_gap.json"
 
 
+def gimbal_channels() -> str:
+    """Paper 004's claim 4 through GimbalTracking-v0: the tracker's accuracy and lock against
+    the number of channels and each one's detection probability
+    (``benchmarks/results/gimbal_channels.json``)."""
+    doc = json.loads((RESULTS / "gimbal_channels.json").read_text())
+    st = doc["settings"]
+    lines = [
+        f"`{st['env']}` at its defaults, `{st['rule']}`, {st['scenarios']} episodes a cell, "
+        f"seed {st['seed']}; `P` at F = {st['false_alarm']} (`benchmarks/results/"
+        "gimbal_channels.json`):",
+        "",
+        "| channels | contrast | q | P | frames detected | median error, mrad "
+        "| p90 error, mrad | median σ_LOS, mrad | target lost | mean return |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in doc["results"]:
+        lines.append(
+            f"| {r['channels']} | {r['contrast']:.1f} | {r['q']:.2f} "
+            f"| {r['detection_probability']:.2f} | {r['detected_share']:.2f} "
+            f"| {r['median_error_mrad']:.2f} | {r['p90_error_mrad']:.1f} "
+            f"| {r['median_sigma_los_mrad']:.2f} | {r['lost_share']:.2f} "
+            f"| {r['mean_return']:.0f} |"
+        )
+    return "\n".join(lines)
+
+
 def _pct(x: float | None) -> str:
     return "" if x is None else f"{100 * x:+.1f} %"
 
@@ -836,6 +863,7 @@ def held_out(env: str) -> str:
 TABLES = {
     **{f"held-out-{env.split('-')[0]}": (lambda e=env: held_out(e)) for env in SCORE_ENVS},
     "bot-control": bot_control,
+    "paper004-env": gimbal_channels,
     "scores-book": lambda: scores("BearingsManeuverBook-v0"),
     "env-speed": env_speed,
     "cold-start": cold_start,

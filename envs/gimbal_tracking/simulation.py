@@ -102,16 +102,16 @@ class GimbalParams(FieldsOnlyPickle):
     make paper 001's elevation predictor ill-conditioned (theory §13.20), hence the default."""
     target_climb: tuple[float, float] = (_deg(-10.0), _deg(10.0))
     """Climb angle of the target's path, uniform, rad."""
-    turn_rate: tuple[float, float] = (0.0, 0.1)
+    turn_rate: tuple[float, float] = (0.0, 0.15)
     """Magnitude of the target's level turn rate (uniform, random sign), rad/s; (0, 0): none."""
     turn_start: tuple[int, int] = (0, 400)
     """Frame after which the turn begins, uniform (inclusive), frames."""
-    turn_length: tuple[int, int] = (25, 100)
+    turn_length: tuple[int, int] = (50, 150)
     """Length of the turn, uniform (inclusive), frames."""
     occlusion_gap: tuple[int, int] = (50, 200)
     """Frames from the previous occlusion's end (frame 0 for the first) to the next onset,
     uniform (inclusive), frames."""
-    occlusion_length: tuple[int, int] = (5, 40)
+    occlusion_length: tuple[int, int] = (10, 60)
     """Length of an occlusion, uniform (inclusive), frames; (0, 0): no occlusions."""
     cue_error: float = 0.002
     """Standard deviation of the gimbal's pointing error at frame 0, per axis, rad."""
