@@ -1,6 +1,7 @@
 """Seeded episodes of every env and every reproduction's report, recorded before a refactor.
 
-``python tests/golden_record.py`` rewrites ``tests/golden/``; ``tests/test_golden.py`` replays
+``python tests/golden_record.py`` rewrites ``tests/golden/`` (``… ENV_ID`` only that env's
+episodes); ``tests/test_golden.py`` replays
 the same calls and demands identical observations, rewards and printed numbers.
 """
 
@@ -63,17 +64,32 @@ def vector_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
     return _vector_run(env, obs, _actions(seed, VECTOR_STEPS, env.action_space.shape))
 
 
-#: envs whose random-action episodes miss their tracker: one vector episode more under a fixed
-#: action that does not read the observation (so no float difference feeds back into it)
-FIXED_ACTION_ENVS = ("sensorgym/StereoScanning-v0",)
-
-
-def fixed_action(env) -> np.ndarray:
+def full_sweep(env) -> np.ndarray:
     """The papers' full sweep of every receiver (``FullSweep``): scanning's random sectors
     never confirm a track, the sweep confirms most drones within a few periods."""
     from sensorgym.agents.stereo_scanning import FullSweep
 
     return FullSweep(env.params).predict(np.zeros(env.observation_space.shape))[0]
+
+
+def hold_still(env) -> np.ndarray:
+    """The gimbal's drives at rest: random rates slew the narrow field of view off the target
+    within a frame or two, at rest it stays in view long enough for the tracker to fuse."""
+    return np.zeros(env.action_space.shape, dtype=np.float32)
+
+
+#: envs whose random-action episodes miss their tracker: one vector episode more under a fixed
+#: action that does not read the observation (so no float difference feeds back into it)
+FIXED_ACTIONS = {
+    "sensorgym/StereoScanning-v0": full_sweep,
+    "sensorgym/GimbalTracking-v0": hold_still,
+}
+FIXED_ACTION_ENVS = tuple(FIXED_ACTIONS)
+
+
+def fixed_action(env) -> np.ndarray:
+    """The fixed action of ``env``'s id (:data:`FIXED_ACTIONS`)."""
+    return FIXED_ACTIONS[env.spec.id](env)
 
 
 def fixed_action_episodes(env_id: str, seed: int) -> dict[str, np.ndarray]:
@@ -130,25 +146,43 @@ def reproduction_report(name: str, out: Path) -> str:
     return normalised_report(buffer.getvalue())
 
 
+def env_arrays(env_id: str) -> dict[str, np.ndarray]:
+    """Every recording of one env, keyed ``NAME/KIND/SEED/FIELD``."""
+    from tests.test_golden import PARALLEL_FACTORIES
+
+    name = env_id.split("/")[1]
+    arrays: dict[str, np.ndarray] = {}
+    for seed in SEEDS:
+        for kind, fn in (("single", single_episodes), ("vector", vector_episodes)):
+            for key, value in fn(env_id, seed).items():
+                arrays[f"{name}/{kind}/{seed}/{key}"] = value
+        for key, value in parallel_episodes(PARALLEL_FACTORIES[env_id], seed).items():
+            arrays[f"{name}/parallel/{seed}/{key}"] = value
+        if env_id in FIXED_ACTION_ENVS:
+            for key, value in fixed_action_episodes(env_id, seed).items():
+                arrays[f"{name}/fixed/{seed}/{key}"] = value
+    return arrays
+
+
+def add_env(env_id: str) -> None:
+    """Record one env (new, or changed with a stated reason) and keep every other recording."""
+    with np.load(GOLDEN / "episodes.npz") as data:
+        name = env_id.split("/")[1]
+        arrays = {k: v for k, v in data.items() if not k.startswith(f"{name}/")}
+    arrays.update(env_arrays(env_id))
+    np.savez_compressed(GOLDEN / "episodes.npz", **arrays)
+    print(f"recorded {env_id}; {len(arrays)} arrays in {GOLDEN / 'episodes.npz'}")
+
+
 def record() -> None:
     import tempfile
 
     import sensorgym.envs as envs
-    from tests.test_golden import PARALLEL_FACTORIES
 
     GOLDEN.mkdir(exist_ok=True)
     arrays: dict[str, np.ndarray] = {}
     for env_id in envs.ENV_IDS:
-        name = env_id.split("/")[1]
-        for seed in SEEDS:
-            for kind, fn in (("single", single_episodes), ("vector", vector_episodes)):
-                for key, value in fn(env_id, seed).items():
-                    arrays[f"{name}/{kind}/{seed}/{key}"] = value
-            for key, value in parallel_episodes(PARALLEL_FACTORIES[env_id], seed).items():
-                arrays[f"{name}/parallel/{seed}/{key}"] = value
-            if env_id in FIXED_ACTION_ENVS:
-                for key, value in fixed_action_episodes(env_id, seed).items():
-                    arrays[f"{name}/fixed/{seed}/{key}"] = value
+        arrays.update(env_arrays(env_id))
     np.savez_compressed(GOLDEN / "episodes.npz", **arrays)
     with tempfile.TemporaryDirectory() as tmp:
         for name in REPRODUCTIONS:
@@ -158,4 +192,8 @@ def record() -> None:
 
 if __name__ == "__main__":
     sys.path.insert(0, str(Path(__file__).parent.parent))
-    record()
+    if len(sys.argv) > 1:  # python tests/golden_record.py ENV_ID …: those envs only
+        for env_id in sys.argv[1:]:
+            add_env(env_id)
+    else:
+        record()

@@ -83,13 +83,13 @@ def test_parallel_env_episodes_unchanged(recorded, env_id, seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-@pytest.mark.parametrize("env_id", FIXED_ACTION_ENVS)
+@pytest.mark.parametrize("env_id", having("golden", FIXED_ACTION_ENVS))
 def test_fixed_action_episodes_unchanged(recorded, env_id, seed):
     name = env_id.split("/")[1]
     got = fixed_action_episodes(env_id, seed)
     assert_episodes_close(got, recorded, f"{name}/fixed/{seed}")
-    if env_id == "sensorgym/StereoScanning-v0":  # the sweep confirms tracks: the tracker runs
-        assert np.any(got["reward"] > -5.0)
+    # the sweep confirms tracks, the gimbal at rest keeps the target in view: the trackers run
+    assert np.any(got["reward"] > -5.0)
 
 
 @pytest.mark.slow
