@@ -1,28 +1,43 @@
 """The compiled step of the receiver-placement environments: one loop over the scenarios.
 
-The maths is that of :mod:`.scan` and :mod:`.simulation` (theory §3, §11.4); each formula is a
-primitive of the module that owns it — :mod:`sensorgym.trackers.geometry_kernels` (look-at
-rotation, relative poses, angular noise, angles between lines of sight),
-:mod:`sensorgym.trackers.stereo.conjugation_kernels` (the order-1 conjugation: the n = 3 closed form,
-the normal equations for more receivers; called per scenario) and :mod:`sensorgym.trackers.stereo.kernels` (information, bound, reward) — and
-these kernels only chain them per scenario. Each stage is a row function (scenario ``i``):
+:func:`period_rows` is :func:`.simulation.step` (and the first fix of
+:func:`.simulation.start`) for the scenarios ``lo ≤ i < hi``, so that
+:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads. It runs the stages
+of the readable numpy form, :func:`.reference.step` and :func:`.reference.scan_period` (theory
+§6.4, §11.4), in their order, one inlined function per stage under the reference's name:
 
-* :func:`drive` — the action's velocities and the receivers' new positions held in the disc;
-* :func:`systems_row` (:func:`period_systems`) — one scan period's true geometry, the receivers'
-  frames, the noisy and the exact conjugation systems and their compiled solves;
-* :func:`finish_row` (:func:`period_finish`) — the covariance mapping, the fix in the world
-  frame, the estimate (or the coasted one), the Cramér–Rao bound and the reward;
-* :func:`observe_row`, :func:`info_row` — the observation blocks (clipped, float32) and the
-  diagnostics.
+1. :func:`drive`, :func:`fly` — the vehicles drive (held in the disc), the drone flies on;
+2. :func:`geometry_at_fix_times`, :func:`boresight_rotations`, :func:`own_frame` (the noisy
+   and the exact directions in each receiver's frame), :func:`conjugation_system` and
+   :func:`least_squares` (the compiled solve, once for each system), then
+   :func:`fix_accuracy`, :func:`fix_in_world` and :func:`tracker_estimate`;
+3. :func:`position_bound` and :func:`reward`;
+4. :func:`observation` and :func:`diagnostics` of the new state.
 
-:func:`period_rows` chains them all for a range of scenarios: one kernel call per step (run
-over threads by :func:`sensorgym.envs.shells.rows.run_rows`). Random draws stay with numpy's
-Generator (drawn before the kernels, in a fixed order); the rare systems whose ``κ_F`` exceeds
-``cond_max`` are left to the caller, which re-solves them on the generic SVD path of
-:func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation` with the batch kernels.
+Each formula is a primitive of the module that owns it — :mod:`sensorgym.trackers.geometry_kernels`
+(look-at rotation, relative poses, angular noise, angles between lines of sight),
+:mod:`sensorgym.trackers.stereo.conjugation_kernels` (the order-1 conjugation: the n = 3 closed
+form, the normal equations for more receivers) and :mod:`sensorgym.trackers.stereo.kernels`
+(information, bound, reward) — and the stages only chain them per scenario.
+
+What the kernels take:
+
+- the **settings**: one record of dtype :data:`SETTINGS`, read by field name
+  (:attr:`.simulation.PlacementParams.kernel_settings` builds it once per params);
+- the scenarios' arrays as tuples (the old state's, the new state's, the outputs), taken
+  apart once per call: every stage gets the plain arrays it reads and writes (a field read
+  from a tuple inside the loop would count a reference each time);
+- **scratch** from :func:`workspace`, allocated once per call and reused over the rows.
+
+Random draws stay with numpy's Generator (drawn before the kernels, in a fixed order). The rare
+systems whose ``κ_F`` exceeds ``cond_max`` are left to the caller, which re-solves them on the
+generic SVD path of :func:`~sensorgym.trackers.stereo.conjugation.solve_conjugation` with the
+batch kernels :func:`period_systems` and :func:`period_finish` (the same stages).
 """
 
 from __future__ import annotations
+
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -50,11 +65,71 @@ from sensorgym.trackers.stereo.kernels import (
 
 _JIT = {"cache": True, "nogil": True, "error_model": "numpy", "boundscheck": False}
 
-#: row functions are inlined into the kernels that loop over scenarios: a call per scenario
-#: would pass (and reference-count) some thirty arrays
+#: stages are inlined into the kernels that loop over scenarios: a call per scenario would
+#: pass (and reference-count) every array it touches
 _ROW = {**_JIT, "inline": "always"}
 
 _UP = (0.0, 1.0, 0.0)
+
+#: The scalar settings the step reads, one record per params
+#: (:attr:`.simulation.PlacementParams.kernel_settings`), read by field name.
+SETTINGS = np.dtype(
+    [
+        ("period", np.float64),  # scan period τ = one step, s
+        ("sigma_ang", np.float64),  # angular noise σ_ang of each fixed direction, rad
+        ("max_elevation", np.float64),  # the receivers' boresight elevation limit, rad
+        ("max_speed", np.float64),  # a vehicle's speed limit, m/s
+        ("arena_radius", np.float64),  # the permitted disc, m
+        ("sigma_ref", np.float64),  # the position accuracy that earns zero reward, m
+        ("reward_clip", np.float64),  # R: the reward lies in [−R, R]
+        ("cond_max", np.float64),  # κ_F above which the generic path solves
+        ("length_scale", np.float64),  # observation scales: m, m/s
+        ("speed_scale", np.float64),
+    ],
+    align=True,
+)
+
+#: Scratch of one :func:`period_rows` call (:func:`workspace`): one scenario's rotations
+#: ``R (1, n, 3, 3)``, its noisy system ``a1``, ``ak``, ``P``, ``b``, ``dt`` and exact one
+#: ``e1``, ``ek``; their solves ``X``, ``J``, ``Q``, ``kappa``, ``M1`` and ``Xe``, ``Qe``,
+#: ``kappa_e`` (row 0 of each); the bound's ``G``, ``LU``, ``inv``, ``piv``, ``unit``,
+#: ``every``; a line of sight ``sight (3,)`` and those of every receiver ``sights (n, 3)``.
+Workspace = namedtuple(
+    "Workspace",
+    "R a1 ak P b dt e1 ek X J Q kappa M1 Xe Qe kappa_e G LU inv piv unit every sight sights",
+)
+
+
+@njit(**_ROW)
+def workspace(n):
+    """Scratch for the rows of one call with ``n`` receivers (:data:`Workspace`)."""
+    m, p = n - 1, n + 3
+    return Workspace(
+        np.empty((1, n, 3, 3)),
+        np.empty((1, 3)),
+        np.empty((1, m, 3)),
+        np.empty((1, m, 3, 3)),
+        np.empty((1, m, 3)),
+        np.empty((1, m)),
+        np.empty((1, 3)),
+        np.empty((1, m, 3)),
+        np.empty((1, p)),
+        np.empty(1),
+        np.empty((1, p, p)),
+        np.empty(1),
+        np.empty((1, 3)),
+        np.empty((1, p)),
+        np.empty((1, p, p)),
+        np.empty(1),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+        np.empty((3, 3)),
+        np.empty(3, np.int64),
+        np.ones(n),
+        np.ones(n, np.bool_),
+        np.empty(3),
+        np.empty((n, 3)),
+    )
 
 
 @njit(inline="always")
@@ -120,9 +195,14 @@ def _in_disc(x, y, z, radius):
     return (x * scale, y * scale, z * scale)
 
 
-@njit(inline="always")
-def _drive_row(receivers, action, period, max_speed, radius, end, i):
-    """Row ``i`` of :func:`drive`."""
+# ------------------------------------------- step 1: the vehicles drive, the drone flies on
+
+
+@njit(**_ROW)
+def drive(i, receivers, action, period, max_speed, radius, end):
+    """Scenario ``i``'s receivers ``end[i] (n, 3)`` after one period at the velocities of
+    ``action[i] (n, 2)`` (:func:`.reference.drive`, theory §11.4 step 1): components clipped to
+    ``[−1, 1]``, speed capped at ``max_speed``, held in the disc of ``radius``."""
     for k in range(receivers.shape[1]):
         ax = min(max(action[i, k, 0], -1.0), 1.0)
         az = min(max(action[i, k, 1], -1.0), 1.0)
@@ -138,53 +218,44 @@ def _drive_row(receivers, action, period, max_speed, radius, end, i):
         end[i, k, 0], end[i, k, 1], end[i, k, 2] = _in_disc(p[0], p[1], p[2], radius)
 
 
-@njit(**_JIT)
-def drive(receivers, action, period, max_speed, radius, end):
-    """``end (B, n, 3)``: receivers driven for ``τ`` at the velocities of ``action (B, n, 2)``
-    (components clipped to ``[−1, 1]``, speed capped at ``max_speed``), pulled back onto the disc
-    of ``radius``."""
-    for i in range(receivers.shape[0]):
-        _drive_row(receivers, action, period, max_speed, radius, end, i)
-
-
-@njit(inline="always")
-def _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position):
-    """Row ``s``'s order-1 conjugation (checked): the n = 3 closed form, else the normal
-    equations; returns the kernel's input-check code. The row is passed as a plain int64: the
-    literal row 0 of :func:`period_rows` would compile the kernels once more (numba
-    specialises a call on a literal integer argument: another cold compile)."""
-    lo = np.int64(s)
-    if ak.shape[1] == 2:
-        return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q,
-                                      kappa, position)  # fmt: skip
-    return velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q, kappa,
-                           position)  # fmt: skip
+@njit(**_ROW)
+def fly(i, drone, drone_velocity, period, drone_end):
+    """Scenario ``i``'s drone after one period of its straight line (:func:`.reference.fly`,
+    theory §11.4): ``M ← M + τ V``."""
+    for j in range(3):
+        drone_end[i, j] = drone[i, j] + period * drone_velocity[i, j]
 
 
 @njit(**_ROW)
-def systems_row(
-    i, s, delays, scalars, start, end, drone_end, drone_velocity, previous, normals, truth, R,
-    a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position, Xe, Qe, kappa_e, sight,
+def stand_still(i, receivers, drone, end, drone_end):
+    """The first fix's period (:func:`.reference.start`): receivers and drone stay where they
+    are."""
+    for j in range(3):
+        drone_end[i, j] = drone[i, j]
+        for k in range(receivers.shape[1]):
+            end[i, k, j] = receivers[i, k, j]
+
+
+@njit(**_JIT)
+def drive_batch(receivers, action, period, max_speed, radius, end):
+    """:func:`drive` of every scenario: ``end (B, n, 3)`` the receivers driven for ``τ`` at the
+    velocities of ``action (B, n, 2)``."""
+    for i in range(receivers.shape[0]):
+        drive(i, receivers, action, period, max_speed, radius, end)
+
+
+# --------------------------------------------------- step 2: the scan period and the tracker
+
+
+@njit(**_ROW)
+def geometry_at_fix_times(
+    i, delays, period, start, end, drone_end, drone_velocity, origins, los, ranges, sight
 ):  # fmt: skip
-    """Scenario ``i`` of :func:`period_systems`: its inputs and the true geometry ``truth =
-    (origins, los, ranges)`` at row ``i``, the frames, systems and solves at row ``s`` of their
-    (scratch) arrays (``J`` and ``position`` serve both solves); ``scalars = (τ, σ_ang,
-    max_elevation)``, ``sight (3,)`` scratch. The solves: the closed form for n = 3, the
-    normal equations for n ≥ 4 (:func:`velocity_kernel`); ``κ_F`` is ``inf`` where they leave
-    a system to the SVD path."""
-    origins, los, ranges = truth
-    period, sigma_ang, max_elevation = scalars
-    n = start.shape[1]
-    noisy = sigma_ang > 0.0
-    kappa[s] = np.inf
-    kappa_e[s] = np.inf
-    # the aim of the receivers' frames: the previous estimate coasted to mid-period
-    aim = (
-        previous[i, 0] + 0.5 * period * previous[i, 3],
-        previous[i, 1] + 0.5 * period * previous[i, 4],
-        previous[i, 2] + 0.5 * period * previous[i, 5],
-    )
-    for k in range(n):
+    """Scenario ``i``'s true geometry at each receiver's fix time ``d_k``: ``origins``
+    ``O_k(d_k)``, lines of sight ``los`` ``u_k`` and ``ranges`` ``r_k``
+    (:func:`.reference.geometry_at_fix_times`, theory §6.4); ``sight (3,)`` scratch. A zero
+    line of sight (a receiver on the drone) is left to :func:`least_squares`' input check."""
+    for k in range(start.shape[1]):
         f = delays[k] / period
         # O_k(d_k): receivers drive straight from start to end during the period
         o = (
@@ -199,19 +270,42 @@ def systems_row(
             drone_end[i, 1] - drone_velocity[i, 1] * back,
             drone_end[i, 2] - drone_velocity[i, 2] * back,
         )
-        r = line_of_sight(o, at_fix, sight)
-        u = (sight[0], sight[1], sight[2])
-        Rk = boresight3(o, aim, max_elevation)
-        ranges[i, k] = r
+        ranges[i, k] = line_of_sight(o, at_fix, sight)
         for j in range(3):
             origins[i, k, j] = o[j]
-            los[i, k, j] = u[j]
+            los[i, k, j] = sight[j]
+
+
+@njit(**_ROW)
+def boresight_rotations(i, s, origins, previous, period, max_elevation, R):
+    """Scenario ``i``'s receiver frames ``R[s] (n, 3, 3)`` looking at the ``previous``
+    estimate coasted to mid-period (:func:`.reference.boresight_rotations`, theory §6.4,
+    §2.2)."""
+    aim = (
+        previous[i, 0] + 0.5 * period * previous[i, 3],
+        previous[i, 1] + 0.5 * period * previous[i, 4],
+        previous[i, 2] + 0.5 * period * previous[i, 5],
+    )
+    for k in range(origins.shape[1]):
+        Rk = boresight3(_row3(origins, i, k), aim, max_elevation)
+        for j in range(3):
             for c in range(3):
                 R[s, k, j, c] = Rk[c][j]
-        # a_k = R_kᵀ z_k: each receiver reports the direction in its own frame
+
+
+@njit(**_ROW)
+def own_frame(i, s, sigma_ang, R, los, ranges, normals, a1, ak, e1, ek):
+    """What scenario ``i``'s receivers report, ``a_k = R_kᵀ z_k`` with the noisy directions
+    ``z_k`` (draws ``normals``), into ``a1[s]``, ``ak[s]``, and the exact ones
+    ``e_k = R_kᵀ u_k`` into ``e1[s]``, ``ek[s]`` (:func:`.reference.noisy_directions`,
+    :func:`.reference.own_frame`, theory §4.1, §2.1)."""
+    noisy = sigma_ang > 0.0
+    for k in range(los.shape[1]):
+        u = _row3(los, i, k)
         z = perturbed_direction3(u, _row3(normals, i, k), sigma_ang) if noisy else u
-        if not r > MIN_RANGE:
+        if not ranges[i, k] > MIN_RANGE:
             z = (0.0, 0.0, 0.0)  # no direction to measure (the solve's check names it)
+        Rk = _columns(R, s, k)
         a = to_local3(Rk, z)
         e = to_local3(Rk, u)
         if k == 0:
@@ -220,61 +314,45 @@ def systems_row(
         else:
             for j in range(3):
                 ak[s, k - 1, j], ek[s, k - 1, j] = a[j], e[j]
-            dt[s, k - 1] = delays[k] - delays[0]
-    # P_k = R_1ᵀ R_k,  b_k = R_1ᵀ (O_k − O_1)
+
+
+@njit(**_ROW)
+def conjugation_system(i, s, delays, origins, R, P, b, dt):
+    """Scenario ``i``'s relative poses ``P_k = R_1ᵀ R_k``, ``b_k = R_1ᵀ (O_k − O_1)`` and
+    delays ``Δt_k = d_k − d_1`` into row ``s`` of ``P``, ``b``, ``dt``
+    (:func:`.reference.conjugation_system`, theory §6.4, §3.2–3.3)."""
     R1, o1 = _columns(R, s, 0), _row3(origins, i, 0)
-    for k in range(1, n):
+    for k in range(1, origins.shape[1]):
         Pk, bk = relative_pose3(R1, o1, _columns(R, s, k), _row3(origins, i, k))
         for j in range(3):
             b[s, k - 1, j] = bk[j]
             for c in range(3):
                 P[s, k - 1, j, c] = Pk[c][j]
-    code = _velocity_solve(a1, ak, P, b, dt, s, X, J, Q, kappa, position)
-    if code != 0 or not noisy:
-        return code
-    return _velocity_solve(e1, ek, P, b, dt, s, Xe, J, Qe, kappa_e, position)
-
-
-@njit(**_JIT)
-def period_systems(
-    delays, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity, previous,
-    normals, origins, los, ranges, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, position,
-    Xe, Qe, kappa_e,
-):  # fmt: skip
-    """One scan period of every scenario: true geometry, frames, both conjugation systems.
-
-    Receivers move from ``start`` to ``end`` ``(B, n, 3)``; the drone is at ``drone_end (B, 3)``
-    at the period end; the frames look at the coasted ``previous (B, 6)`` estimate's mid-period
-    point; ``normals (B, n, 3)`` are the noise draws (unused when ``sigma_ang = 0``). Fills the
-    true ``origins``, ``los``, ``ranges``, rotations ``R (B, n, 3, 3)``, the noisy system
-    ``(a1, ak, P, b, dt)`` and the exact one ``(e1, ek)``, and their solves
-    ``(X, J, Q, κ, M̂_1)`` and ``(Xe, Qe, κ_e)`` (``κ_F`` > ``cond_max``, or ``inf`` where the
-    compiled solve leaves the system, for the caller). Returns 0 or the input-check code of :func:`triple_velocity_kernel` (a zero
-    line of sight).
-    """
-    sight = np.empty(3)
-    for i in range(start.shape[0]):
-        code = systems_row(
-            i, i, delays, (period, sigma_ang, max_elevation), start, end, drone_end,
-            drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
-            ek, X, J, Q, kappa, position, Xe, Qe, kappa_e, sight,
-        )  # fmt: skip
-        if code != 0:
-            return code
-    return 0
+        dt[s, k - 1] = delays[k] - delays[0]
 
 
 @njit(**_ROW)
-def finish_row(
-    i, s, delays, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1, X, Q,
-    degenerate, degenerate_true, previous, position, velocity, range_sigma, velocity_sigma,
-    estimate, bound, reward, G, LU, piv, inv, unit, every,
-):  # fmt: skip
-    """Scenario ``i`` of :func:`period_finish`, its solve (``R``, ``a1``, ``X``, ``Q``) at row
-    ``s``; ``G``, ``LU``, ``inv (3, 3)``, ``piv (3,)`` scratch, ``unit``, ``every (n,)`` ones."""
-    n = origins.shape[1]
-    to_end = period - delays[0]
-    # σ_e = σ_ang · mean_k |r̂_k|
+def least_squares(a1, ak, P, b, dt, s, X, J, Q, kappa, position):
+    """Row ``s``'s order-1 conjugation (checked; :func:`.reference.least_squares`, theory
+    §3.3): the n = 3 closed form, else the normal equations; ``κ_F`` stays ``inf`` where they
+    leave the system to the generic path. Returns the kernel's input-check code. The row is
+    passed on as a plain int64: the literal row 0 of :func:`period_rows` would compile the
+    kernels once more (numba specialises a call on a literal integer argument)."""
+    kappa[s] = np.inf
+    lo = np.int64(s)
+    if ak.shape[1] == 2:
+        return triple_velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q,
+                                      kappa, position)  # fmt: skip
+    return velocity_kernel(a1, ak, P, b, dt, 1.0, np.bool_(True), lo, lo + 1, X, J, Q, kappa,
+                           position)  # fmt: skip
+
+
+@njit(**_ROW)
+def fix_accuracy(i, s, sigma_ang, X, Q, range_sigma, velocity_sigma):
+    """Scenario ``i``'s reported accuracy from its solve at row ``s`` (the covariance mapping
+    of :func:`.reference.fix_in_world`, theory §13.4): ``σ_e = σ_ang · mean_k |r̂_k|``,
+    ``σ[r̂_k] = σ_e √Q_kk``, ``σ_V = σ_e √tr Q_VV`` (negative round-off counts as 0)."""
+    n = range_sigma.shape[1]
     total = 0.0
     for k in range(n):
         total += abs(X[s, k])
@@ -286,57 +364,60 @@ def finish_row(
     for j in range(n, n + 3):
         vv += max(s2 * Q[s, j, j], 0.0)
     velocity_sigma[i] = np.sqrt(vv)
-    # frame 1 → world: M = O_1(d_1) + R_1 M̂_1 (M̂_1 = r̂_1 a_1), V = R_1 V̂_1; then on to
-    # the period end
+
+
+@njit(**_ROW)
+def fix_in_world(i, s, period, delays, origins, R, a1, X, position, velocity):
+    """Scenario ``i``'s fix in the world at the period end from its solve at row ``s``
+    (:func:`.reference.fix_in_world`, theory §6.4, §13.5): ``M(d_1) = O_1(d_1) + R_1 M̂_1``
+    (``M̂_1 = r̂_1 a_1``), ``V = R_1 V̂``, ``M(τ) = M(d_1) + V (τ − d_1)``."""
+    n = origins.shape[1]
     R1 = _columns(R, s, 0)
     r1 = X[s, 0]
     m = to_world3(R1, (r1 * a1[s, 0], r1 * a1[s, 1], r1 * a1[s, 2]))
     v = to_world3(R1, (X[s, n], X[s, n + 1], X[s, n + 2]))
+    to_end = period - delays[0]
     for j in range(3):
         velocity[i, j] = v[j]
         position[i, j] = (origins[i, 0, j] + m[j]) + v[j] * to_end
+
+
+@njit(**_ROW)
+def tracker_estimate(i, period, degenerate, previous, position, velocity, estimate):
+    """Scenario ``i``'s estimate ``(p̂, v̂)`` at the period end (:func:`.reference.tracker_estimate`,
+    theory §11.4): the fix, or where it is degenerate the ``previous`` one coasted by ``τ``."""
+    for j in range(3):
         if degenerate[i]:  # not trusted: the previous estimate coasted by τ
             estimate[i, j] = previous[i, j] + period * previous[i, 3 + j]
             estimate[i, 3 + j] = previous[i, 3 + j]
         else:
             estimate[i, j] = position[i, j]
-            estimate[i, 3 + j] = v[j]
-    # σ_pos of the true geometry, G = Σ_k (I − u_k u_kᵀ)/r_k²
+            estimate[i, 3 + j] = velocity[i, j]
+
+
+# ------------------------------------------------------------- step 3: the bound and reward
+
+
+@njit(**_ROW)
+def position_bound(i, los, ranges, sigma_ang, unit, every, G, LU, piv, inv, bound):
+    """Scenario ``i``'s Cramér–Rao ``σ_pos = σ_ang √tr G⁻¹`` of the true geometry,
+    ``G = Σ_k (I − u_k u_kᵀ)/r_k²`` (:func:`.reference.position_bound`, theory §4.2, §4.3);
+    ``unit``, ``every (n,)`` ones, ``G``, ``LU``, ``inv (3, 3)``, ``piv (3,)`` scratch."""
     position_information(los[i], ranges[i], unit, every, G)
-    bound[i] = position_sigma(G, observable(G, n), sigma_ang, LU, piv, inv)
+    bound[i] = position_sigma(G, observable(G, los.shape[1]), sigma_ang, LU, piv, inv)
+
+
+@njit(**_ROW)
+def reward(i, bound, degenerate, degenerate_true, sigma_ref, reward_clip, out):
+    """Scenario ``i``'s reward ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where either solve is
+    degenerate (:func:`.reference.reward`, theory §11.1, §11.4)."""
     if degenerate[i] or degenerate_true[i]:
-        reward[i] = -reward_clip
+        out[i] = -reward_clip
     else:
-        reward[i] = log_ratio_reward(bound[i], sigma_ref, reward_clip)
+        out[i] = log_ratio_reward(bound[i], sigma_ref, reward_clip)
 
 
-@njit(**_JIT)
-def period_finish(
-    delays, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1, X, Q,
-    degenerate, degenerate_true, previous, position, velocity, range_sigma, velocity_sigma,
-    estimate, bound, reward,
-):  # fmt: skip
-    """The fix in the world frame, its reported accuracy, the estimate, bound and reward.
-
-    ``a1 (B, 3)`` receiver 1's measured direction (own frame), ``X (B, n+3)`` and
-    ``Q (B, n+3, n+3)`` the noisy solve at ``σ_e = 1``; ``degenerate`` its pseudo-inverse flag,
-    ``degenerate_true`` that of the exact system. Covariance mapping (:mod:`.scan`):
-    ``Q ← (σ_ang · mean_k |r̂_k|)² Q``; the estimate is the fix, or the previous one coasted by
-    ``τ`` where the fix was degenerate; ``σ_pos = σ_ang √tr G⁻¹`` of the true geometry
-    (``G = Σ_k Π_k/r_k²``); the reward ``clip(ln(σ_ref/σ_pos), −R, R)``, ``−R`` where degenerate.
-    """
-    n = origins.shape[1]
-    # scratch of the bound (the stereo tracker kernels' information, test and bound)
-    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
-    piv = np.empty(3, np.int64)
-    unit = np.ones(n)
-    every = np.ones(n, np.bool_)
-    for i in range(origins.shape[0]):
-        finish_row(
-            i, i, delays, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1,
-            X, Q, degenerate, degenerate_true, previous, position, velocity, range_sigma,
-            velocity_sigma, estimate, bound, reward, G, LU, piv, inv, unit, every,
-        )  # fmt: skip
+# ------------------------------------------------------ the observation and the diagnostics
 
 
 @njit(inline="always")
@@ -347,58 +428,6 @@ def _clip_obs(x):
     if x < -OBS_CLIP:
         return -OBS_CLIP
     return x
-
-
-@njit(**_ROW)
-def observe_row(
-    i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
-    sigma_ref, period, pairs, out, sights,
-):  # fmt: skip
-    """Scenario ``i``'s observation blocks of :func:`.simulation.observe`, clipped to
-    ``±OBS_CLIP``, into ``out[i]`` (float32); ``sights (n, 3)`` scratch."""
-    n = receivers.shape[1]
-    tiny = 1e-12
-    half_pi = np.pi / 2
-    p = _row(estimate, i)
-    c = 0
-    for k in range(n):
-        out[i, c] = _clip_obs(receivers[i, k, 0] / length)
-        out[i, c + 1] = _clip_obs(receivers[i, k, 2] / length)
-        c += 2
-    for k in range(n):
-        out[i, c] = _clip_obs((receivers[i, k, 0] - p[0]) / length)
-        out[i, c + 1] = _clip_obs((receivers[i, k, 2] - p[2]) / length)
-        c += 2
-    for j in range(3):
-        out[i, c + j] = _clip_obs(estimate[i, j] / length)
-        out[i, c + 3 + j] = _clip_obs(estimate[i, 3 + j] / speed)
-    c += 6
-    for k in range(n):
-        out[i, c + k] = _clip_obs(np.log(max(range_sigma[i, k], tiny) / sigma_ref))
-    c += n
-    out[i, c] = _clip_obs(np.log(max(velocity_sigma[i], tiny) * period / sigma_ref))
-    out[i, c + 1] = _clip_obs(np.log10(min(condition[i], 1e300)))
-    c += 2
-    _sights(receivers, i, p, sights)
-    for q in range(pairs.shape[0]):
-        angle = _pair_angle(sights, pairs[q, 0], pairs[q, 1])
-        out[i, c + q] = _clip_obs(angle / half_pi)
-    c += pairs.shape[0]
-    out[i, c] = 1.0 if degenerate[i] else 0.0
-
-
-@njit(**_JIT)
-def observe_kernel(
-    rows, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length, speed,
-    sigma_ref, period, pairs, out,
-):  # fmt: skip
-    """:func:`observe_row` for the scenarios ``rows``."""
-    sights = np.empty((receivers.shape[1], 3))
-    for i in rows:
-        observe_row(
-            i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, length,
-            speed, sigma_ref, period, pairs, out, sights,
-        )  # fmt: skip
 
 
 @njit(inline="always")
@@ -415,6 +444,62 @@ def _pair_angle(sights, k, l):
     return los_angle3(_row(sights, k), _row(sights, l))
 
 
+@njit(**_ROW)
+def observation(
+    p, pairs, i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate, out,
+    sights,
+):  # fmt: skip
+    """Scenario ``i``'s observation blocks of :func:`.simulation.observe`, clipped to
+    ``±OBS_CLIP``, into ``out[i]`` (float32) (:func:`.reference.observation`); ``p`` the
+    settings record, ``sights (n, 3)`` scratch."""
+    n = receivers.shape[1]
+    length, sigma_ref = p.length_scale, p.sigma_ref
+    tiny = 1e-12
+    half_pi = np.pi / 2
+    e = _row(estimate, i)
+    c = 0
+    for k in range(n):
+        out[i, c] = _clip_obs(receivers[i, k, 0] / length)
+        out[i, c + 1] = _clip_obs(receivers[i, k, 2] / length)
+        c += 2
+    for k in range(n):
+        out[i, c] = _clip_obs((receivers[i, k, 0] - e[0]) / length)
+        out[i, c + 1] = _clip_obs((receivers[i, k, 2] - e[2]) / length)
+        c += 2
+    for j in range(3):
+        out[i, c + j] = _clip_obs(estimate[i, j] / length)
+        out[i, c + 3 + j] = _clip_obs(estimate[i, 3 + j] / p.speed_scale)
+    c += 6
+    for k in range(n):
+        out[i, c + k] = _clip_obs(np.log(max(range_sigma[i, k], tiny) / sigma_ref))
+    c += n
+    out[i, c] = _clip_obs(np.log(max(velocity_sigma[i], tiny) * p.period / sigma_ref))
+    out[i, c + 1] = _clip_obs(np.log10(min(condition[i], 1e300)))
+    c += 2
+    _sights(receivers, i, e, sights)
+    for q in range(pairs.shape[0]):
+        angle = _pair_angle(sights, pairs[q, 0], pairs[q, 1])
+        out[i, c + q] = _clip_obs(angle / half_pi)
+    c += pairs.shape[0]
+    out[i, c] = 1.0 if degenerate[i] else 0.0
+
+
+@njit(**_JIT)
+def observe_kernel(
+    rows, settings, pairs, receivers, estimate, range_sigma, velocity_sigma, condition,
+    degenerate, out,
+):  # fmt: skip
+    """:func:`observation` for the scenarios ``rows``; ``settings`` the params' record (a
+    structured array of one element, dtype :data:`SETTINGS`)."""
+    p = settings[0]
+    sights = np.empty((receivers.shape[1], 3))
+    for i in rows:
+        observation(
+            p, pairs, i, receivers, estimate, range_sigma, velocity_sigma, condition, degenerate,
+            out, sights,
+        )  # fmt: skip
+
+
 @njit(**_JIT)
 def los_angles_kernel(receivers, point, pairs, out):
     """Angles ``γ_kl (B, pairs)`` between the lines of sight from ``receivers (B, n, 3)`` to
@@ -427,9 +512,9 @@ def los_angles_kernel(receivers, point, pairs, out):
 
 
 @njit(**_ROW)
-def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sights):
+def diagnostics(i, receivers, estimate, drone_position, pairs, error, min_angle, sights):
     """Scenario ``i``'s position error ``‖p̂ − p‖`` and the smallest angle between the lines of
-    sight to the drone (``sights (n, 3)`` scratch)."""
+    sight to the drone (:func:`.reference.diagnostics`; ``sights (n, 3)`` scratch)."""
     p = _row(drone_position, i)
     error[i] = norm3((estimate[i, 0] - p[0], estimate[i, 1] - p[1], estimate[i, 2] - p[2]))
     smallest = np.inf
@@ -441,10 +526,13 @@ def info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, si
 
 @njit(**_JIT)
 def info_kernel(rows, receivers, estimate, drone_position, pairs, error, min_angle):
-    """:func:`info_row` for the scenarios ``rows``."""
+    """:func:`diagnostics` for the scenarios ``rows``."""
     sights = np.empty((receivers.shape[1], 3))
     for i in rows:
-        info_row(i, receivers, estimate, drone_position, pairs, error, min_angle, sights)
+        diagnostics(i, receivers, estimate, drone_position, pairs, error, min_angle, sights)
+
+
+# ------------------------------------------------------------------------ the whole step
 
 
 #: flags returned by :func:`period_rows` (or-ed over its scenarios)
@@ -454,69 +542,69 @@ solve), or a zero line of sight."""
 BAD_ACTION = 2
 """an action holds NaN or infinite values (the kernel stopped there)."""
 
-#: positions in the ``constants`` array of :func:`period_rows`
-C_PERIOD, C_SIGMA, C_ELEVATION, C_SPEED, C_RADIUS, C_REF, C_CLIP, C_COND, C_LENGTH, C_SCALE = range(
-    10
-)
+
+@njit(inline="always")
+def _finite_action(action, i):
+    """Every component of scenario ``i``'s action is finite."""
+    for k in range(action.shape[1]):
+        if not (np.isfinite(action[i, k, 0]) and np.isfinite(action[i, k, 1])):
+            return False
+    return True
 
 
 @njit(**_JIT)
-def period_rows(
-    lo, hi, moving, constants, delays, pairs, t, receivers, action, drone, drone_velocity,
-    previous, normals, t_out, end, drone_end, origins, los, ranges, position, velocity,
-    range_sigma, velocity_sigma, condition, degenerate, degenerate_true, estimate, bound, reward,
-    observation, error, min_angle, slow,
-):  # fmt: skip
-    """The whole step of scenarios ``lo..hi−1`` in one pass: drive, period, finish, observation
-    and diagnostics (:func:`drive`, :func:`period_systems`, :func:`period_finish`,
-    :func:`observe_row`, :func:`info_row`, row by row).
+def period_rows(lo, hi, moving, settings, layout, old, action, normals, new, out):
+    """The whole step of scenarios ``lo..hi−1`` in one pass, the stages of
+    :func:`.reference.step` and :func:`.reference.scan_period` in their order.
 
-    ``moving``: the receivers drive under ``action (B, n, 2)`` for ``τ`` and the drone flies
-    on from ``drone`` (a step); else ``end``, ``drone_end`` and ``t_out`` copy ``receivers``,
-    ``drone`` and ``t`` (the first fix of :func:`.simulation.start`). ``constants`` holds the
-    params' scalars (``C_*``). A scenario whose conjugation the closed form does not settle
-    (``κ_F > cond_max`` in either system, or left by the compiled solve, a zero line of sight) is marked in ``slow``
-    and left unfinished: the caller solves it on the generic path. Returns the or-ed flags
-    :data:`SLOW`, :data:`BAD_ACTION` (checked before anything of that scenario is written).
+    ``settings``: the params' record (a structured array of one element, dtype
+    :data:`SETTINGS`); ``layout = (delays (n,), pairs (n(n−1)/2, 2))``; the old state
+    ``old = (t (B,), receivers (B, n, 3), drone (B, 3), drone_velocity (B, 3),
+    previous (B, 6))``; ``normals (B, n, 3)`` the period's noise draws. ``moving``: the
+    receivers drive under ``action (B, n, 2)`` for ``τ`` and the drone flies on (a step); else
+    the period ends where they stand (the first fix of :func:`.simulation.start`). Writes the
+    new state ``new = (t, end, drone_end, origins, los, ranges, position, velocity,
+    range_sigma, velocity_sigma, condition, degenerate, degenerate_true, estimate, bound)`` and
+    ``out = (reward, observation, error, min_angle, slow)``. A scenario whose conjugation the
+    compiled solve does not settle (``κ_F > cond_max`` in either system, or a zero line of
+    sight) is marked in ``slow`` and left unfinished: the caller solves it on the generic
+    path. Returns the or-ed flags :data:`SLOW`, :data:`BAD_ACTION` (checked before anything
+    of that scenario is written).
     """
-    n = receivers.shape[1]
-    m, p = n - 1, n + 3
-    period, sigma_ang = constants[C_PERIOD], constants[C_SIGMA]
-    cond_max = constants[C_COND]
+    p = settings[0]
+    period, sigma_ang, cond_max = p.period, p.sigma_ang, p.cond_max
+    delays, pairs = layout
+    t, receivers, drone, drone_velocity, previous = old
+    t_out, end, drone_end, origins, los, ranges, position, velocity = new[:8]
+    range_sigma, velocity_sigma, condition, degenerate, degenerate_true, estimate, bound = new[8:]
+    rewards, obs, error, min_angle, slow = out
     noisy = sigma_ang > 0.0
-    # one scenario's systems and solves (row 0), the bound's scratch
-    R, a1, ak = np.empty((1, n, 3, 3)), np.empty((1, 3)), np.empty((1, m, 3))
-    P, b, dt = np.empty((1, m, 3, 3)), np.empty((1, m, 3)), np.empty((1, m))
-    e1, ek = np.empty((1, 3)), np.empty((1, m, 3))
-    X, J, Q = np.empty((1, p)), np.empty(1), np.empty((1, p, p))
-    kappa, M1 = np.empty(1), np.empty((1, 3))
-    Xe, Qe, kappa_e = np.empty((1, p)), np.empty((1, p, p)), np.empty(1)
-    G, LU, inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
-    piv = np.empty(3, np.int64)
-    unit = np.ones(n)
-    every = np.ones(n, np.bool_)
-    sight, sights = np.empty(3), np.empty((n, 3))
+    ws = workspace(receivers.shape[1])
+    R, a1, ak, P, b, dt, e1, ek = ws[:8]
+    X, J, Q, kappa, M1, Xe, Qe, kappa_e = ws[8:16]
+    G, LU, inv, piv, unit, every, sight, sights = ws[16:]
     flags = 0
     for i in range(lo, hi):
+        # 1. the vehicles drive, the drone flies on (or, the first fix, both stand still)
         if moving:
-            for k in range(n):
-                if not (np.isfinite(action[i, k, 0]) and np.isfinite(action[i, k, 1])):
-                    return flags | BAD_ACTION
-            _drive_row(receivers, action, period, constants[C_SPEED], constants[C_RADIUS], end, i)
+            if not _finite_action(action, i):
+                return flags | BAD_ACTION
+            drive(i, receivers, action, period, p.max_speed, p.arena_radius, end)
+            fly(i, drone, drone_velocity, period, drone_end)
             t_out[i] = t[i] + period
-            for j in range(3):
-                drone_end[i, j] = drone[i, j] + period * drone_velocity[i, j]
         else:
+            stand_still(i, receivers, drone, end, drone_end)
             t_out[i] = t[i]
-            for j in range(3):
-                drone_end[i, j] = drone[i, j]
-                for k in range(n):
-                    end[i, k, j] = receivers[i, k, j]
-        code = systems_row(
-            i, 0, delays, (period, sigma_ang, constants[C_ELEVATION]), receivers, end, drone_end,
-            drone_velocity, previous, normals, (origins, los, ranges), R, a1, ak, P, b, dt, e1,
-            ek, X, J, Q, kappa, M1, Xe, Qe, kappa_e, sight,
-        )  # fmt: skip
+        # 2. the period's true geometry, the frames, the noisy and the exact systems, solved
+        geometry_at_fix_times(i, delays, period, receivers, end, drone_end, drone_velocity,
+                              origins, los, ranges, sight)  # fmt: skip
+        boresight_rotations(i, 0, origins, previous, period, p.max_elevation, R)
+        own_frame(i, 0, sigma_ang, R, los, ranges, normals, a1, ak, e1, ek)
+        conjugation_system(i, 0, delays, origins, R, P, b, dt)
+        code = least_squares(a1, ak, P, b, dt, 0, X, J, Q, kappa, M1)
+        kappa_e[0] = np.inf
+        if code == 0 and noisy:
+            code = least_squares(e1, ek, P, b, dt, 0, Xe, J, Qe, kappa_e, M1)
         condition[i] = kappa[0]
         degenerate[i] = degenerate_true[i] = False
         if code != 0 or not (kappa[0] <= cond_max) or (noisy and not (kappa_e[0] <= cond_max)):
@@ -524,18 +612,83 @@ def period_rows(
             flags |= SLOW
             continue
         slow[i] = False
-        finish_row(
-            i, 0, delays, period, sigma_ang, constants[C_REF], constants[C_CLIP], origins, los,
-            ranges, R, a1, X, Q, degenerate, degenerate_true, previous, position, velocity, range_sigma,
-            velocity_sigma, estimate, bound, reward, G, LU, piv, inv, unit, every,
-        )  # fmt: skip
-        observe_row(
-            i, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
-            constants[C_LENGTH], constants[C_SCALE], constants[C_REF], period, pairs, observation,
-            sights,
-        )  # fmt: skip
-        info_row(i, end, estimate, drone_end, pairs, error, min_angle, sights)
+        # the fix in the world and the tracker's estimate
+        fix_accuracy(i, 0, sigma_ang, X, Q, range_sigma, velocity_sigma)
+        fix_in_world(i, 0, period, delays, origins, R, a1, X, position, velocity)
+        tracker_estimate(i, period, degenerate, previous, position, velocity, estimate)
+        # 3. the bound of the true geometry and the reward
+        position_bound(i, los, ranges, sigma_ang, unit, every, G, LU, piv, inv, bound)
+        reward(i, bound, degenerate, degenerate_true, p.sigma_ref, p.reward_clip, rewards)
+        # 4. what the new state shows: the observation and the diagnostics
+        observation(p, pairs, i, end, estimate, range_sigma, velocity_sigma, condition,
+                    degenerate, obs, sights)  # fmt: skip
+        diagnostics(i, end, estimate, drone_end, pairs, error, min_angle, sights)
     return flags
+
+
+@njit(**_JIT)
+def period_systems(scalars, delays, inputs, normals, truth, system, solves):
+    """Stage 2's systems of every scenario (the generic path's first half, :mod:`.scan`): the
+    true geometry, the frames, both conjugation systems and their compiled solves.
+
+    ``scalars = (τ, σ_ang, max_elevation)`` (floats); ``inputs = (start, end, drone_end,
+    drone_velocity, previous)``: receivers move from ``start`` to ``end`` ``(B, n, 3)``, the
+    drone is at ``drone_end (B, 3)`` at the period end, the frames look at the coasted
+    ``previous (B, 6)`` estimate's mid-period point; ``normals (B, n, 3)`` the noise draws
+    (unused when ``σ_ang = 0``). Fills ``truth = (origins, los, ranges)``, ``system = (R, a1,
+    ak, P, b, dt, e1, ek)`` (rotations ``(B, n, 3, 3)``, the noisy system and the exact one's
+    directions) and ``solves = (X, J, Q, κ, M̂_1, Xe, Qe, κ_e)`` (``κ_F`` > ``cond_max``, or
+    ``inf`` where the compiled solve leaves the system, for the caller). Returns 0 or the
+    input-check code of :func:`triple_velocity_kernel` (a zero line of sight).
+    """
+    period, sigma_ang, max_elevation = scalars
+    start, end, drone_end, drone_velocity, previous = inputs
+    origins, los, ranges = truth
+    R, a1, ak, P, b, dt, e1, ek = system
+    X, J, Q, kappa, M1, Xe, Qe, kappa_e = solves
+    noisy = sigma_ang > 0.0
+    sight = np.empty(3)
+    for i in range(start.shape[0]):
+        geometry_at_fix_times(i, delays, period, start, end, drone_end, drone_velocity,
+                              origins, los, ranges, sight)  # fmt: skip
+        boresight_rotations(i, i, origins, previous, period, max_elevation, R)
+        own_frame(i, i, sigma_ang, R, los, ranges, normals, a1, ak, e1, ek)
+        conjugation_system(i, i, delays, origins, R, P, b, dt)
+        code = least_squares(a1, ak, P, b, dt, i, X, J, Q, kappa, M1)
+        kappa_e[i] = np.inf
+        if code == 0 and noisy:
+            code = least_squares(e1, ek, P, b, dt, i, Xe, J, Qe, kappa_e, M1)
+        if code != 0:
+            return code
+    return 0
+
+
+@njit(**_JIT)
+def period_finish(scalars, delays, truth, solve, flags, previous, fix, out):
+    """Stage 2's fix and stage 3 of every scenario (the generic path's second half,
+    :mod:`.scan`): the fix in the world, its reported accuracy, the estimate, bound and reward.
+
+    ``scalars = (τ, σ_ang, σ_ref, R)`` (floats); ``truth = (origins, los, ranges)``;
+    ``solve = (R, a1, X, Q)``: the rotations, receiver 1's measured direction (own frame), the
+    noisy solve ``X (B, n+3)``, ``Q (B, n+3, n+3)`` at ``σ_e = 1``; ``flags = (degenerate,
+    degenerate_true)`` the pseudo-inverse flags of the noisy and the exact system; writes
+    ``fix = (position, velocity, range_sigma, velocity_sigma)`` and ``out = (estimate, bound,
+    reward)``: the estimate the fix, or ``previous`` coasted by ``τ`` where degenerate.
+    """
+    period, sigma_ang, sigma_ref, reward_clip = scalars
+    origins, los, ranges = truth
+    R, a1, X, Q = solve
+    degenerate, degenerate_true = flags
+    position, velocity, range_sigma, velocity_sigma = fix
+    estimate, bound, rewards = out
+    ws = workspace(origins.shape[1])
+    G, LU, inv, piv, unit, every = ws.G, ws.LU, ws.inv, ws.piv, ws.unit, ws.every
+    for i in range(origins.shape[0]):
+        fix_accuracy(i, i, sigma_ang, X, Q, range_sigma, velocity_sigma)
+        fix_in_world(i, i, period, delays, origins, R, a1, X, position, velocity)
+        tracker_estimate(i, period, degenerate, previous, position, velocity, estimate)
+        position_bound(i, los, ranges, sigma_ang, unit, every, G, LU, piv, inv, bound)
+        reward(i, bound, degenerate, degenerate_true, sigma_ref, reward_clip, rewards)
 
 
 # ---------------------------------------------------------------- the heuristic rules' searches

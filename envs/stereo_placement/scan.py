@@ -178,9 +178,9 @@ def solve_period(
     Xe, Qe, kappa_e = np.empty((B, p)), np.empty((B, p, p)), np.empty(B)
     J, M1 = np.empty(B), np.empty((B, 3))
     code = kernels.period_systems(
-        d, period, sigma_ang, max_elevation, start, end, drone_end, drone_velocity, previous,
-        normals, origins, los, ranges, R, a1, ak, P, b, dt, e1, ek, X, J, Q, kappa, M1,
-        Xe, Qe, kappa_e,
+        (float(period), float(sigma_ang), float(max_elevation)), d,
+        (start, end, drone_end, drone_velocity, previous), normals, (origins, los, ranges),
+        (R, a1, ak, P, b, dt, e1, ek), (X, J, Q, kappa, M1, Xe, Qe, kappa_e),
     )  # fmt: skip
     if code:  # a zero line of sight: the checked solver raises naming the argument
         solve_conjugation(a1, ak, P, b, dt, order=1)
@@ -195,9 +195,9 @@ def solve_period(
     range_sigma, velocity_sigma = np.empty((B, n)), np.empty(B)
     estimate, bound, reward = np.empty((B, 6)), np.empty(B), np.empty(B)
     kernels.period_finish(
-        d, period, sigma_ang, sigma_ref, reward_clip, origins, los, ranges, R, a1, X, Q, used,
-        used_true, previous, position, velocity, range_sigma, velocity_sigma, estimate, bound,
-        reward,
+        (float(period), float(sigma_ang), float(sigma_ref), float(reward_clip)), d,
+        (origins, los, ranges), (R, a1, X, Q), (used, used_true), previous,
+        (position, velocity, range_sigma, velocity_sigma), (estimate, bound, reward),
     )  # fmt: skip
     fix = ScanFix(position, velocity, range_sigma, velocity_sigma, kappa, used)
     return fix, ScanGeometry(origins, los, ranges, used_true), estimate, bound, reward

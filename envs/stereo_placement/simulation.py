@@ -197,16 +197,27 @@ class PlacementParams(FieldsOnlyPickle):
         return np.array(d, dtype=np.float64)
 
     @functools.cached_property
-    def constants(self) -> FloatArray:
-        """The scalars the step kernel reads, in :mod:`.kernels`' ``C_*`` order."""
-        c = np.empty(10)
-        c[kernels.C_PERIOD], c[kernels.C_SIGMA] = self.period, self.sigma_ang
-        c[kernels.C_ELEVATION], c[kernels.C_SPEED] = self.max_boresight_elevation, self.max_speed
-        c[kernels.C_RADIUS], c[kernels.C_REF] = self.arena_radius, self.sigma_ref
-        c[kernels.C_CLIP], c[kernels.C_COND] = self.reward_clip, DEFAULT_COND_MAX
-        c[kernels.C_LENGTH], c[kernels.C_SCALE] = self.length_scale, self.speed_scale
-        c.flags.writeable = False
-        return c
+    def kernel_settings(self) -> NDArray[np.void]:
+        """The scalar settings the compiled step reads, as one read-only record (a structured
+        array of one element, dtype :data:`.kernels.SETTINGS`) that it reads by field name;
+        computed once per params."""
+        fields = {
+            "period": self.period,
+            "sigma_ang": self.sigma_ang,
+            "max_elevation": self.max_boresight_elevation,
+            "max_speed": self.max_speed,
+            "arena_radius": self.arena_radius,
+            "sigma_ref": self.sigma_ref,
+            "reward_clip": self.reward_clip,
+            "cond_max": DEFAULT_COND_MAX,
+            "length_scale": self.length_scale,
+            "speed_scale": self.speed_scale,
+        }
+        settings = np.zeros(1, dtype=kernels.SETTINGS)
+        for name, value in fields.items():
+            settings[name] = value
+        settings.flags.writeable = False
+        return settings
 
     @functools.cached_property
     def obs_dim(self) -> int:
@@ -298,12 +309,14 @@ def _advance(
     estimate, bound, reward = np.empty((B, 6)), np.empty(B), np.empty(B)
     obs = np.empty((B, params.obs_dim), np.float32)
     error, min_angle, slow = np.empty(B), np.empty(B), np.empty(B, np.bool_)
-    args = (
-        moving, params.constants, params.delays_array, params.pairs_array, t, receivers, act,
-        drone, drone_velocity, previous, normals, t_out, end, drone_end, origins, los, ranges,
-        position, velocity, range_sigma, velocity_sigma, condition, degenerate, degenerate_true,
-        estimate, bound, reward, obs, error, min_angle, slow,
+    layout = (params.delays_array, params.pairs_array)
+    old = (t, receivers, drone, drone_velocity, previous)
+    new = (
+        t_out, end, drone_end, origins, los, ranges, position, velocity, range_sigma,
+        velocity_sigma, condition, degenerate, degenerate_true, estimate, bound,
     )  # fmt: skip
+    args = (moving, params.kernel_settings, layout, old, act, normals, new,
+            (reward, obs, error, min_angle, slow))  # fmt: skip
     if B < 2 * MIN_ROWS_PER_THREAD:  # one chunk (run_rows would not split it)
         code = kernels.period_rows(0, B, *args)
     else:
@@ -326,9 +339,8 @@ def _advance(
         range_sigma[rows], velocity_sigma[rows] = fix.range_sigma, fix.velocity_sigma
         estimate[rows], bound[rows], reward[rows] = est, bnd, rew
         kernels.observe_kernel(
-            rows, end, estimate, range_sigma, velocity_sigma, condition, degenerate,
-            params.length_scale, params.speed_scale, params.sigma_ref, params.period,
-            params.pairs_array, obs,
+            rows, params.kernel_settings, params.pairs_array, end, estimate, range_sigma,
+            velocity_sigma, condition, degenerate, obs,
         )  # fmt: skip
         kernels.info_kernel(rows, end, estimate, drone_end, params.pairs_array, error, min_angle)
     fix = ScanFix.trusted(

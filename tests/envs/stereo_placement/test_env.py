@@ -222,9 +222,9 @@ def _observation_of(params: PlacementParams, state: core.PlacementState) -> np.n
     out = np.empty((state.batch_size, params.obs_dim), np.float32)
     fix = state.fix
     kernels.observe_kernel(
-        np.arange(state.batch_size), state.receivers, state.estimate, fix.range_sigma,
-        fix.velocity_sigma, fix.condition, fix.degenerate, params.length_scale,
-        params.speed_scale, params.sigma_ref, params.period, params.pairs_array, out,
+        np.arange(state.batch_size), params.kernel_settings, params.pairs_array,
+        state.receivers, state.estimate, fix.range_sigma, fix.velocity_sigma, fix.condition,
+        fix.degenerate, out,
     )  # fmt: skip
     return out
 
@@ -254,7 +254,7 @@ def test_the_fused_step_equals_the_generic_path():
         seed = int(rng.integers(1 << 30))
         new, reward, _ = core.step(params, state, action, np.random.default_rng(seed))
         end = np.empty_like(state.receivers)
-        kernels.drive(
+        kernels.drive_batch(
             state.receivers, action, params.period, params.max_speed, params.arena_radius, end
         )
         p = state.drone_position + params.period * state.drone_velocity

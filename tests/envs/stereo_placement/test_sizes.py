@@ -112,10 +112,11 @@ def test_the_general_n_kernel_matches_the_svd_path(n):
         Xe=np.empty((B, n + 3)), Qe=np.empty((B, n + 3, n + 3)), kappa_e=np.empty(B),
     )  # fmt: skip
     end = state.receivers + rng.uniform(-3, 3, state.receivers.shape) * [1.0, 0.0, 1.0]
+    a = list(arrays.values())
     kernels.period_systems(
-        params.delays_array, params.period, params.sigma_ang, params.max_boresight_elevation,
-        state.receivers, end, state.drone_position, state.drone_velocity, state.estimate,
-        rng.standard_normal((B, n, 3)), *arrays.values(),
+        (params.period, params.sigma_ang, params.max_boresight_elevation), params.delays_array,
+        (state.receivers, end, state.drone_position, state.drone_velocity, state.estimate),
+        rng.standard_normal((B, n, 3)), tuple(a[:3]), tuple(a[3:11]), tuple(a[11:]),
     )  # fmt: skip
     inputs = (arrays["a1"], arrays["ak"], arrays["P"], arrays["b"], arrays["dt"])
     generic = solve_conjugation(*inputs, order=1)  # the SVD path for n ≥ 4
