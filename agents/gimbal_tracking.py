@@ -106,12 +106,16 @@ class CarrierFeedForward(MemorylessRule):
 
     params: GimbalParams
 
-    def act(self, obs: FloatArray) -> FloatArray:
+    def change(self, obs: FloatArray) -> FloatArray:
+        """The body-frame angle change ``(n, 2)`` (rad) it drives within the next frame."""
         T = self.params.frame_period
         # attitude_{k+1} ≈ attitude_k + ȧ_k T
         ahead = (obs[:, ATTITUDE] + obs[:, ATTITUDE_RATES] * T) * ATTITUDE_SCALE
         level = obs[:, PREDICTED_LEVEL] * _ANGLE_SCALE
-        return rate_action(self.params, aim_change(obs, level, ahead))
+        return aim_change(obs, level, ahead)
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        return rate_action(self.params, self.change(obs))
 
 
 @dataclass(frozen=True)
@@ -188,7 +192,8 @@ class TruthServo(MemorylessRule):
     """Returns the simulator's current :class:`~sensorgym.envs.gimbal_tracking.simulation.
     GimbalState`, as many scenarios as observations."""
 
-    def act(self, obs: FloatArray) -> FloatArray:
+    def change(self, obs: FloatArray) -> FloatArray:
+        """The body-frame angle change ``(n, 2)`` (rad) onto the true direction next frame."""
         s: GimbalState = self.state_fn()
         p = self.params
         frame = s.frame + 1
@@ -198,4 +203,7 @@ class TruthServo(MemorylessRule):
         los = position / np.linalg.norm(position, axis=-1, keepdims=True)
         change = body_angles(los, attitude) - s.gimbal_angles
         change[:, 0] = wrap_angle(change[:, 0])
-        return rate_action(p, change)
+        return change
+
+    def act(self, obs: FloatArray) -> FloatArray:
+        return rate_action(self.params, self.change(obs))

@@ -58,6 +58,7 @@ EXPERTS: dict[str, str] = {
     "plan-horizon-choice": "sensorgym.train.env_wrappers.stereo_pointing:PlanHorizonExpert",
     "placement-truth-target": "sensorgym.train.env_wrappers.stereo_placement:truth_target",
     "scan-entry-search": "sensorgym.train.env_wrappers.stereo_scanning:entry_search_expert",
+    "gimbal-truth-aim": "sensorgym.train.env_wrappers.gimbal_tracking:truth_aim",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

@@ -34,6 +34,7 @@ WRAPPERS: dict[str, str] = {
     "plan-features": "sensorgym.train.env_wrappers.stereo_pointing:plan_features",
     "placement-target": "sensorgym.train.env_wrappers.stereo_placement:plan_target",
     "scan-modes": "sensorgym.train.env_wrappers.stereo_scanning:scan_modes",
+    "gimbal-aim": "sensorgym.train.env_wrappers.gimbal_tracking:aim_offset",
 }
 
 
