@@ -1,7 +1,8 @@
 """``sensorgym/GimbalTracking-v0``: keep a gimbal's narrow field of view on an air target.
 
-:mod:`.simulation` (params, state and the contract's functions), :mod:`.reference` (the step's
-stages in numpy), :mod:`.gimbal_tracking` (Gymnasium, native vector and PettingZoo envs) and
+:mod:`.simulation` (params, state and the contract's functions), :mod:`.kernels` (the compiled
+step), :mod:`.reference` (its stages in readable numpy, what the kernels are checked against),
+:mod:`.gimbal_tracking` (Gymnasium, native vector and PettingZoo envs) and
 :mod:`.render`.
 """
 

@@ -45,7 +45,8 @@ class GimbalTrackingEnv(CoreEnv):
     the boresight instead: re-acquisition takes pointing the field of view's centre at the
     target. The agent commands the drives; the optics lose contrast off axis (``vignetting``)
     and a target out of view is not seen at all. Simulation core:
-    :mod:`sensorgym.envs.gimbal_tracking.simulation` (stages in :mod:`.reference`).
+    :mod:`sensorgym.envs.gimbal_tracking.simulation` (its step compiled in :mod:`.kernels`,
+    the stages readable in numpy in :mod:`.reference`).
 
     ## Action Space
 

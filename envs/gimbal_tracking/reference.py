@@ -12,9 +12,11 @@ boresight (:func:`gate_centre`); paper 004's fused tracker measures the target's
 measurement, or coasts through a loss (:func:`advance_predictor`); the reward reads the fused
 estimate's angular error bound (:func:`reward`).
 
-Until the compiled step exists (issue 40), :mod:`.simulation` runs these very functions: this
-module is the env's numpy step and, later, the reference its kernels are checked against. The
-trackers are the package's own, called and not copied:
+This module is the readable numpy spec of the env's reset and step, and the reference its
+compiled kernels (:mod:`.kernels`, which :mod:`.simulation` runs) are checked against:
+``tests/envs/gimbal_tracking/test_reference.py`` steps both from the same states with the same
+draws over whole episodes. :func:`reset` and :func:`step` take the simulation's arguments and
+make its draws in its order. The trackers here are the package's own, called and not copied:
 :class:`~sensorgym.trackers.fusion.tracker.FusionTracker` (paper 004, theory §9.2) and
 :class:`~sensorgym.trackers.angles.prediction.ABCPredictor` (paper 001, theory §8.3–8.6).
 
@@ -28,6 +30,7 @@ boresight.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -44,6 +47,8 @@ if TYPE_CHECKING:
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 IntArray = NDArray[np.int64]
+#: a lock-on: ``(params, position, velocity, rng) -> (predictor, origin)`` (:func:`lock_on`)
+LockOn = Callable[..., tuple[ABCState, FloatArray]]
 
 #: the fused tracker works in milliradians (its templates, variances and prior)
 MRAD = 1000.0
@@ -343,11 +348,13 @@ def start(
     target_position: FloatArray,
     target_velocity: FloatArray,
     rng: np.random.Generator,
+    lock: LockOn | None = None,
 ) -> GimbalState:
     """Scenarios with the target at ``target_position (B, 3)`` (m, level frame) flying at
     ``target_velocity (B, 3)`` (m/s) at frame 0, after lock-on: the rest is drawn, in this
     order — its turn (rate, sign, onset, length), the carrier's phases, the first occlusion,
-    the channels' views, the gimbal's cue error, the lock-on's sensor noise."""
+    the channels' views, the gimbal's cue error, the lock-on's sensor noise. ``lock``
+    replaces :func:`lock_on` (same signature and draws: the simulation's compiled one)."""
     from sensorgym.envs.gimbal_tracking.simulation import GimbalState
 
     B = target_position.shape[0]
@@ -359,7 +366,8 @@ def start(
     occ = draw_integers(rng, params.occlusion_length, B)
     views = draw_integers(rng, (1, params.view_contrast.shape[1] - 1), (B, params.n_channels))
     cue = rng.standard_normal((B, 2)) * params.cue_error
-    predictor, origin = lock_on(params, target_position, target_velocity, rng)
+    lock = lock_on if lock is None else lock
+    predictor, origin = lock(params, target_position, target_velocity, rng)
 
     frame = np.zeros(B, dtype=np.int64)
     attitude, _ = carrier_attitude(params, phases, frame)
@@ -398,6 +406,17 @@ def start(
         visible=np.ones((B, params.n_channels), dtype=bool) & in_view[:, None],
         sigma_los=los_sigma(params, variance),
     )
+
+
+def reset(
+    params: GimbalParams, rng: np.random.Generator, batch: int, like: GimbalState | None = None
+) -> GimbalState:
+    """``batch`` fresh scenarios (:func:`.simulation.reset`): the target drawn
+    (:func:`~.simulation.draw_target`), then :func:`start` with the numpy lock-on."""
+    from sensorgym.envs.gimbal_tracking.simulation import draw_target
+
+    p, v = draw_target(params, rng, batch)
+    return start(params, p, v, rng)
 
 
 def step(

@@ -25,7 +25,11 @@ are the functions of :mod:`.reference` (theory §11.8):
    error bound, ``−R`` while the target is out of the field of view; the episode terminates
    when it has been out of view for more than ``reacquire_limit`` frames.
 
-This first version steps in numpy (:mod:`.reference`); the compiled step follows (issue 40).
+The step is compiled (:func:`.kernels.step_kernel`, the stages of :mod:`.reference` in
+numba, large batches split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), and so
+is the reset's lock-on of paper 001's predictor (:func:`.kernels.lock_on_kernel`); the random
+draws stay numpy's, drawn here in the numpy form's order and shapes and handed in, so seeded
+episodes are the reference's to rounding (``tests/envs/gimbal_tracking/test_reference.py``).
 """
 
 from __future__ import annotations
@@ -36,9 +40,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sensorgym.envs.gimbal_tracking import reference
+from sensorgym.envs.gimbal_tracking import kernels, reference
 from sensorgym.envs.shells.contract import EnvSpaces, clip_observation
 from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
+from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.worlds.imaging import box_profile
 from sensorgym.trackers.angles.prediction import ABCPredictor, ABCState
 from sensorgym.trackers.fusion.tracker import FusionModel, FusionTracker
@@ -53,8 +58,9 @@ IntArray = NDArray[np.int64]
 #: attitude (rad) and attitude rates (rad/s) are observed divided by this
 ATTITUDE_SCALE = 0.1
 
-#: no settings take paths the defaults do not (the step is numpy; issue 40's compiled step
-#: will name its variants here)
+#: no settings take compiled paths the defaults do not: every params compiles the same step and
+#: lock-on (the channels, views, pixels, carrier terms and predictor window are array lengths,
+#: read inside the loops; the switches of the trackers are fixed by the env)
 COMPILE_VARIANTS: tuple[dict[str, object], ...] = ()
 
 
@@ -347,6 +353,78 @@ class GimbalParams(FieldsOnlyPickle):
         """Paper 001's predictor with ``N = predictor_window`` and ``predictor_memory``."""
         return ABCPredictor(window=self.predictor_window, memory=self.predictor_memory)
 
+    @functools.cached_property
+    def kernel_settings(self) -> NDArray[np.void]:
+        """The scalar settings the compiled kernels read, as one read-only record (a
+        structured array of one element, dtype :data:`.kernels.SETTINGS`) that they read by
+        field name; computed once per params."""
+        model = self.fusion_tracker.model
+        fields = {
+            "dt": self.frame_period,
+            "max_rate": self.max_rate,
+            "max_acceleration": self.max_acceleration,
+            "elevation_low": self.elevation_limits[0],
+            "elevation_high": self.elevation_limits[1],
+            "half_field": self.half_field,
+            "vignetting": self.vignetting,
+            "target_size": self.target_size * reference.MRAD,
+            "blur": self.blur * reference.MRAD,
+            "sensor_noise": self.sensor_noise,
+            "sigma_ref": self.sigma_ref,
+            "reward_clip": self.reward_clip,
+            "correlation": model.correlation,
+            "transition_variance": model.transition_variance,
+            "open_threshold": model.open_threshold,
+            "predictor_gain": self.predictor.gain,
+            "initial_scale": self.predictor.initial_scale,
+            "gap_low": self.occlusion_gap[0],
+            "gap_high": self.occlusion_gap[1],
+            "length_low": self.occlusion_length[0],
+            "length_high": self.occlusion_length[1],
+            "search_after": self.search_after,
+            "reacquire_limit": self.reacquire_limit,
+        }
+        record = np.array(
+            [tuple(fields[name] for name in kernels.SETTINGS.names)], kernels.SETTINGS
+        )
+        record.flags.writeable = False
+        return record
+
+    @functools.cached_property
+    def kernel_model(self) -> tuple[NDArray[np.float64] | NDArray[np.int64], ...]:
+        """The world's and the tracker's arrays the compiled step reads, in the order of
+        :data:`.kernels.ModelArrays` (read-only, C-contiguous); computed once per params. The
+        kernels run paper 004's tracker with its Gaussian factor and posterior gain (the
+        env's :attr:`fusion_tracker`) and paper 001's predictor with δ_Z smoothed."""
+        model = self.fusion_tracker.model
+        if not (model.gaussian_factor and model.gain == "posterior"):
+            raise ValueError("the compiled step runs the posterior gain with the Gaussian factor")
+        if not self.predictor.smooth_delta_z:
+            raise ValueError("the compiled step smooths δ_Z")
+        amp, omega, axis = self.motion_terms
+        s, ds = model.templates, model.template_slopes
+        arrays = (
+            amp,
+            omega,
+            axis.astype(np.int64),
+            self.view_transition,
+            self.view_contrast,
+            model.noise_std,
+            self.gate_centres_mrad,
+            s,
+            ds,
+            np.sum(s * s, axis=-1),
+            np.sum(s * ds, axis=-1),
+            model.fisher_information,
+            model.transition,
+        )
+        out = []
+        for a in arrays:
+            a = np.ascontiguousarray(a)
+            a.flags.writeable = False
+            out.append(a)
+        return tuple(out)
+
     @property
     def obs_dim(self) -> int:
         """Observation length ``21 + N`` (23 for two channels, see :func:`observe`)."""
@@ -416,6 +494,22 @@ class GimbalState:
         return int(self.frame.shape[0])
 
 
+#: :class:`GimbalState`'s fields in order with the dtype the kernels take them in
+#: (``predictor``: its six arrays, :func:`state_arrays`)
+_FIELD_DTYPES: tuple[tuple[str, type], ...] = tuple(
+    (name, {"I": np.int64, "B": np.bool_}.get(kind, np.float64))
+    for name, kind in (
+        ("frame", "I"), ("target_position", "F"), ("target_velocity", "F"), ("turn_rate", "F"),
+        ("turn_start", "I"), ("turn_end", "I"), ("carrier_phase", "F"), ("gimbal_angles", "F"),
+        ("gimbal_rates", "F"), ("views", "I"), ("occlusion_start", "I"), ("occlusion_end", "I"),
+        ("out_of_view", "I"), ("since_detection", "I"), ("fusion_variance", "F"),
+        ("view_posterior", "F"), ("predictor", "P"), ("predictor_origin", "F"),
+        ("reference", "F"), ("estimate", "F"), ("predicted", "F"), ("detected", "B"),
+        ("in_view", "B"), ("occluded", "B"), ("visible", "B"), ("sigma_los", "F"),
+    )
+)  # fmt: skip
+
+
 def spaces(params: GimbalParams) -> EnvSpaces:
     """One agent, ``gimbal_0``, commanding the rates of both axes; its view is :func:`observe`."""
     return EnvSpaces.build("gimbal", 1, params.obs_dim, params.obs_dim, 2)
@@ -452,7 +546,32 @@ def start(
         raise ValueError(f"target_position, target_velocity: expected equal (B, 3), got {p.shape}")
     if np.any(np.linalg.norm(p, axis=-1) == 0.0):
         raise ValueError("target_position: the target cannot start at the carrier")
-    return reference.start(params, p, v, rng)
+    return reference.start(params, p, v, rng, lock=lock_on)
+
+
+def lock_on(
+    params: GimbalParams, position: FloatArray, velocity: FloatArray, rng: np.random.Generator
+) -> tuple[ABCState, FloatArray]:
+    """:func:`.reference.lock_on` compiled (:func:`.kernels.lock_on_kernel`): the same draws
+    (the sensors' noise ``(B, N + 1, 2)``), the frames' true angles in numpy, the predictor's
+    ``N + 1`` updates in the kernel."""
+    B, N, T = position.shape[0], params.predictor_window, params.frame_period
+    frames = np.arange(-N, 1, dtype=np.float64)
+    past = position[:, None, :] + frames[None, :, None] * T * velocity[:, None, :]
+    az, el = zup_angles_from_unit(past)
+    noise = rng.standard_normal((B, N + 1, 2))
+    state = params.predictor.initial_state(B)
+    arrays = (
+        state.azimuth_window,
+        state.elevation_window,
+        state.count,
+        state.slope_angle,
+        state.delta,
+        state.anchor,
+    )
+    origin = np.empty(B)
+    kernels.lock_on_kernel(params.kernel_settings, az, el, noise, arrays, origin)
+    return state, origin
 
 
 def reset(
@@ -462,7 +581,7 @@ def reset(
     if batch < 1:
         raise ValueError(f"batch: must be >= 1, got {batch}")
     p, v = draw_target(params, rng, batch)
-    return reference.start(params, p, v, rng)
+    return reference.start(params, p, v, rng, lock=lock_on)
 
 
 def step(
@@ -481,7 +600,82 @@ def step(
     a = a.reshape(B, 1, 2)
     if not np.all(np.isfinite(a)):
         raise ValueError("action: contains NaN or infinite values")
-    return reference.step(params, state, a, rng)
+    N, J = params.n_channels, params.gate_pixels
+    # the draws of the numpy step, in its order: the occlusions' gaps and lengths, the views'
+    # chains, the gate's pixel noise, the angle sensors' noise
+    draws = (
+        rng.uniform(0.0, 1.0, B),
+        rng.uniform(0.0, 1.0, B),
+        rng.uniform(size=(B, N)),
+        rng.standard_normal((B, 2, N, J)),
+        rng.standard_normal((B, 2)),
+    )
+    old = state_arrays(state)
+    W = params.predictor_window + 1
+    new = (
+        np.empty(B, dtype=np.int64),  # frame
+        np.empty((B, 3)),  # target_position
+        np.empty((B, 3)),  # target_velocity
+        *old[3:7],  # the turn and the carrier's phases do not change
+        np.empty((B, 2)),  # gimbal_angles
+        np.empty((B, 2)),  # gimbal_rates
+        np.empty((B, N), dtype=np.int64),  # views
+        np.empty(B, dtype=np.int64),  # occlusion_start
+        np.empty(B, dtype=np.int64),  # occlusion_end
+        np.empty(B, dtype=np.int64),  # out_of_view
+        np.empty(B, dtype=np.int64),  # since_detection
+        np.empty((B, 2)),  # fusion_variance
+        np.empty((B, 2, N, 3)),  # view_posterior
+        np.empty((B, W)),  # the predictor's azimuth_window
+        np.empty((B, W)),  # elevation_window
+        np.empty(B, dtype=np.int64),  # count
+        np.empty(B),  # slope_angle
+        np.empty((B, 3)),  # delta
+        np.empty((B, 3)),  # anchor
+        np.empty(B),  # predictor_origin
+        np.empty((B, 2)),  # reference
+        np.empty((B, 2)),  # estimate
+        np.empty((B, 2)),  # predicted
+        np.empty(B, dtype=bool),  # detected
+        np.empty(B, dtype=bool),  # in_view
+        np.empty(B, dtype=bool),  # occluded
+        np.empty((B, N), dtype=bool),  # visible
+        np.empty(B),  # sigma_los
+    )
+    reward, terminated = np.empty(B), np.empty(B, dtype=bool)
+    args = (params.kernel_settings, params.kernel_model, old, a, draws, new, (reward, terminated))
+    if B < 2 * MIN_ROWS_PER_THREAD:  # run_rows would not split it: skip its bookkeeping
+        kernels.step_kernel(0, B, *args)
+    else:
+        run_rows(B, lambda lo, hi: kernels.step_kernel(lo, hi, *args))
+    return from_arrays(new), reward, terminated
+
+
+def state_arrays(state: GimbalState) -> tuple[NDArray[np.generic], ...]:
+    """The state's arrays in the order the kernels take them (:data:`.kernels.StateArrays`):
+    its fields in order, the predictor's (``ABCState``) in place of ``predictor``; each
+    C-contiguous, of the dtype the kernels are compiled for (no copy when it is one)."""
+    arrays: list[NDArray[np.generic]] = []
+    for name, dtype in _FIELD_DTYPES:
+        if name == "predictor":
+            pr = state.predictor
+            arrays += [
+                np.ascontiguousarray(pr.azimuth_window, dtype=np.float64),
+                np.ascontiguousarray(pr.elevation_window, dtype=np.float64),
+                np.ascontiguousarray(pr.count, dtype=np.int64),
+                np.ascontiguousarray(pr.slope_angle, dtype=np.float64),
+                np.ascontiguousarray(pr.delta, dtype=np.float64),
+                np.ascontiguousarray(pr.anchor, dtype=np.float64),
+            ]
+        else:
+            arrays.append(np.ascontiguousarray(getattr(state, name), dtype=dtype))
+    return tuple(arrays)
+
+
+def from_arrays(arrays: tuple[NDArray[np.generic], ...]) -> GimbalState:
+    """The :class:`GimbalState` of arrays in the order of :data:`.kernels.StateArrays`."""
+    head, predictor, tail = arrays[:16], arrays[16:22], arrays[22:]
+    return GimbalState(*head, ABCState(*predictor), *tail)
 
 
 def carrier_attitude(params: GimbalParams, state: GimbalState) -> tuple[FloatArray, FloatArray]:
