@@ -2,7 +2,8 @@
 
 :func:`step_kernel` is :func:`.reference.step` for the scenarios ``lo ≤ b < hi`` (so that
 :func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads), and
-:func:`lock_on_kernel` is :func:`.reference.lock_on` after its draws. Both follow the stages of
+:func:`lock_on_kernel` is :func:`.reference.lock_on` after its draws; :func:`observe_kernel` and
+:func:`info_kernel` are :func:`.reference.observe` and :func:`.reference.info`. They follow the stages of
 the readable numpy form, :mod:`.reference` (theory §8, §9, §11.8), one inlined function per
 stage under the reference's name: :func:`drive_gimbal`, :func:`fly_target`,
 :func:`carrier_attitude` (and :func:`body_to_level`), :func:`schedule_occlusions`,
@@ -40,6 +41,7 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
+from sensorgym.envs.shells.contract import OBS_CLIP
 from sensorgym.trackers.stereo.kernels import INLINE, JIT, clip, wrap_angle
 
 #: the fused tracker works in milliradians (:data:`.reference.MRAD`)
@@ -61,6 +63,7 @@ SETTINGS = np.dtype(
         ("sensor_noise", np.float64),  # angle sensors' σ_s, rad
         ("sigma_ref", np.float64),  # the reward's reference angle, rad
         ("reward_clip", np.float64),  # R
+        ("attitude_scale", np.float64),  # attitude and its rates are observed divided by this
         ("correlation", np.float64),  # paper 004's R_λ
         ("transition_variance", np.float64),  # d₀ = (1 − R_λ²) σ_λ², mrad²
         ("open_threshold", np.float64),  # the loop opens below this object posterior
@@ -230,6 +233,106 @@ def lock_on_kernel(settings, azimuth, elevation, noise, predictor, origin):
         count[b], slope[b], origin[b] = c, sl, o
 
 
+@njit(**JIT)
+def observe_kernel(settings, model, state, obs):
+    """The observation ``obs (B, 21 + N)`` float32 of every row of ``state`` (the table of
+    :func:`.simulation.observe`, :func:`.reference.observe`), clipped to ``±OBS_CLIP``."""
+    p = settings[0]
+    amp, omega, axis = model[:3]
+    frame, _, _, _, _, _, phase, gimbal, rates = state[:9]
+    posterior = state[15]
+    estimate, predicted, detected = state[24:27]
+    since, sigma = state[13], state[30]
+    att, att_rates, R = np.empty(3), np.empty(3), np.empty((3, 3))
+    N = posterior.shape[2]
+    half_pi = np.pi / 2
+    for b in range(frame.shape[0]):
+        carrier_attitude(p, amp, omega, axis, phase[b], frame[b], att)
+        carrier_rates(p, amp, omega, axis, phase[b], frame[b], att_rates)
+        body_to_level(att, R)
+        o = obs[b]
+        put(o, 0, gimbal[b, 0] / np.pi)
+        put(o, 1, gimbal[b, 1] / half_pi)
+        for i in range(2):
+            put(o, 2 + i, rates[b, i] / p.max_rate)
+        for i in range(3):
+            put(o, 4 + i, att[i] / p.attitude_scale)
+            put(o, 7 + i, att_rates[i] / p.attitude_scale)
+        body_offset(p, R, gimbal[b], estimate[b], o, 10)
+        body_offset(p, R, gimbal[b], predicted[b], o, 12)
+        put(o, 14, estimate[b, 0] / np.pi)
+        put(o, 15, estimate[b, 1] / half_pi)
+        put(o, 16, predicted[b, 0] / np.pi)
+        put(o, 17, predicted[b, 1] / half_pi)
+        put(o, 18, math.log(sigma[b] / p.sigma_ref))
+        for n in range(N):
+            # each channel's object probability, the mean of the two planes'
+            put(o, 19 + n, ((1.0 - posterior[b, 0, n, 0]) + (1.0 - posterior[b, 1, n, 0])) / 2.0)
+        put(o, 19 + N, 1.0 if detected[b] else 0.0)
+        put(o, 20 + N, since[b] / (p.reacquire_limit + 1))
+
+
+@njit(**JIT)
+def info_kernel(settings, model, state, diag):
+    """The diagnostics ``diag (9, B)`` of every row of ``state``, in the order of
+    :data:`.simulation.INFO_KEYS` (:func:`.reference.info`)."""
+    p = settings[0]
+    amp, omega, axis = model[:3]
+    frame, pos, _, _, _, _, phase, gimbal = state[:8]
+    estimate, _, detected, in_view, occluded, visible, sigma = state[24:]
+    att, R = np.empty(3), np.empty((3, 3))
+    for b in range(frame.shape[0]):
+        carrier_attitude(p, amp, omega, axis, phase[b], frame[b], att)
+        body_to_level(att, R)
+        r = math.sqrt(pos[b, 0] * pos[b, 0] + pos[b, 1] * pos[b, 1] + pos[b, 2] * pos[b, 2])
+        lx, ly, lz = pos[b, 0] / r, pos[b, 1] / r, pos[b, 2] / r
+        ex, ey, ez = unit_from_zup(estimate[b, 0], estimate[b, 1])
+        ux, uy, uz = unit_from_zup(gimbal[b, 0], gimbal[b, 1])
+        # the boresight in the level frame, R u_B
+        bx = R[0, 0] * ux + R[0, 1] * uy + R[0, 2] * uz
+        by = R[1, 0] * ux + R[1, 1] * uy + R[1, 2] * uz
+        bz = R[2, 0] * ux + R[2, 1] * uy + R[2, 2] * uz
+        az, el = zup_angles(lx, ly, lz)
+        diag[0, b] = angle_between(ex, ey, ez, lx, ly, lz)
+        diag[1, b] = angle_between(bx, by, bz, lx, ly, lz)
+        diag[2, b] = wrap_angle(estimate[b, 0] - az)
+        diag[3, b] = estimate[b, 1] - el
+        diag[4, b] = sigma[b]
+        diag[5, b] = 1.0 if in_view[b] else 0.0
+        diag[6, b] = 1.0 if occluded[b] else 0.0
+        diag[7, b] = 1.0 if detected[b] else 0.0
+        seen = 0.0
+        for n in range(visible.shape[1]):
+            seen += 1.0 if visible[b, n] else 0.0
+        diag[8, b] = seen
+
+
+@njit(**INLINE)
+def put(o, i, value):
+    """``o[i]``: ``value`` clipped to ``±OBS_CLIP``, as float32."""
+    o[i] = clip(value, -OBS_CLIP, OBS_CLIP)
+
+
+@njit(**INLINE)
+def body_offset(p, R, gimbal, angles, o, i):
+    """``o[i], o[i + 1]``: the body-frame offset of the level direction at ``angles (2,)`` from
+    the gimbal's ``(α, β)``, azimuth wrapped, ``/ h`` (``u_B = Rᵀ u_L``)."""
+    x, y, z = unit_from_zup(angles[0], angles[1])
+    bx = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
+    by = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
+    bz = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
+    az, el = zup_angles(bx, by, bz)
+    put(o, i, wrap_angle(az - gimbal[0]) / p.half_field)
+    put(o, i + 1, (el - gimbal[1]) / p.half_field)
+
+
+@njit(**INLINE)
+def angle_between(ux, uy, uz, wx, wy, wz):
+    """The angle between two directions, ``atan2(‖u × w‖, u · w)``."""
+    cx, cy, cz = uy * wz - uz * wy, uz * wx - ux * wz, ux * wy - uy * wx
+    return math.atan2(math.sqrt(cx * cx + cy * cy + cz * cz), ux * wx + uy * wy + uz * wz)
+
+
 # --- geometry (theory §2.2, §8.2) --------------------------------------------------------------
 
 
@@ -333,6 +436,15 @@ def carrier_attitude(p, amp, omega, axis, phase, frame, att):
     att[0], att[1], att[2] = 0.0, 0.0, 0.0
     for k in range(amp.shape[0]):
         att[axis[k]] += amp[k] * math.sin(omega[k] * t + phase[k])
+
+
+@njit(**INLINE)
+def carrier_rates(p, amp, omega, axis, phase, frame, rates):
+    """The rates ``rates (3,)`` of :func:`carrier_attitude`: ``ȧ = Σ_i A_i ω_i cos(ω_i t + φ_i)``."""
+    t = frame * p.dt
+    rates[0], rates[1], rates[2] = 0.0, 0.0, 0.0
+    for k in range(amp.shape[0]):
+        rates[axis[k]] += amp[k] * omega[k] * math.cos(omega[k] * t + phase[k])
 
 
 @njit(**INLINE)

@@ -16,7 +16,8 @@ This module is the readable numpy spec of the env's reset and step, and the refe
 compiled kernels (:mod:`.kernels`, which :mod:`.simulation` runs) are checked against:
 ``tests/envs/gimbal_tracking/test_reference.py`` steps both from the same states with the same
 draws over whole episodes. :func:`reset` and :func:`step` take the simulation's arguments and
-make its draws in its order. The trackers here are the package's own, called and not copied:
+make its draws in its order; :func:`observe` and :func:`info` are the observation and the
+diagnostics the compiled ones are checked against. The trackers here are the package's own, called and not copied:
 :class:`~sensorgym.trackers.fusion.tracker.FusionTracker` (paper 004, theory §9.2) and
 :class:`~sensorgym.trackers.angles.prediction.ABCPredictor` (paper 001, theory §8.3–8.6).
 
@@ -36,6 +37,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sensorgym.envs.shells.contract import clip_observation
 from sensorgym.envs.worlds.imaging import box_profile
 from sensorgym.trackers.angles.prediction import ABCPredictor, ABCState, recentre
 from sensorgym.trackers.fusion.tracker import FusionState
@@ -496,3 +498,73 @@ def step(
     )
     terminated = out_of_view > params.reacquire_limit
     return new, reward(params, sigma, in_view), terminated
+
+
+# -- what the agent sees, and the diagnostics -----------------------------------------------
+
+
+def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """The agent's observation ``(B, 21 + N)`` float32 (the table of
+    :func:`.simulation.observe`): the drives, the carrier's attitude and rates, the body
+    offsets and level angles of the tracker's estimate and prediction, ``ln(σ_LOS/σ_ref)``,
+    the channels' object probabilities, the detection and the frames since it."""
+    from sensorgym.envs.gimbal_tracking.simulation import ATTITUDE_SCALE
+
+    attitude, rates = carrier_attitude(params, state.carrier_phase, state.frame)
+    g = state.gimbal_angles
+    h = params.half_field
+    scale = np.array([np.pi, np.pi / 2])
+
+    def offset(angles: FloatArray) -> FloatArray:
+        d = body_angles(unit_from_zup_angles(angles[:, 0], angles[:, 1]), attitude) - g
+        d[:, 0] = wrap_angle(d[:, 0])
+        return d / h
+
+    probability = 1.0 - state.view_posterior[..., 0]  # (B, 2, N)
+    obs = np.concatenate(
+        [
+            g / scale,
+            state.gimbal_rates / params.max_rate,
+            attitude / ATTITUDE_SCALE,
+            rates / ATTITUDE_SCALE,
+            offset(state.estimate),
+            offset(state.predicted),
+            state.estimate / scale,
+            state.predicted / scale,
+            np.log(state.sigma_los / params.sigma_ref)[:, None],
+            probability.mean(1),
+            state.detected[:, None].astype(np.float64),
+            (state.since_detection / (params.reacquire_limit + 1))[:, None],
+        ],
+        -1,
+    )
+    return clip_observation(obs)
+
+
+def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """The one gimbal's view ``(B, 1, obs_dim)``: :func:`observe`."""
+    return observe(params, state)[:, None, :]
+
+
+def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
+    """The diagnostics of :func:`.simulation.info`."""
+    los = state.target_position / np.linalg.norm(state.target_position, axis=-1, keepdims=True)
+    est = unit_from_zup_angles(state.estimate[:, 0], state.estimate[:, 1])
+    attitude, _ = carrier_attitude(params, state.carrier_phase, state.frame)
+    boresight = level_direction(state.gimbal_angles, attitude)
+    truth = np.stack(zup_angles_from_unit(los), -1)
+
+    def angle(u: FloatArray, w: FloatArray) -> FloatArray:
+        return np.arctan2(np.linalg.norm(np.cross(u, w), axis=-1), np.sum(u * w, -1))
+
+    return {
+        "los_error": angle(est, los),
+        "pointing_error": angle(boresight, los),
+        "estimate_error_azimuth": wrap_angle(state.estimate[:, 0] - truth[:, 0]),
+        "estimate_error_elevation": state.estimate[:, 1] - truth[:, 1],
+        "sigma_los": state.sigma_los,
+        "in_view": state.in_view.astype(np.float64),
+        "occluded": state.occluded.astype(np.float64),
+        "detected": state.detected.astype(np.float64),
+        "visible_channels": state.visible.sum(-1).astype(np.float64),
+    }

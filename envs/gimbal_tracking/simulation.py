@@ -27,9 +27,10 @@ are the functions of :mod:`.reference` (theory §11.8):
 
 The step is compiled (:func:`.kernels.step_kernel`, the stages of :mod:`.reference` in
 numba, large batches split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), and so
-is the reset's lock-on of paper 001's predictor (:func:`.kernels.lock_on_kernel`); the random
-draws stay numpy's, drawn here in the numpy form's order and shapes and handed in, so seeded
-episodes are the reference's to rounding (``tests/envs/gimbal_tracking/test_reference.py``).
+are the reset's lock-on of paper 001's predictor (:func:`.kernels.lock_on_kernel`),
+:func:`observe` and :func:`info`; the random draws stay numpy's, drawn here in the numpy
+form's order and shapes and handed in, so seeded episodes are the reference's to rounding
+(``tests/envs/gimbal_tracking/test_reference.py``).
 """
 
 from __future__ import annotations
@@ -41,13 +42,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sensorgym.envs.gimbal_tracking import kernels, reference
-from sensorgym.envs.shells.contract import EnvSpaces, clip_observation
+from sensorgym.envs.shells.contract import EnvSpaces
 from sensorgym.envs.shells.params_pickle import FieldsOnlyPickle
 from sensorgym.envs.shells.rows import MIN_ROWS_PER_THREAD, run_rows
 from sensorgym.envs.worlds.imaging import box_profile
 from sensorgym.trackers.angles.prediction import ABCPredictor, ABCState
 from sensorgym.trackers.fusion.tracker import FusionModel, FusionTracker
-from sensorgym.trackers.geometry import unit_from_zup_angles, wrap_angle, zup_angles_from_unit
+from sensorgym.trackers.geometry import zup_angles_from_unit
 from sensorgym.trackers.stereo.information import MAX_REWARD_CLIP
 from sensorgym.trackers.validation import check_fields, finite_array
 
@@ -372,6 +373,7 @@ class GimbalParams(FieldsOnlyPickle):
             "sensor_noise": self.sensor_noise,
             "sigma_ref": self.sigma_ref,
             "reward_clip": self.reward_clip,
+            "attitude_scale": ATTITUDE_SCALE,
             "correlation": model.correlation,
             "transition_variance": model.transition_variance,
             "open_threshold": model.open_threshold,
@@ -707,35 +709,9 @@ def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
-    attitude, rates = carrier_attitude(params, state)
-    g = state.gimbal_angles
-    h = params.half_field
-    scale = np.array([np.pi, np.pi / 2])
-
-    def offset(angles: FloatArray) -> FloatArray:
-        d = reference.body_angles(unit_from_zup_angles(angles[:, 0], angles[:, 1]), attitude) - g
-        d[:, 0] = wrap_angle(d[:, 0])
-        return d / h
-
-    probability = 1.0 - state.view_posterior[..., 0]  # (B, 2, N)
-    obs = np.concatenate(
-        [
-            g / scale,
-            state.gimbal_rates / params.max_rate,
-            attitude / ATTITUDE_SCALE,
-            rates / ATTITUDE_SCALE,
-            offset(state.estimate),
-            offset(state.predicted),
-            state.estimate / scale,
-            state.predicted / scale,
-            np.log(state.sigma_los / params.sigma_ref)[:, None],
-            probability.mean(1),
-            state.detected[:, None].astype(np.float64),
-            (state.since_detection / (params.reacquire_limit + 1))[:, None],
-        ],
-        -1,
-    )
-    return clip_observation(obs)
+    obs = np.empty((state.batch_size, params.obs_dim), dtype=np.float32)
+    kernels.observe_kernel(params.kernel_settings, params.kernel_model, state_arrays(state), obs)
+    return obs
 
 
 def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
@@ -750,23 +726,20 @@ def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
     (``estimate_error_azimuth``, ``estimate_error_elevation``, rad: paper 001's prediction
     error through a loss), ``σ_LOS`` (rad), whether the target is in view, occluded, detected,
     and how many channels it stands out in."""
-    los = state.target_position / np.linalg.norm(state.target_position, axis=-1, keepdims=True)
-    est = unit_from_zup_angles(state.estimate[:, 0], state.estimate[:, 1])
-    attitude, _ = carrier_attitude(params, state)
-    boresight = reference.level_direction(state.gimbal_angles, attitude)
-    truth = np.stack(zup_angles_from_unit(los), -1)
+    diag = np.empty((len(INFO_KEYS), state.batch_size))
+    kernels.info_kernel(params.kernel_settings, params.kernel_model, state_arrays(state), diag)
+    return dict(zip(INFO_KEYS, diag, strict=True))
 
-    def angle(u: FloatArray, w: FloatArray) -> FloatArray:
-        return np.arctan2(np.linalg.norm(np.cross(u, w), axis=-1), np.sum(u * w, -1))
 
-    return {
-        "los_error": angle(est, los),
-        "pointing_error": angle(boresight, los),
-        "estimate_error_azimuth": wrap_angle(state.estimate[:, 0] - truth[:, 0]),
-        "estimate_error_elevation": state.estimate[:, 1] - truth[:, 1],
-        "sigma_los": state.sigma_los,
-        "in_view": state.in_view.astype(np.float64),
-        "occluded": state.occluded.astype(np.float64),
-        "detected": state.detected.astype(np.float64),
-        "visible_channels": state.visible.sum(-1).astype(np.float64),
-    }
+#: the keys of :func:`info`, in the order of the compiled kernel's rows
+INFO_KEYS = (
+    "los_error",
+    "pointing_error",
+    "estimate_error_azimuth",
+    "estimate_error_elevation",
+    "sigma_los",
+    "in_view",
+    "occluded",
+    "detected",
+    "visible_channels",
+)

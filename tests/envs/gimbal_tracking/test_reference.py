@@ -62,15 +62,15 @@ RTOL = 1e-9
 ATOL = 1e-12
 OBS_ATOL = 1e-5
 
-#: the reference as a simulation module: its reset and step, the simulation's reads of a state
+#: the reference as a simulation module (its reset, step, observation and diagnostics)
 REFERENCE = types.SimpleNamespace(
     __name__=reference.__name__,
     spaces=simulation.spaces,
     reset=reference.reset,
     step=reference.step,
-    observe=simulation.observe,
-    observe_agents=simulation.observe_agents,
-    info=simulation.info,
+    observe=reference.observe,
+    observe_agents=reference.observe_agents,
+    info=reference.info,
 )
 
 _STILL = {
