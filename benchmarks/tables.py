@@ -27,7 +27,13 @@ DOCS = (
     REPRODUCTION / "bot-control.md",
     REPRODUCTION / "paper004.md",
 )
-ENVS = ("bearings_maneuver", "stereo_pointing", "stereo_placement", "stereo_scanning")
+ENVS = (
+    "bearings_maneuver",
+    "stereo_pointing",
+    "stereo_placement",
+    "stereo_scanning",
+    "gimbal_tracking",
+)
 
 
 def _rows(name: str) -> dict[str, dict]:
