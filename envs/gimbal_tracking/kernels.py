@@ -1,18 +1,19 @@
-"""The GimbalTracking step (and the lock-on of its reset) as compiled passes over the batch's rows.
+"""The GimbalTracking step, reset lock-on, observation and diagnostics as compiled row passes.
 
 :func:`step_kernel` is :func:`.reference.step` for the scenarios ``lo ≤ b < hi`` (so that
-:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads), and
-:func:`lock_on_kernel` is :func:`.reference.lock_on` after its draws; :func:`observe_kernel` and
-:func:`info_kernel` are :func:`.reference.observe` and :func:`.reference.info`. They follow the stages of
-the readable numpy form, :mod:`.reference` (theory §8, §9, §11.8), one inlined function per
-stage under the reference's name: :func:`drive_gimbal`, :func:`fly_target`,
+:func:`sensorgym.envs.shells.rows.run_rows` can split a batch over threads),
+:func:`lock_on_kernel` is :func:`.reference.lock_on` after its draws, and :func:`observe_kernel`
+and :func:`info_kernel` are :func:`.reference.observe` and :func:`.reference.info`. They follow
+the stages of the readable numpy form, :mod:`.reference` (theory §8, §9, §11.8), one inlined
+function per stage under the reference's name: :func:`drive_gimbal`, :func:`fly_target`,
 :func:`carrier_attitude` (and :func:`body_to_level`), :func:`schedule_occlusions`,
 :func:`step_views`, :func:`view_geometry`, :func:`gate_centre`, :func:`render_gate`,
-:func:`fuse_channels` (paper 004's :meth:`~sensorgym.trackers.fusion.tracker.FusionTracker.update`
-for one image plane), :func:`advance_predictor` (paper 001's
-:meth:`~sensorgym.trackers.angles.prediction.ABCPredictor.update`, written here as
-:func:`push_window`, :func:`abc_estimates` and :func:`abc_commit`, then :func:`recentre`),
-:func:`predicted_angles` and :func:`reward`. The random draws are made by the caller with
+:func:`fuse_channels` (with :func:`channel_terms`: paper 004's
+:meth:`~sensorgym.trackers.fusion.tracker.FusionTracker.update` of one image plane),
+:func:`advance_predictor` (paper 001's
+:meth:`~sensorgym.trackers.angles.prediction.ABCPredictor.update` as :func:`push_window`,
+:func:`abc_estimates` and :func:`abc_commit`, then :func:`recentre`), :func:`predicted_angles`,
+:func:`los_sigma` and :func:`reward`. The random draws are made by the caller with
 numpy's Generator, in the order and shapes of the numpy form, and passed in: seeded episodes do
 not depend on the kernel or on the split of the rows.
 
