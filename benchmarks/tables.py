@@ -15,7 +15,7 @@ import re
 import sys
 from pathlib import Path
 
-from sensorgym.train.tail import rms, rms_ratio
+from sensorgym.train.tail import ERROR_UNITS, rms, rms_ratio
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
@@ -135,6 +135,10 @@ ENV_LABELS = {
         "StereoPlacement-v0",
         "lookahead-information",
     ): "`GreedyPlacement(horizon=3)` (the greedy search summed over 3 periods of straight drives)",
+    (
+        "GimbalTracking-v0",
+        "hold-still",
+    ): "`HoldStill` (the drives at rest: the carrier's motion alone moves the axis)",
 }
 
 
@@ -372,8 +376,12 @@ def _tail_lines(doc: dict, order: list[str]) -> list[str]:
         return []
     first = next(iter(tail.values()))["measures"]
     measures = list(first)
-    label = {m: f"{m} ({first[m]['unit']})" if first[m]["unit"] == "m" else m for m in measures}
-    metres = [m for m in measures if first[m]["unit"] == "m" and first[m]["lower_is_better"]]
+    label = {
+        m: f"{m} ({first[m]['unit']})" if first[m]["unit"] in ERROR_UNITS else m for m in measures
+    }
+    metres = [
+        m for m in measures if first[m]["unit"] in ERROR_UNITS and first[m]["lower_is_better"]
+    ]
     best = doc.get("best_rule")
     reference = doc["results"].get(best, {}).get("tails", {}) if best else {}
     main = metres[0] if metres and metres[0] in reference else None
@@ -435,6 +443,7 @@ SCORE_ENVS = (
     "StereoPointingCrowded-v0",
     "StereoPlacement-v0",
     "StereoScanning-v0",
+    "GimbalTracking-v0",
 )
 
 
@@ -880,6 +889,7 @@ TABLES = {
     "scores-crowded": lambda: scores("StereoPointingCrowded-v0"),
     "scores-placement": lambda: scores("StereoPlacement-v0"),
     "scores-scanning": lambda: scores("StereoScanning-v0"),
+    "scores-gimbal": lambda: scores("GimbalTracking-v0"),
     "ablations-book": lambda: ablations("BearingsManeuverBook-v0"),
     "ablations-pointing": lambda: ablations("StereoPointing-v0"),
     "ablations-crowded": lambda: ablations("StereoPointingCrowded-v0"),

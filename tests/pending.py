@@ -23,7 +23,7 @@ from collections.abc import Iterable
 #: env id -> the parts it does not have yet (issue 40 delivers GimbalTracking-v0 in parts)
 PENDING: dict[str, frozenset[str]] = {
     "sensorgym/GimbalTracking-v0": frozenset(
-        {"scores", "policies"}
+        {"policies"}
     ),
 }
 

@@ -15,6 +15,8 @@ the return's p10.
 | StereoPointing, Crowded, StereoPlacement | ``fix_sigma`` | m | mean CRLB ``σ_pos`` over the fixed drone-steps |
 | | ``no_fix_share`` | share | drone-steps without a fix / all drone-steps |
 | StereoScanning | ``gospa`` | m | mean over periods of GOSPA (``c = truth_gate``, ``p = 2``, ``α = 2``) |
+| GimbalTracking | ``pointing_error`` | mrad | mean over the frames of the angle between the boresight and the target |
+| | ``in_view_share`` | share | frames with the target in the field of view / frames (higher is better) |
 """
 
 from __future__ import annotations
@@ -38,7 +40,7 @@ class Measure:
     name: str
     """The measure's name in results (``tails[name]``)."""
     unit: str
-    """``"m"`` (metres) or ``"share"`` (a fraction in [0, 1])."""
+    """``"m"`` (metres), ``"mrad"`` (milliradians) or ``"share"`` (a fraction in [0, 1])."""
     key: str
     """The ``info`` entry it is read from."""
     reading: Reading = "final"
@@ -49,6 +51,9 @@ class Measure:
     """Whether a smaller value is better (the worst 5 % are then the largest)."""
     description: str = ""
     """One line for tables and docs."""
+    scale: float = 1.0
+    """The ``info`` entry times this is the measure in :attr:`unit` (1000 for radians read as
+    milliradians)."""
 
     def __post_init__(self) -> None:
         if (self.reading == "ratio") != (self.per is not None):
@@ -94,7 +99,20 @@ TAIL_MEASURES: dict[str, tuple[Measure, ...]] = {
             description="mean over the periods of GOSPA (c = truth_gate, p = 2, alpha = 2)",
         ),
     ),
+    "sensorgym/GimbalTracking-v0": (
+        Measure(
+            "pointing_error", "mrad", "pointing_error", "mean", scale=1000.0,
+            description="mean over the frames of the angle between the boresight and the target",
+        ),
+        Measure(
+            "in_view_share", "share", "in_view", "mean", lower_is_better=False,
+            description="share of the frames with the target in the field of view",
+        ),
+    ),
 }  # fmt: skip
+
+#: units of an error whose RMS over the episodes a tracking user quotes
+ERROR_UNITS = frozenset({"m", "mrad"})
 
 #: the share of the worst episodes the CVaR averages
 CVAR_SHARE = 0.05
@@ -123,7 +141,7 @@ class TailCollector:
         self.steps += 1.0
         for m in self.measures:
             if m.per_step:
-                self.sums[m.name] += _column(rows, m.key)
+                self.sums[m.name] += m.scale * _column(rows, m.key)
             if m.per is not None:
                 self.pers[m.name] += _column(rows, m.per)
 
@@ -133,7 +151,7 @@ class TailCollector:
         out = {}
         for m in self.measures:
             if m.reading == "final":
-                value = float(info.get(m.key, np.nan))
+                value = m.scale * float(info.get(m.key, np.nan))
             elif m.reading == "mean":
                 value = float(self.sums[m.name][i] / max(self.steps[i], 1.0))
             else:

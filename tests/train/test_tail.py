@@ -88,11 +88,16 @@ def test_every_env_gives_finite_measures_per_episode_in_the_order_of_the_returns
         assert np.all(values[finite] >= 0.0), m.name
         if m.unit == "share":
             assert np.all(values[finite] <= 1.0), m.name
-        want = {
-            "final": info[m.key],
-            "mean": sums[m.key] / steps,
-            "ratio": (sums[m.key] / sums[m.per] if sums[m.per] > 0 else np.nan) if m.per else None,
-        }[m.reading]
+        want = (
+            m.scale
+            * {
+                "final": info[m.key],
+                "mean": sums[m.key] / steps,
+                "ratio": (sums[m.key] / sums[m.per] if sums[m.per] > 0 else np.nan)
+                if m.per
+                else 0.0,
+            }[m.reading]
+        )
         assert values[0] == pytest.approx(want, rel=1e-12, nan_ok=True), m.name
     d = stats.as_dict()
     assert set(d["tails"]) == set(stats.tails)
