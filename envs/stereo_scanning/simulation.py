@@ -386,43 +386,44 @@ class ScanningParams(FieldsOnlyPickle):
         return np.asarray(chi2.isf(self.fit_false_alarm, dof), dtype=np.float64)
 
     @functools.cached_property
-    def kernel_constants(self) -> FloatArray:
-        """What the compiled kernels read of the params, computed once (read-only; layout
-        ``kernels.C_*``): the scalars, the receivers' geometry, then :attr:`fit_thresholds`."""
-        c = np.empty(kernels.n_constants(self.n_receivers))
-        c[kernels.C_SCENE_HALF] = self.scene_half_width
-        c[kernels.C_FLOOR] = self.scene_floor
-        c[kernels.C_HEIGHT] = self.scene_height
-        c[kernels.C_SWEEP] = self.sweep_time
-        c[kernels.C_LINES] = float(self.raster_lines)
-        c[kernels.C_PERIOD] = self.period
-        c[kernels.C_LO_W], c[kernels.C_HI_W] = self.sector_width
-        c[kernels.C_HALF_REGARD] = 0.5 * self.field_of_regard
-        c[kernels.C_KAPPA] = self.noise_per_width
-        c[kernels.C_SIGMA_MIN] = self.sigma_ang_min
-        c[kernels.C_POS_SIGMA] = self.position_sigma
-        c[kernels.C_MAX_SPEED] = self.max_speed
-        c[kernels.C_MAX_ACCEL] = self.max_acceleration
-        c[kernels.C_GATE_Q] = self.gate_q
-        c[kernels.C_COND] = self.cond_max
-        c[kernels.C_SIGMA_REF] = self.sigma_ref
-        c[kernels.C_REWARD_CLIP] = self.reward_clip
-        c[kernels.C_FALSE_PENALTY] = self.false_track_penalty
-        c[kernels.C_TRUTH_GATE] = self.truth_gate
-        c[kernels.C_LENGTH] = self.length_scale
-        c[kernels.C_SPEED] = self.speed_scale
-        c[kernels.C_MAX_FIX] = float(self.max_fixes)
-        c[kernels.C_TRACKER] = TRACKERS[self.tracker]
-        c[kernels.C_ITERS] = self.pixel_iterations
-        c[kernels.C_CONFIRM] = self.confirm_hits
-        c[kernels.C_MISSES] = self.max_misses
-        c[kernels.C_GHOST] = self.ghost_misses
-        c[kernels.C_CENTRE : kernels.C_CENTRE + 3] = self.centre
+    def kernel_settings(self) -> NDArray[np.void]:
+        """What the compiled kernels read of the params, computed once: one record of dtype
+        ``kernels.SETTINGS`` (an array of one, read-only), read by field name."""
+        s = np.zeros(1, kernels.SETTINGS)
+        r = s[0]
+        r["scene_half"], r["scene_floor"] = self.scene_half_width, self.scene_floor
+        r["scene_height"], r["sweep"] = self.scene_height, self.sweep_time
+        r["lines"], r["period"] = float(self.raster_lines), self.period
+        r["lo_w"], r["hi_w"] = self.sector_width
+        r["half_regard"] = 0.5 * self.field_of_regard
+        r["kappa"], r["sigma_min"] = self.noise_per_width, self.sigma_ang_min
+        r["position_sigma"] = self.position_sigma
+        r["max_speed"], r["max_accel"] = self.max_speed, self.max_acceleration
+        r["gate_q"], r["cond_max"] = self.gate_q, self.cond_max
+        r["sigma_ref"], r["reward_clip"] = self.sigma_ref, self.reward_clip
+        r["false_penalty"], r["truth_gate"] = self.false_track_penalty, self.truth_gate
+        r["length"], r["speed"] = self.length_scale, self.speed_scale
+        r["max_fix"] = float(self.max_fixes)
+        r["tracker"], r["iters"] = TRACKERS[self.tracker], self.pixel_iterations
+        r["confirm_hits"], r["max_misses"] = self.confirm_hits, self.max_misses
+        r["ghost_misses"] = self.ghost_misses
+        r["centre"] = self.centre
+        s.flags.writeable = False
+        return s
+
+    @functools.cached_property
+    def kernel_geometry(self) -> tuple[FloatArray, ...]:
+        """The receivers' geometry the compiled kernels read (``kernels.Geometry``, read-only
+        C-contiguous copies): places, rotations, poses in receiver 1's frame, sweep offsets and
+        :attr:`fit_thresholds`."""
         P, b = self.relative
         parts = (self.receivers, self.rotations, P, b, self.offsets_array, self.fit_thresholds)
-        c[kernels.C_GEOMETRY :] = np.concatenate([np.ravel(x) for x in parts])
-        c.flags.writeable = False
-        return c
+        out = []
+        for x in parts:
+            a = np.array(x, dtype=np.float64, order="C")
+            a.flags.writeable = False
+            out.append(a)
+        return kernels.Geometry(*out)
 
     @functools.cached_property
     def receivers(self) -> FloatArray:
@@ -646,7 +647,7 @@ def with_observation(params: ScanningParams, state: ScanningState) -> ScanningSt
     fields (for a state built or changed by hand; :func:`step` writes it itself)."""
     obs = np.empty((state.batch_size, params.obs_dim), np.float32)
     kernels.observe_kernel(
-        params.kernel_constants,
+        params.kernel_settings,
         np.ascontiguousarray(state.t, dtype=np.float64),
         np.ascontiguousarray(state.tracks, dtype=np.float64),
         np.ascontiguousarray(state.track_int, dtype=np.int64),
@@ -756,11 +757,12 @@ def step(
     out = _outputs(params, B)
     reward, terminated = np.empty(B), np.empty(B, bool)
     # the state's arrays go in as they are: step and start make them float64 and C-contiguous
-    args = (
-        params.kernel_constants, a, state.t, state.drone_position, state.drone_velocity,
-        state.drone_acceleration, state.enter, state.exited, state.tracks, state.track_int,
-        state.next_id, normals, pos_noise, clutter_count, clutter_uv, *out, reward, terminated,
+    old = (
+        state.t, state.drone_position, state.drone_velocity, state.drone_acceleration,
+        state.enter, state.exited, state.tracks, state.track_int, state.next_id,
     )  # fmt: skip
+    args = (params.kernel_settings, params.kernel_geometry, a, old,
+            (normals, pos_noise, clutter_count, clutter_uv), out, (reward, terminated))  # fmt: skip
     if B < 2 * MIN_ROWS_PER_THREAD:  # what run_rows does for a batch this small, sooner
         finite = kernels.step_rows(0, B, *args)
     else:

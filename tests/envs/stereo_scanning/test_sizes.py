@@ -201,17 +201,21 @@ def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
     """The triples' pair pre-gate for receivers ``h < k`` (receiver 2–3 included): noise-free
     simultaneous lines of sight on one point pass and give the true ranges; a second point's
     line of sight from receiver ``k`` misses and fails."""
-    from sensorgym.envs.stereo_scanning.kernels import _pair_gates, geometry
+    from sensorgym.envs.stereo_scanning.candidate_kernels import pair_gates
 
     params = ScanningParams(n_receivers=4)
-    O, R, P, b, _ = geometry(params.kernel_constants, 4)
+    geometry = params.kernel_geometry
+    O, R = geometry.O, geometry.R
     points = np.array([[120.0, 80.0, 900.0], [-400.0, 150.0, 700.0]])
     la = np.empty((4, 2, 3))
     for r in range(4):
         d = points - O[r]
         la[r] = (d / np.linalg.norm(d, axis=1, keepdims=True)) @ R[r]  # world to local
-    fix_time = np.zeros((1, 4, 2))
+    fixes = np.zeros((1, 4, 2, 4))  # simultaneous: every fix at time 0
+    fix_count = np.full((1, 4), 2, np.int64)
     sig = np.full(4, 1e-6)
+    settings = np.zeros(1, kernels.SETTINGS)
+    settings["position_sigma"], settings["gate_q"], settings["max_speed"] = 0.1, 3.0, 50.0
     FF = 4
     scratch = [np.empty(shape) for shape in
                [(FF, 3), (FF, 1, 3), (FF, 1, 3, 3), (FF, 1, 3), (FF,), (FF, 2), (FF,),
@@ -219,8 +223,8 @@ def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
     scratch[4][:] = 1.0
     out = np.zeros((2, 2), dtype=bool)
     need = np.ones((2, 2), dtype=bool)
-    _pair_gates(0, np.int64(h), np.int64(k), la, fix_time, 2, 2, P, b, sig, 0.1, 3.0, 50.0,
-                *scratch, need, out)  # fmt: skip
+    pair_gates(settings[0], geometry, 0, np.int64(h), np.int64(k), (la, sig, np.empty((4, 7))),
+               fixes, fix_count, tuple(scratch), need, out)  # fmt: skip
     assert out[0, 0] and out[1, 1] and not out[0, 1] and not out[1, 0]
     X = scratch[5]  # ranges of the pairs in order (jh, jk) = (0, 0), (0, 1), (1, 0), (1, 1)
     for e, j in ((0, 0), (3, 1)):
@@ -229,9 +233,10 @@ def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
 
 
 def test_gate_screen_rejects_only_pairs_the_gate_rejects():
-    """The association's square-root-free screen (``_outside_gate``) skips a track–candidate
-    pair only where the proposed tracker's gate (``_step_cost``) rejects it too, and skips
+    """The association's square-root-free screen (``outside_gate``) skips a track–candidate
+    pair only where the proposed tracker's gate (``step_cost``) rejects it too, and skips
     most far pairs (the point of it); pairs near the gate's edge are scored in full."""
+    from sensorgym.envs.stereo_scanning import association_kernels as A
     from sensorgym.envs.stereo_scanning import kernels as K
 
     rng = np.random.default_rng(15)
@@ -257,13 +262,18 @@ def test_gate_screen_rejects_only_pairs_the_gate_rejects():
     cvel = np.concatenate([tx[0, near, 3:], tx[0, rng.integers(0, T, C // 2), 3:]])
     cvel += rng.normal(0, 0.5, (C, 3))
     cdt = rng.uniform(0.0, 0.5, C)
-    gate_q, max_speed, max_accel = 3.0, 50.0, 0.2
+    settings = np.zeros(1, K.SETTINGS)
+    settings["gate_q"], settings["max_speed"], settings["max_accel"] = 3.0, 50.0, 0.2
+    settings["tracker"] = K.PROPOSED
+    # the table and the candidates in the kernels' layout (association_kernels.T_*, K_*)
+    tracks = np.concatenate([tx, tt[..., None], tsig, np.zeros((1, T, 10))], axis=2)
+    track_int = np.concatenate([thits[..., None], np.zeros((1, T, 3), np.int64)], axis=2)
+    cand = np.concatenate([cpos, cvel, ctime[:, None], csig, cdt[:, None]], axis=1)
     screened = rejected = 0
     for q in range(T):
         for c in range(C):
-            out = K._outside_gate(q, c, 0, tx, tt, tsig, cpos, ctime, csig, gate_q, max_accel)
-            cost = K._step_cost(K.PROPOSED, q, c, 0, tx, tt, tsig, thits, cpos, cvel, ctime,
-                                csig, cdt, gate_q, max_speed, max_accel)  # fmt: skip
+            out = A.outside_gate(settings[0], 0, q, c, tracks, cand)
+            cost = A.step_cost(settings[0], 0, q, c, tracks, track_int, cand)
             rejected += cost == np.inf
             if out:
                 assert cost == np.inf, (q, c)
@@ -275,24 +285,20 @@ def test_gate_screen_rejects_only_pairs_the_gate_rejects():
 def test_joint_fit_thresholds_are_the_exact_chi2_quantiles():
     """The joint fit of ``n'`` receivers is tested against the upper ``fit_false_alarm`` point
     of χ² on its ``2n' − 6`` degrees of freedom (scipy's exact quantile), which the kernel
-    reads from the constants; three receivers have no joint fit and no threshold."""
+    reads from the params' geometry; three receivers have no joint fit and no threshold."""
     from scipy.stats import chi2
-
-    from sensorgym.envs.stereo_scanning import kernels as K
 
     assert ScanningParams().fit_thresholds.shape == (0,)
     for n, p in ((4, 1e-6), (16, 1e-6), (9, 1e-3)):
         params = ScanningParams(n_receivers=n, fit_false_alarm=p)
         expected = [chi2.isf(p, 2 * k - 6) for k in range(4, n + 1)]
         np.testing.assert_array_equal(params.fit_thresholds, expected)
-        c = params.kernel_constants
-        assert len(c) == K.n_constants(n)
-        np.testing.assert_array_equal(K.fit_thresholds(c, n), expected)
-        # the geometry before them is in place
-        O, R, _, _, offsets = K.geometry(c, n)
-        np.testing.assert_array_equal(O, params.receivers)
-        np.testing.assert_array_equal(R, params.rotations)
-        np.testing.assert_array_equal(offsets, params.offsets_array)
+        geometry = params.kernel_geometry
+        np.testing.assert_array_equal(geometry.chi2_max, expected)
+        # the rest of the geometry is in place
+        np.testing.assert_array_equal(geometry.O, params.receivers)
+        np.testing.assert_array_equal(geometry.R, params.rotations)
+        np.testing.assert_array_equal(geometry.offsets, params.offsets_array)
     # the exact quantile is below Wilson–Hilferty's at few degrees of freedom (27.6 against
     # 30.3 for four receivers at 1e-6)
     assert ScanningParams(n_receivers=4).fit_thresholds[0] == pytest.approx(27.631, abs=1e-3)
