@@ -7,10 +7,10 @@ names the same columns). The period's candidates come as a table ``cand (C, 10)`
 delay of receiver 2) with their fixes ``cmem (C, n)`` (``−1``: none of that receiver), from
 :mod:`.candidate_kernels`.
 
-:func:`associate` runs :func:`.reference.associate`'s four stages in order (theory §11.5
-step 3): :func:`continue_confirmed`, :func:`grow_children`, :func:`coast` and
-:func:`open_births`, after :func:`continuation_costs` has scored every passing (track,
-candidate) pair.
+The step (:func:`.kernels.step_rows`) runs :func:`.reference.associate`'s four stages in order
+(theory §11.5 step 3): :func:`continue_confirmed`, :func:`grow_children`, :func:`coast` and
+:func:`open_births`, after :func:`continuation_costs` (and :func:`algorithmic_costs`) has
+scored every passing (track, candidate) pair.
 """
 
 from __future__ import annotations
@@ -144,7 +144,7 @@ def algorithmic_cost(p, geometry, i, q, c, tracks, cand, cmem, fx, pairs, out, r
     candidate and the track's prediction; both floored at 1 mm); ``J_2``, ``J_3`` less the
     gentle acceleration's ``½ a_max Δ²``, ``a_max Δ``; ``J ≤ α_3 = 3 q``, else inf. Writes
     ``(M*, V̂)`` to ``out[row]``. ``fx = (la, sig, cones)`` the period's fixes,
-    ``pairs`` the pair system's scratch (:func:`.candidate_kernels.pair_gates`)."""
+    ``pairs`` the pair system's scratch (:func:`.candidate_kernels.triple_pregates`)."""
     O, R, P, b = geometry[:4]
     la, sig = fx[0], fx[1]
     pa1, pa2, pP, pb, pones, pX, pJ, pQ, pk, pM = pairs
@@ -336,15 +336,13 @@ def _update_line(i, q, c, mv, cand, tracks, max_speed):
 
 
 @njit(**_INLINE)
-def continuation_costs(p, geometry, i, nc, found, fx, pairs, table, scores):
+def continuation_costs(p, i, nc, cand, cok, tracks, track_int, pairs_t, pairs_c, pairs_s,
+                       pairs_mv):  # fmt: skip
     """Every passing (track, candidate) pair of scenario ``i``, its cost ``ΔJ`` and the
-    ``(M, V)`` the track would take, into ``scores = (pairs_t, pairs_c, pairs_s, pairs_mv)``
+    ``(M, V)`` the track would take, in the order of the tracks and then of the candidates
     (:func:`.reference.continuation_costs`, theory §11.5 step 3): the ``nc`` candidates that
-    passed their checks (``found = (cmem, cand, cok, ctaken)``), in ascending order, against
-    every live track of ``table = (tracks, track_int)``. Returns the number of pairs."""
-    cmem, cand, cok = found[0], found[1], found[2]
-    tracks, track_int = table
-    pairs_t, pairs_c, pairs_s, pairs_mv = scores
+    passed their checks (``cok``) against every live track. Returns the number of pairs; the
+    algorithmic tracker then rescores them (:func:`algorithmic_costs`)."""
     tracker = p.tracker
     npair = 0
     for q in range(tracks.shape[1]):
@@ -356,28 +354,47 @@ def continuation_costs(p, geometry, i, nc, found, fx, pairs, table, scores):
             if tracker == PROPOSED and outside_gate(p, i, q, c, tracks, cand):
                 continue
             cost = step_cost(p, i, q, c, tracks, track_int, cand)
-            if tracker == ALGORITHMIC and cost < np.inf and track_int[i, q, I_HITS] >= 2:
-                cost = algorithmic_cost(p, geometry, i, q, c, tracks, cand, cmem, fx, pairs,
-                                        pairs_mv, np.int64(npair))  # fmt: skip
-            elif cost < np.inf:
+            if cost < np.inf:
                 for x in range(3):
                     pairs_mv[npair, x] = cand[c, x]
                     pairs_mv[npair, 3 + x] = cand[c, K_VEL + x]
-            if cost < np.inf:
                 pairs_t[npair], pairs_c[npair], pairs_s[npair] = q, c, cost
                 npair += 1
     return npair
 
 
-@njit(**_INLINE)
-def continue_confirmed(p, i, order, found, table, scores, taken):
-    """Confirmed tracks take, greedily in ascending ``ΔJ``, a candidate sharing no fix with one
-    already taken (:func:`.reference.associate`, its stage 1). ``taken = (fused (n, F),
-    t_took (T,))``."""
-    cmem, cand, ctaken = found[0], found[1], found[3]
+@njit(**JIT)
+def algorithmic_costs(p, geometry, i, npair, found, fx, pairs, table, scores):
+    """The algorithmic tracker's costs of the ``npair`` pairs :func:`continuation_costs` let
+    through: a track of two members or more is rescored by :func:`algorithmic_cost` (which
+    writes its ``(M*, V̂)``), and the pairs it fails are dropped, the others keeping their
+    order. Returns the number of pairs left."""
+    cmem, cand = found[0], found[1]
     tracks, track_int = table
     pairs_t, pairs_c, pairs_s, pairs_mv = scores
-    fused, t_took = taken
+    w = 0
+    for e in range(npair):
+        q, c = pairs_t[e], pairs_c[e]
+        if track_int[i, q, I_HITS] >= 2:
+            cost = algorithmic_cost(p, geometry, i, q, c, tracks, cand, cmem, fx, pairs, pairs_mv,
+                                    np.int64(w))  # fmt: skip
+        else:
+            cost = pairs_s[e]
+            for x in range(6):
+                pairs_mv[w, x] = pairs_mv[e, x]
+        if cost < np.inf:
+            pairs_t[w], pairs_c[w], pairs_s[w] = q, c, cost
+            w += 1
+    return w
+
+
+@njit(**_INLINE)
+def continue_confirmed(p, i, order, cmem, cand, ctaken, tracks, track_int, scores, fused,
+                       t_took):  # fmt: skip
+    """Confirmed tracks take, greedily in ascending ``ΔJ``, a candidate sharing no fix with one
+    already taken (:func:`.reference.associate`, its stage 1; ``fused (n, F)``: the fixes
+    taken, ``t_took (T,)``: the tracks continued)."""
+    pairs_t, pairs_c, pairs_s, pairs_mv = scores
     for e in order:
         q, c = pairs_t[e], pairs_c[e]
         if track_int[i, q, I_STATUS] != CONFIRMED or t_took[q] or _shares(cmem, c, fused):
@@ -389,15 +406,15 @@ def continue_confirmed(p, i, order, found, table, scores, taken):
 
 
 @njit(**_INLINE)
-def grow_children(p, i, order, found, table, next_id, scores, taken, kids):
+def grow_children(p, i, order, found, tracks, track_int, next_id, scores, taken, kids):
     """Tentative tracks: every passing continuation is a child (000's groups), in ascending
     cumulative index; the children replace their parents in the first free rows, and a child
     reaching ``confirm_hits`` is confirmed if it shares no fix (:func:`.reference.associate`,
-    its stage 2). ``kids = (child_t, child_c, child_s, child_mv, old (T, 20), old_slot)``."""
+    its stage 2). ``taken = (fused, t_took)``, ``kids = (child_t, child_c, child_s, child_mv,
+    old (T, 20), old_slot)``."""
     cmem, cand, ctaken = found[0], found[1], found[3]
-    tracks, track_int = table
-    pairs_t, pairs_c, pairs_s, pairs_mv = scores
     fused, t_took = taken
+    pairs_t, pairs_c, pairs_s, pairs_mv = scores
     child_t, child_c, child_s, child_mv, old, old_slot = kids
     n_child = 0
     for e in order:
@@ -453,12 +470,11 @@ def coast(p, i, track_int, t_took):
 
 
 @njit(**_INLINE)
-def open_births(p, i, nc, found, table, next_id, fused, births, mv):
+def open_births(p, i, nc, found, tracks, track_int, next_id, fused, births, mv):
     """Candidates sharing no fix with a continued track open tentative tracks (confirmed at
     once where ``confirm_hits ≤ 1``) in the first free rows (:func:`.reference.associate`,
     its stage 4). Scratch ``births (C,)``, ``mv (6,)``."""
     cmem, cand, cok, ctaken = found
-    tracks, track_int = table
     nb = 0
     for c in range(nc):
         if cok[c] and not ctaken[c] and not _shares(cmem, c, fused):
@@ -487,22 +503,10 @@ def open_births(p, i, nc, found, table, next_id, fused, births, mv):
 
 
 @njit(**_INLINE)
-def associate(p, geometry, i, nc, found, fx, pairs, table, next_id, assoc):
-    """The period's association of scenario ``i`` (:func:`.reference.associate`, theory §11.5
-    step 3, §5.3; no two tracks taken this period share a fix), in place on ``table =
-    (tracks, track_int)`` and ``next_id``: the costs, then confirmed tracks, tentative tracks'
-    children, coasting, births. ``assoc`` is the association's scratch (:func:`.kernels.workspace`)."""
-    tracks, track_int = table
-    fused, t_took, scores, kids, births = assoc
+def clear_taken(fused, t_took):
+    """No fix and no track taken yet this period (:func:`.reference.associate`)."""
     for k in range(fused.shape[0]):
         for j in range(fused.shape[1]):
             fused[k, j] = False
-    for q in range(tracks.shape[1]):
+    for q in range(t_took.shape[0]):
         t_took[q] = False
-    npair = continuation_costs(p, geometry, i, nc, found, fx, pairs, table, scores)
-    order = np.argsort(scores[2][:npair])
-    taken = (fused, t_took)
-    continue_confirmed(p, i, order, found, table, scores, taken)
-    grow_children(p, i, order, found, table, next_id, scores, taken, kids)
-    coast(p, i, track_int, t_took)
-    open_births(p, i, nc, found, table, next_id, fused, births, kids[3][0])

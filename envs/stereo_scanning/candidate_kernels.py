@@ -1,7 +1,7 @@
 """The compiled candidates of the scanning-receiver environments: one period's spatial fixes.
 
 :func:`candidates` runs :func:`.reference.candidates` for one scenario (theory §3.3, §5.2–5.3,
-§13.6): the pair pre-gates of receivers 1–3 (:func:`pair_gates`), every surviving triple
+§13.6): the pair pre-gates of receivers 1–3 (:func:`triple_pregates`), every surviving triple
 (proposed tracker) or pair (the others) of fixes solved at once by the shared closed forms of
 :mod:`sensorgym.trackers.stereo.conjugation_kernels`, then each one's checks
 (:func:`screen_candidates`): the ``κ_F`` and range tests, its ``σ``s, receivers 4 … n joined
@@ -20,7 +20,6 @@ from numba import njit
 from sensorgym.trackers.geometry_kernels import norm3, unit_from_angles3
 from sensorgym.trackers.stereo.conjugation_kernels import (
     pair_kernel,
-    triple_velocity_kernel,
     velocity_element,
     velocity_fix_element,
 )
@@ -103,51 +102,6 @@ def pair_passes(J, r1, r2, s1, s2, position_sigma, gate_q, max_speed, dt):
     sigma_e = np.sqrt(position_sigma * position_sigma + 0.5 * (x1 * x1 + x2 * x2))
     eps = gate_q * np.sqrt(2.0) * sigma_e + max_speed * abs(dt)
     return J <= eps * eps
-
-
-@njit(**JIT)
-def pair_gates(p, geometry, i, h, k, fx, fixes, fix_count, pairs, need, out):
-    """``out[jh, jk]``: whether fixes ``jh`` (receiver ``h``) and ``jk`` (receiver ``k > h``)
-    pass :func:`pair_passes` — the cheap pre-gate of the triples (a true triple's three pairs
-    pass it; :func:`.reference.pair_gate`) — for the pairs with ``need[jh, jk]`` (the others
-    are left unset). In receiver 1's frame receiver ``h``'s line of sight is ``P_h a`` from
-    ``b_h`` (``P_1 = I``, ``b_1 = 0``), so the pair solves ``r_h (P_h a_h) − r_k (P_k a_k) =
-    b_k − b_h``. ``fx = (la, sig, cones)`` the period's fixes in local frames and their noise;
-    ``pairs`` the pair system's scratch (:func:`.kernels.workspace`)."""
-    P, b = geometry[2], geometry[3]
-    la, sig = fx[0], fx[1]
-    pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM = pairs
-    count_h, count_k = fix_count[i, h], fix_count[i, k]
-    npair = 0
-    for jh in range(count_h):
-        for jk in range(count_k):
-            if not need[jh, jk]:
-                continue
-            for x in range(3):
-                if h == 0:
-                    pa1[npair, x] = la[0, jh, x]
-                else:
-                    pa1[npair, x] = (
-                        P[h - 1, x, 0] * la[h, jh, 0]
-                        + P[h - 1, x, 1] * la[h, jh, 1]
-                        + P[h - 1, x, 2] * la[h, jh, 2]
-                    )
-                pa2[npair, 0, x] = la[k, jk, x]
-                pb[npair, 0, x] = b[k - 1, x] - (b[h - 1, x] if h > 0 else 0.0)
-                for y in range(3):
-                    pP[npair, 0, x, y] = P[k - 1, x, y]
-            npair += 1
-    pair_kernel(pa1, pa2, pP, pb, ones, 1.0, np.bool_(False), np.int64(0), np.int64(npair), pX,
-                pJ, pQ, pk, pM)  # fmt: skip
-    e = 0
-    for jh in range(count_h):
-        for jk in range(count_k):
-            if not need[jh, jk]:
-                continue
-            dt = fixes[i, k, jk, 3] - fixes[i, h, jh, 3]
-            out[jh, jk] = pair_passes(pJ[e], pX[e, 0], pX[e, 1], sig[h], sig[k], p.position_sigma,
-                                      p.gate_q, p.max_speed, dt)  # fmt: skip
-            e += 1
 
 
 @njit(**_INLINE)
@@ -425,37 +379,73 @@ def screen_candidates(p, geometry, i, nc, fx, fixes, fix_count, solved, found, r
         cok[c] = True
 
 
-@njit(**_INLINE)
-def triple_pregates(p, geometry, i, fx, fixes, fix_count, pairs, gates):
-    """The pair pre-gates of receivers 1–2, 1–3 and, for the pairs some fix of receiver 1
-    joins through both its gates, 2–3 (:func:`pair_gates`, :func:`.reference.pair_gate`).
-    ``gates = (g12, g13, g23, every, need23)`` ``(F, F)``."""
+@njit(**JIT)
+def triple_pregates(p, P, b, i, la, sig, fixes, fix_count, pairs, gates):
+    """The triples' pair pre-gates (:func:`.reference.pair_gate`): ``g12``, ``g13``, then,
+    for the pairs some fix of receiver 1 joins through both its gates, ``g23``
+    (``gates = (g12, g13, g23, every, need23)`` ``(F, F)``): whether fixes ``jh`` of receiver
+    ``h`` and ``jk`` of receiver ``k > h`` pass :func:`pair_passes` — a true triple's three
+    pairs pass it. In receiver 1's frame receiver ``h``'s line of sight is ``P_h a`` from
+    ``b_h`` (``P_1 = I``, ``b_1 = 0``), so a pair solves ``r_h (P_h a_h) − r_k (P_k a_k) =
+    b_k − b_h``, all of a pass at once on the ``F²`` rows of the pair system ``pairs``."""
+    pa1, pa2, pP, pb, ones, pX, pJ, pQ, pk, pM = pairs
     g12, g13, g23, every, need23 = gates
-    c1, c2, c3 = fix_count[i, 0], fix_count[i, 1], fix_count[i, 2]
-    pair_gates(p, geometry, i, np.int64(0), np.int64(1), fx, fixes, fix_count, pairs, every, g12)
-    pair_gates(p, geometry, i, np.int64(0), np.int64(2), fx, fixes, fix_count, pairs, every, g13)
-    # receivers 2–3: only the pairs some fix of receiver 1 joins through both its gates
-    for j2 in range(c2):
-        for j3 in range(c3):
-            need23[j2, j3] = False
-    for j1 in range(c1):
-        for j2 in range(c2):
-            if g12[j1, j2]:
-                for j3 in range(c3):
-                    if g13[j1, j3]:
-                        need23[j2, j3] = True
-    pair_gates(p, geometry, i, np.int64(1), np.int64(2), fx, fixes, fix_count, pairs, need23, g23)
+    for e in range(3):
+        h, k = (0, 1) if e == 0 else ((0, 2) if e == 1 else (1, 2))
+        need, out = (every, g12) if e == 0 else ((every, g13) if e == 1 else (need23, g23))
+        count_h, count_k = fix_count[i, h], fix_count[i, k]
+        if e == 2:
+            # receivers 2–3: only the pairs some fix of receiver 1 joins through both its gates
+            for j2 in range(count_h):
+                for j3 in range(count_k):
+                    need23[j2, j3] = False
+            for j1 in range(fix_count[i, 0]):
+                for j2 in range(count_h):
+                    if g12[j1, j2]:
+                        for j3 in range(count_k):
+                            if g13[j1, j3]:
+                                need23[j2, j3] = True
+        npair = 0
+        for jh in range(count_h):
+            for jk in range(count_k):
+                if not need[jh, jk]:
+                    continue
+                for x in range(3):
+                    if h == 0:
+                        pa1[npair, x] = la[0, jh, x]
+                    else:
+                        pa1[npair, x] = (
+                            P[h - 1, x, 0] * la[h, jh, 0]
+                            + P[h - 1, x, 1] * la[h, jh, 1]
+                            + P[h - 1, x, 2] * la[h, jh, 2]
+                        )
+                    pa2[npair, 0, x] = la[k, jk, x]
+                    pb[npair, 0, x] = b[k - 1, x] - (b[h - 1, x] if h > 0 else 0.0)
+                    for y in range(3):
+                        pP[npair, 0, x, y] = P[k - 1, x, y]
+                npair += 1
+        pair_kernel(pa1, pa2, pP, pb, ones, 1.0, np.bool_(False), np.int64(0), np.int64(npair),
+                    pX, pJ, pQ, pk, pM)  # fmt: skip
+        r = 0
+        for jh in range(count_h):
+            for jk in range(count_k):
+                if not need[jh, jk]:
+                    continue
+                dt = fixes[i, k, jk, 3] - fixes[i, h, jh, 3]
+                out[jh, jk] = pair_passes(pJ[r], pX[r, 0], pX[r, 1], sig[h], sig[k],
+                                          p.position_sigma, p.gate_q, p.max_speed, dt)  # fmt: skip
+                r += 1
 
 
 @njit(**_INLINE)
-def enumerate_candidates(geometry, i, used_n, la, fixes, fix_count, gates, solved, cmem, cand):
+def enumerate_candidates(P, b, i, used_n, la, fixes, fix_count, gates, system, cmem, cand):
     """Every triple (``used_n = 3``) of fixes of receivers 1–3 whose three pairs passed their
-    pre-gates, or every pair of receivers 1–2, as rows of the system ``solved`` (receiver 1's
-    direction, the others', their poses in frame 1 and delays), their fixes in ``cmem`` and
-    receiver 1's fix time in ``cand``. Returns their number."""
-    P, b = geometry[2], geometry[3]
-    g12, g13, g23 = gates[0], gates[1], gates[2]
-    a1, ak, Pc, bc, dt = solved[:5]
+    pre-gates (``gates = (g12, g13, g23)``), or every pair of receivers 1–2, as rows of the
+    ``system = (a1, ak, P, b, dt)`` (receiver 1's direction, the others', their poses in frame 1
+    and delays), their fixes in ``cmem`` and receiver 1's fix time in ``cand``. Returns their
+    number."""
+    g12, g13, g23 = gates
+    a1, ak, Pc, bc, dt = system
     n = la.shape[0]
     nc = 0
     c1 = fix_count[i, 0]
@@ -488,27 +478,4 @@ def enumerate_candidates(geometry, i, used_n, la, fixes, fix_count, gates, solve
                     cmem[nc, 2] = j3
                 cand[nc, K_TIME] = fixes[i, 0, j1, 3]
                 nc += 1
-    return nc
-
-
-@njit(**_INLINE)
-def candidates(p, geometry, i, fx, fixes, fix_count, ws_pairs, gates, solved, found, refine):
-    """The candidates of scenario ``i``'s fixes (:func:`.reference.candidates`, theory §5.3,
-    §5.2): the triples' pre-gates (proposed tracker), every surviving triple or pair solved at
-    once (:func:`~sensorgym.trackers.stereo.conjugation_kernels.triple_velocity_kernel`,
-    ``pair_kernel``), then their checks (:func:`screen_candidates`). Returns their number
-    (``found[2]`` flags those that passed)."""
-    used_n = 3 if p.tracker == 0 else 2
-    if used_n == 3:
-        triple_pregates(p, geometry, i, fx, fixes, fix_count, ws_pairs, gates)
-    nc = enumerate_candidates(geometry, i, used_n, fx[0], fixes, fix_count, gates, solved,
-                              found[0], found[1])  # fmt: skip
-    a1, ak, Pc, bc, dt, ones, X, J, Q, kap, M1 = solved
-    if used_n == 3:
-        triple_velocity_kernel(a1, ak, Pc, bc, dt, 1.0, np.bool_(False), np.int64(0),
-                               np.int64(nc), X, J, Q, kap, M1)  # fmt: skip
-    else:
-        pair_kernel(a1, ak, Pc, bc, ones, 1.0, np.bool_(False), np.int64(0), np.int64(nc), X, J, Q,
-                    kap, M1)  # fmt: skip
-    screen_candidates(p, geometry, i, np.int64(nc), fx, fixes, fix_count, solved, found, refine)
     return nc

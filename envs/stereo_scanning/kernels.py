@@ -46,7 +46,13 @@ from sensorgym.envs.stereo_scanning.association_kernels import (
     T_SIG,
     T_TIME,
     TENTATIVE,
-    associate,
+    algorithmic_costs,
+    clear_taken,
+    coast,
+    continuation_costs,
+    continue_confirmed,
+    grow_children,
+    open_births,
     predicted_position,
     predicted_sigma,
 )
@@ -55,9 +61,11 @@ from sensorgym.envs.stereo_scanning.candidate_kernels import (
     GATE_SLACK,
     JIT,
     K_COLUMNS,
-    candidates,
+    enumerate_candidates,
     local,
+    screen_candidates,
     sector_cone,
+    triple_pregates,
     world,
 )
 from sensorgym.envs.worlds.scanning_kernels import in_sector, raster_cell, raster_time
@@ -68,7 +76,11 @@ from sensorgym.trackers.geometry_kernels import (
     perturbed_direction3,
     unit_from_angles3,
 )
-from sensorgym.trackers.stereo.conjugation_kernels import velocity_work
+from sensorgym.trackers.stereo.conjugation_kernels import (
+    pair_kernel,
+    triple_velocity_kernel,
+    velocity_work,
+)
 from sensorgym.trackers.stereo.kernels import clip, log_ratio_reward
 
 __all__ = [
@@ -117,7 +129,8 @@ SETTINGS = np.dtype(
     align=True,
 )
 
-#: The receivers' geometry (:attr:`.simulation.ScanningParams.kernel_geometry`): places
+#: The receivers' geometry, in the order of the tuple the kernels take
+#: (:attr:`.simulation.ScanningParams.kernel_geometry`, a plain tuple: it dispatches faster): places
 #: ``O (n, 3)``, local→world rotations ``R (n, 3, 3)``, poses in receiver 1's frame
 #: ``P (n − 1, 3, 3)`` and ``b (n − 1, 3)``, sweep offsets ``(n,)``, and the joint fits' χ²
 #: thresholds ``(n − 3,)`` (:attr:`.simulation.ScanningParams.fit_thresholds`).
@@ -198,7 +211,8 @@ def workspace(n, F, T, m, used_n):
       (:func:`.candidate_kernels.join_receivers`);
     * ``assoc = (fused (n, F), t_took (T,), scores, kids, births (C,))``: the association's
       (:func:`.association_kernels.associate`);
-    * ``truth = (d_dist (T, m), t_end_pos (T, 3), t_cmp (T,), g_rows (T,))``: the reward's."""
+    * ``truth = (d_dist (T, m), t_end_pos (T, 3), t_cmp (T,), g_rows (T,))``: the reward's;
+    * ``motion (m, 10)``: the drones' apparent motion (:func:`apparent_motion`)."""
     C = F**used_n
     nx = used_n + (3 if used_n == 3 else 0)
     u1, FF, TC = used_n - 1, F * F, T * C
@@ -208,6 +222,7 @@ def workspace(n, F, T, m, used_n):
         + _system_size(FF, 1, 2)
         + TC * 14
         + T * (20 + m + 3 + 1)
+        + m * 10
     )  # fmt: skip
     ibuf = np.empty(C * (n + 1) + TC * 4 + 2 * T, np.int64)
     bbuf = np.empty(2 * C + n * F + T + 5 * FF, np.bool_)
@@ -228,6 +243,7 @@ def workspace(n, F, T, m, used_n):
     d_dist, o = _carve2(fbuf, o, T, m)
     t_end_pos, o = _carve2(fbuf, o, T, 3)
     t_cmp, o = _carve1(fbuf, o, T)
+    motion, o = _carve2(fbuf, o, m, 10)
     o = 0
     cmem, o = _carve2(ibuf, o, C, n)
     births, o = _carve1(ibuf, o, C)
@@ -275,6 +291,7 @@ def workspace(n, F, T, m, used_n):
         (fused, t_took, (pairs_t, pairs_c, pairs_s, pairs_mv),
          (child_t, child_c, child_s, child_mv, old, old_slot), births),
         (d_dist, t_end_pos, t_cmp, g_rows),
+        motion,
     )  # fmt: skip
 
 
@@ -375,10 +392,35 @@ def _present(i, j, t0, enter, exited):
 
 
 @njit(**_INLINE)
-def _put_fix(R, i, k, c, u, time, drone, sensed, la):
+def apparent_motion(i, t0, drone_p, drone_v, drone_a, enter, exited, apparent, motion):
+    """``motion[j] (10,)`` of scenario ``i``'s drones this period: the apparent position (one
+    shared error per drone and period, theory §4.1), velocity and acceleration, and 1 where
+    the drone is in the scene (:func:`.reference.in_scene`), else 0."""
+    for j in range(drone_p.shape[1]):
+        for x in range(3):
+            motion[j, x] = drone_p[i, j, x] + apparent[i, j, x]
+            motion[j, 3 + x] = drone_v[i, j, x]
+            motion[j, 6 + x] = drone_a[i, j, x]
+        motion[j, 9] = 1.0 if _present(i, j, t0, enter, exited) else 0.0
+
+
+@njit(**_INLINE)
+def sense(p, R, offsets, i, k, t0, action, sectors, sig, cones):
+    """Receiver ``k``'s sector and its noise (:func:`.reference.sectors_of`,
+    :func:`.reference.fix_sigma`) into ``sectors[i, k]`` and ``sig[k]``, and for receivers
+    4 … n its cone (negative information on); returns ``(φ_c, θ_c, w, σ)``."""
+    az, el, w = sector_of(action[i, k], p.lo_w, p.hi_w, p.half_regard)
+    sectors[i, k, 0], sectors[i, k, 1], sectors[i, k, 2] = az, el, w
+    sig[k] = sector_sigma(w, p.kappa, p.sigma_min)
+    if k >= 3 and p.ghost_misses > 0:
+        sector_cone(R, k, az, el, w, offsets[k], p.sweep, t0, cones)
+    return az, el, w, sig[k]
+
+
+@njit(**_INLINE)
+def _put_fix(R, i, k, c, u, time, drone, la, fixes, fix_drone):
     """Fix ``c`` of receiver ``k``: local direction ``u`` into ``la``, its world direction and
     ``time`` into ``fixes``, its source (drone, −1: false) into ``fix_drone``."""
-    fixes, fix_drone = sensed[1], sensed[3]
     la[k, c, 0], la[k, c, 1], la[k, c, 2] = u
     uw = world(R, k, u)
     fixes[i, k, c, 0], fixes[i, k, c, 1], fixes[i, k, c, 2] = uw
@@ -387,91 +429,62 @@ def _put_fix(R, i, k, c, u, time, drone, sensed, la):
 
 
 @njit(**_INLINE)
-def scan_drones(p, geometry, i, k, t0, sector, drones, draws, sensed, fx):
+def scan_drones(p, O, R, i, k, when, sector, motion, normals, la, fixes, fix_drone):
     """Receiver ``k``'s fixes of the drones present (:func:`.reference.scan`, theory §6.3):
-    each drone's apparent position (one shared error per drone and period) where the raster
-    visits it (:func:`raster_fix`), its direction perturbed by the sector's noise. Returns the
-    number of fixes."""
-    O, R, offsets = geometry[0], geometry[1], geometry[4]
-    drone_p, drone_v, drone_a, enter, exited = drones
-    dir_normals, pos_noise = draws[0], draws[1]
-    la, sig = fx[0], fx[1]
+    each drone's apparent position (``motion``, :func:`apparent_motion`) where the raster
+    visits it (:func:`raster_fix`), its direction perturbed by the sector's noise.
+    ``when = (t0, the sweep's offset)``, ``sector = (φ_c, θ_c, w, σ)``. Returns the number
+    of fixes."""
+    t0, offset = when
+    az, el, w, sigma = sector
     o = (O[k, 0], O[k, 1], O[k, 2])
     c = 0
-    for j in range(drone_p.shape[1]):
-        if not _present(i, j, t0, enter, exited):
+    for j in range(motion.shape[0]):
+        if motion[j, 9] == 0.0:
             continue
-        # the apparent position carries one shared error per object and period
-        pa = (
-            drone_p[i, j, 0] + pos_noise[i, j, 0],
-            drone_p[i, j, 1] + pos_noise[i, j, 1],
-            drone_p[i, j, 2] + pos_noise[i, j, 2],
-        )
-        v = (drone_v[i, j, 0], drone_v[i, j, 1], drone_v[i, j, 2])
-        acc = (drone_a[i, j, 0], drone_a[i, j, 1], drone_a[i, j, 2])
-        seen, s, d = raster_fix(R, k, o, (pa, v, acc), sector, p.lines, offsets[k], p.sweep,
+        pa = (motion[j, 0], motion[j, 1], motion[j, 2])
+        v = (motion[j, 3], motion[j, 4], motion[j, 5])
+        acc = (motion[j, 6], motion[j, 7], motion[j, 8])
+        seen, s, d = raster_fix(R, k, o, (pa, v, acc), (az, el, w), p.lines, offset, p.sweep,
                                 p.iters)  # fmt: skip
         if not seen:
             continue
         r = norm3(d)
         u = (d[0] / r, d[1] / r, d[2] / r)
-        if sig[k] > 0.0:
-            z = (dir_normals[i, k, j, 0], dir_normals[i, k, j, 1], dir_normals[i, k, j, 2])
-            u = perturbed_direction3(u, z, sig[k])
-        _put_fix(R, i, k, c, u, t0 + s, j, sensed, la)
+        if sigma > 0.0:
+            z = (normals[i, k, j, 0], normals[i, k, j, 1], normals[i, k, j, 2])
+            u = perturbed_direction3(u, z, sigma)
+        _put_fix(R, i, k, c, u, t0 + s, j, la, fixes, fix_drone)
         c += 1
     return c
 
 
 @njit(**_INLINE)
-def false_detections(p, geometry, i, k, t0, c, sector, draws, sensed, la):
+def false_detections(p, R, i, k, c, when, sector, clutter_count, clutter_uv, la, fixes,
+                     fix_drone):  # fmt: skip
     """Receiver ``k``'s false detections after its ``c`` drone fixes
     (:func:`.reference.false_detections`): uniform in the sector, fixed when the raster
     passes them. Returns the number of fixes."""
-    R, offsets = geometry[1], geometry[4]
-    clutter_count, clutter_uv = draws[2], draws[3]
-    az, el, w = sector
+    t0, offset = when
+    az, el, w = sector[0], sector[1], sector[2]
     for q in range(min(clutter_count[i, k], clutter_uv.shape[2])):
         phi = az + (clutter_uv[i, k, q, 0] - 0.5) * w
         theta = el + (clutter_uv[i, k, q, 1] - 0.5) * w
         u = unit_from_angles3(phi, theta)
-        time = t0 + raster_time(phi, theta, az, el, w, w, p.lines, p.lines, offsets[k], p.sweep)
-        _put_fix(R, i, k, c, u, time, -1, sensed, la)
+        time = t0 + raster_time(phi, theta, az, el, w, w, p.lines, p.lines, offset, p.sweep)
+        _put_fix(R, i, k, c, u, time, -1, la, fixes, fix_drone)
         c += 1
     return c
 
 
 @njit(**_INLINE)
-def scan(p, geometry, i, t0, action, drones, draws, sensed, fx):
-    """Scenario ``i``'s sectors and fixes (:func:`.reference.sectors_of`,
-    :func:`.reference.fix_sigma`, :func:`.reference.scan`): per receiver its sector and noise,
-    the sector cone of receivers 4 … n (negative information on), the drones' fixes then the
-    false detections. ``sensed = (sectors, fixes, fix_count, fix_drone)``."""
-    sectors, fixes, fix_count, fix_drone = sensed
-    la, sig, cones = fx
-    for k in range(fixes.shape[1]):
-        for f in range(fixes.shape[2]):
-            fix_drone[i, k, f] = 0
-            for x in range(4):
-                fixes[i, k, f, x] = 0.0
-    for k in range(fixes.shape[1]):
-        az, el, w = sector_of(action[i, k], p.lo_w, p.hi_w, p.half_regard)
-        sectors[i, k, 0], sectors[i, k, 1], sectors[i, k, 2] = az, el, w
-        sig[k] = sector_sigma(w, p.kappa, p.sigma_min)
-        if k >= 3 and p.ghost_misses > 0:
-            sector_cone(geometry[1], k, az, el, w, geometry[4][k], p.sweep, t0, cones)
-        c = scan_drones(p, geometry, i, k, t0, (az, el, w), drones, draws, sensed, fx)
-        fix_count[i, k] = false_detections(p, geometry, i, k, t0, c, (az, el, w), draws,
-                                           sensed, la)  # fmt: skip
-
-
-@njit(**_INLINE)
-def _truth_distances(p, i, t0, drones, table, truth):
+def truth_distances(p, i, t0, drone_p, drone_v, drone_a, enter, exited, tracks, track_int,
+                    truth):  # fmt: skip
     """Each confirmed track's distance to each drone present within the truth gate (else inf)
     in ``d_dist``, compared at the track's own time if it was updated this period, else at the
-    period end; returns the number of such tracks near some drone (in ``g_rows``)."""
-    drone_p, drone_v, drone_a, enter, exited = drones
-    tracks, track_int = table
+    period end (:func:`.reference.score_period`); returns the number of such tracks near some
+    drone (in ``g_rows``). ``truth = (d_dist (T, m), t_end_pos (T, 3), t_cmp (T,),
+    g_rows (T,))``."""
     d_dist, t_end_pos, t_cmp, g_rows = truth
     t_end = t0 + p.period
     ng = 0  # the confirmed tracks within the gate of some drone, in ascending order
@@ -506,11 +519,15 @@ def _truth_distances(p, i, t0, drones, table, truth):
 
 
 @njit(**_INLINE)
-def _nearest_pairs(i, ng, tracks, truth, assigned, drone_sigma):
-    """Greedy nearest (track, drone) pairs within the truth gate, one-to-one: ``assigned`` the
-    drone's track, ``drone_sigma`` that track's predicted ``σ_pos`` at the comparison time."""
+def nearest_pairs(i, ng, tracks, truth, assigned, drone_sigma):
+    """Greedy nearest (track, drone) pairs within the truth gate, one-to-one
+    (:func:`.reference.score_period`): ``assigned`` the drone's track (−1: none),
+    ``drone_sigma`` that track's predicted ``σ_pos`` at the comparison time (inf: none)."""
     d_dist, t_cmp, g_rows = truth[0], truth[2], truth[3]
     m = d_dist.shape[1]
+    for j in range(m):
+        assigned[i, j] = -1
+        drone_sigma[i, j] = np.inf
     while True:
         best = np.inf
         bq, bj = -1, -1
@@ -531,23 +548,15 @@ def _nearest_pairs(i, ng, tracks, truth, assigned, drone_sigma):
 
 
 @njit(**_INLINE)
-def score_period(p, i, t0, drones, table, scored, truth):
-    """The reward at the period end (:func:`.reference.score_period`, theory §11.5 step 4):
-    confirmed tracks matched one-to-one to the drones present, the mean per-drone clipped
-    log-ratio reward less ``false_penalty`` per unmatched confirmed track. ``scored =
-    (assigned, drone_sigma, parts, reward)``; ``parts[i]``: drones present, drones with a
-    confirmed track, false confirmed tracks, mean per-drone reward, mean ``σ_pos`` of the
+def score_period(p, i, t0, enter, exited, track_int, assigned, drone_sigma, parts, reward):
+    """The reward at the period end (:func:`.reference.score_period`, theory §11.5 step 4),
+    from the confirmed tracks matched one-to-one to the drones present (:func:`truth_distances`,
+    :func:`nearest_pairs`): the mean per-drone clipped log-ratio reward less
+    ``false_penalty`` per unmatched confirmed track. ``parts[i]``: drones present, drones with
+    a confirmed track, false confirmed tracks, mean per-drone reward, mean ``σ_pos`` of the
     tracked drones, confirmed tracks."""
-    enter, exited = drones[3], drones[4]
-    tracks, track_int = table
-    assigned, drone_sigma, parts, reward = scored
-    m, T = enter.shape[1], tracks.shape[1]
+    m, T = enter.shape[1], track_int.shape[1]
     npresent = 0
-    for j in range(m):
-        assigned[i, j] = -1
-        drone_sigma[i, j] = np.inf
-    ng = _truth_distances(p, i, t0, drones, table, truth)
-    _nearest_pairs(i, ng, tracks, truth, assigned, drone_sigma)
     total = 0.0
     found = 0
     for j in range(m):
@@ -582,10 +591,9 @@ def score_period(p, i, t0, drones, table, scored, truth):
 
 
 @njit(**_INLINE)
-def fly_on(p, i, t0, drones):
+def fly_on(p, i, t0, drone_p, drone_v, drone_a, enter, exited):
     """The drones present fly on to the period end; leaving the scene is for good
     (:func:`.reference.fly_on`). Returns whether every drone has left."""
-    drone_p, drone_v, drone_a, enter, exited = drones
     period = p.period
     for j in range(drone_p.shape[1]):
         if exited[i, j]:
@@ -615,18 +623,21 @@ def fly_on(p, i, t0, drones):
 
 
 @njit(**_INLINE)
-def _carry_over(i, old, new):
-    """Scenario ``i``'s state before the period copied into the outputs (then updated
-    there)."""
-    t_in, p_in, v_in, _, _, exited_in, tracks_in, track_int_in, next_id_in = old
-    t, drone_p, drone_v, exited, tracks, track_int, next_id = new[:7]
+def _carry_drones(i, t_in, p_in, v_in, exited_in, t, drone_p, drone_v, exited):
+    """Scenario ``i``'s clock and drones before the period copied into the outputs (then
+    updated there)."""
     t[i] = t_in[i]
-    next_id[i] = next_id_in[i]
     for j in range(drone_p.shape[1]):
         exited[i, j] = exited_in[i, j]
         for x in range(3):
             drone_p[i, j, x] = p_in[i, j, x]
             drone_v[i, j, x] = v_in[i, j, x]
+
+
+@njit(**_INLINE)
+def _carry_table(i, tracks_in, track_int_in, next_id_in, tracks, track_int, next_id):
+    """Scenario ``i``'s track table before the period copied into the outputs."""
+    next_id[i] = next_id_in[i]
     for q in range(tracks.shape[1]):
         for x in range(tracks.shape[2]):
             tracks[i, q, x] = tracks_in[i, q, x]
@@ -634,11 +645,20 @@ def _carry_over(i, old, new):
             track_int[i, q, x] = track_int_in[i, q, x]
 
 
+@njit(**_INLINE)
+def _clear_fixes(i, fixes, fix_drone):
+    for k in range(fixes.shape[1]):
+        for f in range(fixes.shape[2]):
+            fix_drone[i, k, f] = 0
+            for x in range(4):
+                fixes[i, k, f, x] = 0.0
+
+
 @njit(**_JIT)
 def step_rows(lo, hi, settings, geometry, action, old, draws, new, out):
     """One scan period of scenarios ``lo..hi`` (:func:`.reference.step`, its stages in order),
     written to the output arrays; then the new state's observation. ``settings`` the params'
-    record (``(1,)`` of :data:`SETTINGS`), ``geometry`` the :data:`Geometry` tuple,
+    record (``(1,)`` of :data:`SETTINGS`), ``geometry`` the tuple of :data:`Geometry`,
     ``action (B, n, 3)`` raw actions, ``old`` the state before the period (:data:`OldState`),
     ``draws`` the period's noise (:data:`Draws`), ``new`` the state written
     (:data:`NewState`), ``out = (reward, terminated)`` ``(B,)``. No output may alias an input.
@@ -649,30 +669,67 @@ def step_rows(lo, hi, settings, geometry, action, old, draws, new, out):
             for x in range(3):
                 if not math.isfinite(action[i, k, x]):
                     return False
-    acceleration, enter = old[3], old[4]
+    # the tuples taken apart once: the stages get plain arrays
+    t_in, p_in, v_in, acceleration, enter, exited_in, tracks_in, track_int_in, next_id_in = old
+    normals, apparent, clutter_count, clutter_uv = draws
     t, drone_p, drone_v, exited, tracks, track_int, next_id = new[:7]
     sectors, fixes, fix_count, fix_drone, assigned, drone_sigma, parts, obs = new[7:]
     reward, terminated = out
-    n, F, T = fixes.shape[1], fixes.shape[2], tracks.shape[1]
+    n, F, T, m = fixes.shape[1], fixes.shape[2], tracks.shape[1], drone_p.shape[1]
     used_n = 3 if p.tracker == PROPOSED else 2
-    fx, pairs, gates, solved, found, refine, assoc, truth = workspace(
-        n, F, T, drone_p.shape[1], used_n
-    )
-    drones = (drone_p, drone_v, acceleration, enter, exited)
-    sensed = (sectors, fixes, fix_count, fix_drone)
-    table = (tracks, track_int)
-    scored = (assigned, drone_sigma, parts, reward)
+    fx, pairs, gates, solved, found, refine, assoc, truth, motion = workspace(n, F, T, m, used_n)
+    la, sig, cones = fx
+    O, R, P, b, offsets = geometry[:5]
+    a1, ak, Pc, bc, dt, ones, X, J, Q, kap, M1 = solved
+    cmem, cand, cok, ctaken = found
+    fused, t_took, scores, kids, births = assoc
+    pairs_t, pairs_c, pairs_s, pairs_mv = scores
+    gates3, system = gates[:3], (a1, ak, Pc, bc, dt)
     for i in range(lo, hi):
-        _carry_over(i, old, new)
+        _carry_drones(i, t_in, p_in, v_in, exited_in, t, drone_p, drone_v, exited)
+        _carry_table(i, tracks_in, track_int_in, next_id_in, tracks, track_int, next_id)
+        _clear_fixes(i, fixes, fix_drone)
         t0 = t[i]
         # 1.–2. the sectors; the fixes of the drones present and the false detections
-        scan(p, geometry, i, t0, action, drones, draws, sensed, fx)
-        # 3. the tracker: the period's candidates, then the association
-        nc = candidates(p, geometry, i, fx, fixes, fix_count, pairs, gates, solved, found, refine)
-        associate(p, geometry, i, nc, found, fx, pairs, table, next_id, assoc)
+        apparent_motion(i, t0, drone_p, drone_v, acceleration, enter, exited, apparent, motion)
+        for k in range(n):
+            sector = sense(p, R, offsets, i, k, t0, action, sectors, sig, cones)
+            when = (t0, offsets[k])
+            c = scan_drones(p, O, R, i, k, when, sector, motion, normals, la, fixes, fix_drone)
+            fix_count[i, k] = false_detections(p, R, i, k, c, when, sector, clutter_count,
+                                               clutter_uv, la, fixes, fix_drone)  # fmt: skip
+        # 3. the tracker: the period's candidates (reference.candidates): the pre-gates, every
+        # triple or pair solved at once, their checks ...
+        if used_n == 3:
+            triple_pregates(p, P, b, i, la, sig, fixes, fix_count, pairs, gates)
+        nc = enumerate_candidates(P, b, i, used_n, la, fixes, fix_count, gates3, system, cmem, cand)
+        if used_n == 3:
+            triple_velocity_kernel(a1, ak, Pc, bc, dt, 1.0, np.bool_(False), np.int64(0),
+                                   np.int64(nc), X, J, Q, kap, M1)  # fmt: skip
+        else:
+            pair_kernel(a1, ak, Pc, bc, ones, 1.0, np.bool_(False), np.int64(0), np.int64(nc), X,
+                        J, Q, kap, M1)  # fmt: skip
+        screen_candidates(p, geometry, i, np.int64(nc), fx, fixes, fix_count, solved, found, refine)
+        # ... then the association (reference.associate)
+        clear_taken(fused, t_took)
+        npair = continuation_costs(p, i, nc, cand, cok, tracks, track_int, pairs_t, pairs_c,
+                                   pairs_s, pairs_mv)  # fmt: skip
+        if p.tracker == ALGORITHMIC:
+            npair = algorithmic_costs(p, geometry, i, npair, found, fx, pairs, (tracks, track_int),
+                                      scores)  # fmt: skip
+        order = np.argsort(pairs_s[:npair])
+        continue_confirmed(p, i, order, cmem, cand, ctaken, tracks, track_int, scores, fused,
+                           t_took)  # fmt: skip
+        grow_children(p, i, order, found, tracks, track_int, next_id, scores, (fused, t_took),
+                      kids)  # fmt: skip
+        coast(p, i, track_int, t_took)
+        open_births(p, i, nc, found, tracks, track_int, next_id, fused, births, kids[3][0])
         # 4. the reward at the period end; 5. the drones fly on
-        score_period(p, i, t0, drones, table, scored, truth)
-        terminated[i] = fly_on(p, i, t0, drones)
+        ng = truth_distances(p, i, t0, drone_p, drone_v, acceleration, enter, exited, tracks,
+                             track_int, truth)  # fmt: skip
+        nearest_pairs(i, ng, tracks, truth, assigned, drone_sigma)
+        score_period(p, i, t0, enter, exited, track_int, assigned, drone_sigma, parts, reward)
+        terminated[i] = fly_on(p, i, t0, drone_p, drone_v, acceleration, enter, exited)
         t[i] = t0 + p.period
         # 6. what the new state shows
         observation(i, p, t, tracks, track_int, sectors, fix_count, obs)

@@ -413,9 +413,9 @@ class ScanningParams(FieldsOnlyPickle):
 
     @functools.cached_property
     def kernel_geometry(self) -> tuple[FloatArray, ...]:
-        """The receivers' geometry the compiled kernels read (``kernels.Geometry``, read-only
-        C-contiguous copies): places, rotations, poses in receiver 1's frame, sweep offsets and
-        :attr:`fit_thresholds`."""
+        """The receivers' geometry the compiled kernels read, a plain tuple in the order of
+        ``kernels.Geometry`` (read-only C-contiguous copies): places, rotations, poses in
+        receiver 1's frame, sweep offsets and :attr:`fit_thresholds`."""
         P, b = self.relative
         parts = (self.receivers, self.rotations, P, b, self.offsets_array, self.fit_thresholds)
         out = []
@@ -423,7 +423,7 @@ class ScanningParams(FieldsOnlyPickle):
             a = np.array(x, dtype=np.float64, order="C")
             a.flags.writeable = False
             out.append(a)
-        return kernels.Geometry(*out)
+        return tuple(out)
 
     @functools.cached_property
     def receivers(self) -> FloatArray:

@@ -196,15 +196,14 @@ def test_every_rule_decides_finitely_at_16_receivers_and_10_drones():
     env.close()
 
 
-@pytest.mark.parametrize("h, k", [(0, 1), (0, 2), (1, 2)])
-def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
-    """The triples' pair pre-gate for receivers ``h < k`` (receiver 2–3 included): noise-free
-    simultaneous lines of sight on one point pass and give the true ranges; a second point's
-    line of sight from receiver ``k`` misses and fails."""
-    from sensorgym.envs.stereo_scanning.candidate_kernels import pair_gates
+def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame():
+    """The triples' pair pre-gates of receivers 1–2, 1–3 and 2–3 (``triple_pregates``):
+    noise-free simultaneous lines of sight on one point pass and give the true ranges; a
+    second point's line of sight from the other receiver misses and fails."""
+    from sensorgym.envs.stereo_scanning.candidate_kernels import triple_pregates
 
     params = ScanningParams(n_receivers=4)
-    geometry = params.kernel_geometry
+    geometry = kernels.Geometry(*params.kernel_geometry)
     O, R = geometry.O, geometry.R
     points = np.array([[120.0, 80.0, 900.0], [-400.0, 150.0, 700.0]])
     la = np.empty((4, 2, 3))
@@ -221,14 +220,17 @@ def test_pair_gates_solve_any_two_receivers_in_receiver_one_frame(h, k):
                [(FF, 3), (FF, 1, 3), (FF, 1, 3, 3), (FF, 1, 3), (FF,), (FF, 2), (FF,),
                 (FF, 2, 2), (FF,), (FF, 3)]]  # fmt: skip
     scratch[4][:] = 1.0
-    out = np.zeros((2, 2), dtype=bool)
-    need = np.ones((2, 2), dtype=bool)
-    pair_gates(settings[0], geometry, 0, np.int64(h), np.int64(k), (la, sig, np.empty((4, 7))),
-               fixes, fix_count, tuple(scratch), need, out)  # fmt: skip
-    assert out[0, 0] and out[1, 1] and not out[0, 1] and not out[1, 0]
-    X = scratch[5]  # ranges of the pairs in order (jh, jk) = (0, 0), (0, 1), (1, 0), (1, 1)
-    for e, j in ((0, 0), (3, 1)):
-        true = np.linalg.norm(points[j] - O[h]), np.linalg.norm(points[j] - O[k])
+    gates = tuple(np.zeros((2, 2), dtype=bool) for _ in range(5))
+    gates[3][:] = True  # every pair of receivers 1–2 and 1–3 is tried
+    triple_pregates(settings[0], geometry.P, geometry.b, 0, la, sig, fixes, fix_count,
+                    tuple(scratch), gates)  # fmt: skip
+    for out in gates[:3]:  # 1–2, 1–3, 2–3
+        assert out[0, 0] and out[1, 1] and not out[0, 1] and not out[1, 0]
+    # 2–3 solved only the pairs receiver 1 joins through both gates: (0, 0), then (1, 1)
+    np.testing.assert_array_equal(gates[4], np.eye(2, dtype=bool))
+    X = scratch[5]
+    for e in (0, 1):
+        true = np.linalg.norm(points[e] - O[1]), np.linalg.norm(points[e] - O[2])
         np.testing.assert_allclose(X[e], true, rtol=1e-9)
 
 
@@ -293,7 +295,7 @@ def test_joint_fit_thresholds_are_the_exact_chi2_quantiles():
         params = ScanningParams(n_receivers=n, fit_false_alarm=p)
         expected = [chi2.isf(p, 2 * k - 6) for k in range(4, n + 1)]
         np.testing.assert_array_equal(params.fit_thresholds, expected)
-        geometry = params.kernel_geometry
+        geometry = kernels.Geometry(*params.kernel_geometry)
         np.testing.assert_array_equal(geometry.chi2_max, expected)
         # the rest of the geometry is in place
         np.testing.assert_array_equal(geometry.O, params.receivers)
