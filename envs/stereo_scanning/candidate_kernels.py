@@ -155,7 +155,7 @@ def sector_cone(R, k, centre_az, centre_el, width, offset, sweep, t0, cones):
     cones[k, 6] = 0.5 * sweep
 
 
-@njit(**_INLINE)
+@njit(**JIT)
 def surely_seen(p, k, cones, O, t1, pos, vel, speed, sp, sv):
     """Whether an object at the candidate's prediction ``M + V s`` (``pos``, ``vel``; ``s``
     from ``t_1`` to the middle of receiver ``k``'s sweep) lies inside ``k``'s sector cone
@@ -178,7 +178,7 @@ def surely_seen(p, k, cones, O, t1, pos, vel, speed, sp, sv):
     return along >= nd * (cones[k, 3] * cos_m + cones[k, 4] * sin_m)
 
 
-@njit(**_INLINE)
+@njit(**JIT)
 def nearest_fix(p, i, k, O, fixes, fix_count, sig_k, t1, pos, vel, sp, sv):
     """The fix of receiver ``k`` whose line of sight passes nearest the prediction
     ``p = M + V (t_k − t_1)`` at that fix's time, within its gate, or −1
@@ -214,7 +214,7 @@ def nearest_fix(p, i, k, O, fixes, fix_count, sig_k, t1, pos, vel, sp, sv):
     return bj
 
 
-@njit(inline="always")
+@njit(**JIT)
 def join_receivers(p, geometry, i, c, mk, fx, fixes, cmem, cand, refine):
     """Candidate ``c`` (a triple of receivers 1–3) re-solved by least squares over all its
     fixes, ``mk`` receivers past the first (receivers 4 … n joined in ``cmem[c]`` by
@@ -284,7 +284,7 @@ def join_receivers(p, geometry, i, c, mk, fx, fixes, cmem, cand, refine):
     return True
 
 
-@njit(**_INLINE)
+@njit(**JIT)
 def _join_or_drop(p, geometry, i, c, fx, fixes, fix_count, cmem, cand, refine):
     """Receivers 4 … n join triple ``c`` (:func:`.reference.join_receivers`, theory §3.3):
     each contributes its :func:`nearest_fix` (``cmem[c, k]``, −1: none), then the joint fit
