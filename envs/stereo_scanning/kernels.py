@@ -1,15 +1,20 @@
 """The compiled step of the scanning-receiver environments: one loop over the scenarios.
 
 :func:`step_rows` runs one scan period of scenarios ``lo..hi`` through the stages of
-:func:`.reference.step`, in its order and under its names (theory §3, §5.2–5.3, §6):
+:func:`.reference.step`, in its order and under its names (theory §3, §5.2–5.3, §6), each a
+marked block of its row loop calling the stage functions:
 
-1. :func:`sectors_of` and 2. :func:`scan` — each receiver's sector from the action, the fixes of
-   the drones present (:func:`raster_fix`, the pixel-visit rule of theory §6.3) and the false
-   detections (:func:`false_detections`);
-3. :func:`~.candidate_kernels.candidates` (:mod:`.candidate_kernels`) and
-   :func:`~.association_kernels.associate` (:mod:`.association_kernels`) — the tracker;
-4. :func:`score_period` — the reward at the period end; 5. :func:`fly_on` — the drones move on;
-6. :func:`observation` — what the new state shows (:func:`observe_kernel` for a state built by
+1.–2. the sectors and the scan — each receiver's sector and noise (:func:`sense`:
+   :func:`sector_of`, :func:`sector_sigma`), the fixes of the drones present
+   (:func:`scan_drones` on their :func:`apparent_motion`; :func:`raster_fix`, the pixel-visit
+   rule of theory §6.3) and the false detections (:func:`false_detections`);
+3. the tracker — the candidates (:mod:`.candidate_kernels`: ``triple_pregates``,
+   ``enumerate_candidates``, the closed-form solve, ``screen_candidates``), then the
+   association (:mod:`.association_kernels`: ``continuation_costs``, ``continue_confirmed``,
+   ``grow_children``, ``coast``, ``open_births``);
+4. the reward at the period end (:func:`truth_distances`, :func:`nearest_pairs`,
+   :func:`score_period`); 5. the drones fly on (:func:`fly_on`);
+6. what the new state shows (:func:`observation`; :func:`observe_kernel` for a state built by
    hand).
 
 Out of place: the state before the period is read, the new one written to fresh arrays. Each
@@ -21,9 +26,10 @@ formula is a primitive of the module that owns it — :mod:`sensorgym.trackers.g
 The settings come as one record of dtype :data:`SETTINGS`, read by field name
 (:attr:`.simulation.ScanningParams.kernel_settings`), the receivers' geometry as the tuple
 :data:`Geometry` (:attr:`.simulation.ScanningParams.kernel_geometry`), a state as tuples of its
-arrays, and the scratch from :func:`workspace`. The step takes the tuples apart once per call;
-the stages get the groups they work on. Random draws stay with numpy's Generator (drawn before
-the kernels, in a fixed order).
+arrays, and the scratch from :func:`workspace`. The step takes the tuples apart once per call
+and calls the stages on the row path with plain arrays: every array a stage receives is
+reference-counted at each call, which a row of a couple of microseconds feels. Random draws
+stay with numpy's Generator (drawn before the kernels, in a fixed order).
 """
 
 from __future__ import annotations
@@ -210,7 +216,7 @@ def workspace(n, F, T, m, used_n):
     * ``refine``: the joint fit's system over all ``n`` receivers
       (:func:`.candidate_kernels.join_receivers`);
     * ``assoc = (fused (n, F), t_took (T,), scores, kids, births (C,))``: the association's
-      (:func:`.association_kernels.associate`);
+      (:mod:`.association_kernels`);
     * ``truth = (d_dist (T, m), t_end_pos (T, 3), t_cmp (T,), g_rows (T,))``: the reward's;
     * ``motion (m, 10)``: the drones' apparent motion (:func:`apparent_motion`)."""
     C = F**used_n
