@@ -2,10 +2,10 @@
 
 The env (``sensorgym/StereoScanning-v0`` and its vector and PettingZoo doors) runs
 :mod:`.simulation`, whose :func:`~.simulation.step` hands the period's draws to
-:func:`.kernels.step_rows`: one fused numba pass per scenario — sectors, rasters, fixes,
-candidates, association, reward, the drones' motion and the new observation — written for
-speed (scratch buffers carved by hand, square-root-free pre-tests, closed-form solves, one
-call per scenario). This module is the same period written to be read: numpy, one stage a
+:func:`.kernels.step_rows`: one numba pass per scenario through the same stages — sectors,
+rasters, fixes, candidates, association, reward, the drones' motion and the new observation —
+written for speed (scratch from one ``workspace()``, square-root-free pre-tests, closed-form
+solves, the stages inlined). This module is the same period written to be read: numpy, one stage a
 function, in the order of the equations of ``docs/theory.md`` — the sectors and rasters
 (§6.1–6.3, §11.5), the candidates of paper 000's proposed algorithm (§3.3–3.5, §5.3, §13.6,
 §13.13), the association over periods (§5.3, §11.5), the reward (§11.5) — each stage citing its
