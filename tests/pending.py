@@ -22,9 +22,7 @@ from collections.abc import Iterable
 
 #: env id -> the parts it does not have yet (issue 40 delivers GimbalTracking-v0 in parts)
 PENDING: dict[str, frozenset[str]] = {
-    "sensorgym/GimbalTracking-v0": frozenset(
-        {"policies"}
-    ),
+    "sensorgym/GimbalTracking-v0": frozenset({"policies"}),
 }
 
 #: every part an entry may name

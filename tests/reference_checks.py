@@ -34,3 +34,25 @@ def assert_close(
 def norm(v: np.ndarray) -> np.ndarray:
     """The norm over the last axis, kept for broadcasting (a vector's scale)."""
     return np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def assert_same_draws(*generators: np.random.Generator) -> None:
+    """Every generator consumed the same draws (same state): the reference drew what the
+    compiled step drew, in the same order."""
+    first = generators[0].bit_generator.state
+    for g in generators[1:]:
+        assert g.bit_generator.state == first, "the reference consumed other draws"
+
+
+def assert_same_observations(
+    core: object, got: object, want: object, how: str, atol: float
+) -> None:
+    """The float32 observations (``observe`` and ``observe_agents``) of the states ``got``
+    (reference) and ``want`` (simulation) of a core, within ``atol`` (a float64 difference at
+    rounding can cross one float32 step)."""
+    for name in ("observe", "observe_agents"):
+        view = getattr(core, name)
+        o_got, o_want = view(got), view(want)
+        assert o_got.dtype == o_want.dtype == np.float32
+        assert o_got.shape == o_want.shape
+        assert_close(f"{how}: {name}", o_got, o_want, 0.0, rtol=0.0, atol=atol)

@@ -289,6 +289,17 @@ def base_env(env: VecEnv) -> VecEnv:
     return env
 
 
+def find_wrapper(env: VecEnv, kind: type[VecEnvWrapper]) -> Any:
+    """The first wrapper of class ``kind`` in ``env``'s SB3 wrapper chain (``env`` itself
+    included); ``ValueError`` naming the class when there is none."""
+    inner = env
+    while not isinstance(inner, kind):
+        if not hasattr(inner, "venv"):
+            raise ValueError(f"env: no {kind.__name__} in its wrapper stack")
+        inner = inner.venv
+    return inner
+
+
 #: the class whose keywords a factory that takes ``**kwargs`` passes them on to
 KEYWORDS_OF: dict[str, str] = {
     "plan-features": "sensorgym.train.env_wrappers.stereo_pointing:PlanFeatures",

@@ -25,7 +25,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
-from sensorgym.train.wrappers import ObservedActionWrapper
+from sensorgym.train.wrappers import ObservedActionWrapper, find_wrapper
 
 FloatArray = NDArray[np.float64]
 
@@ -92,9 +92,5 @@ def truth_aim(env: VecEnv) -> TruthAim:
     :class:`TruthAim` for the :class:`AimOffsetAction` in ``env``'s wrapper stack."""
     from sensorgym.train.evaluation import simulator_state
 
-    inner = env
-    while not isinstance(inner, AimOffsetAction):
-        if not hasattr(inner, "venv"):
-            raise ValueError("env: no AimOffsetAction in its wrapper stack")
-        inner = inner.venv
+    inner = find_wrapper(env, AimOffsetAction)
     return TruthAim(simulator_state(env), inner)

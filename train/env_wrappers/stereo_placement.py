@@ -25,7 +25,7 @@ from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents.stereo_placement import GreedyPlacement
 from sensorgym.envs.stereo_placement.simulation import PlacementParams, split_observation
-from sensorgym.train.wrappers import ObservedActionWrapper
+from sensorgym.train.wrappers import ObservedActionWrapper, find_wrapper
 
 FloatArray = NDArray[np.float64]
 
@@ -99,9 +99,5 @@ def truth_target(env: VecEnv) -> TruthTarget:
     :class:`TruthTarget` for the :class:`PlanTargetAction` in ``env``'s wrapper stack."""
     from sensorgym.train.evaluation import simulator_state
 
-    inner = env
-    while not isinstance(inner, PlanTargetAction):
-        if not hasattr(inner, "venv"):
-            raise ValueError("env: no PlanTargetAction in its wrapper stack")
-        inner = inner.venv
+    inner = find_wrapper(env, PlanTargetAction)
     return TruthTarget(simulator_state(env), inner.params, inner.scale)

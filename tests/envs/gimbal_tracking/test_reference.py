@@ -52,7 +52,7 @@ from sensorgym.envs.gimbal_tracking.simulation import GimbalParams, GimbalState
 from sensorgym.envs.shells.contract import Core, registered_episode_steps
 from sensorgym.trackers.angles.prediction import wrap_half_turn
 from sensorgym.trackers.geometry import wrap_angle
-from tests.reference_checks import assert_close, norm
+from tests.reference_checks import assert_close, assert_same_draws, assert_same_observations, norm
 
 ENV_ID = "sensorgym/GimbalTracking-v0"
 SEED = 20261204
@@ -132,7 +132,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
         s_next, reward, terminated = sim.step(s, a, rng)
         l_next, l_reward, l_terminated = ref.step(s, a, rng_lock)
         r_next, r_reward, r_terminated = ref.step(r, a, rng_ref)
-        _assert_same_draws(rng, rng_lock, rng_ref)
+        assert_same_draws(rng, rng_lock, rng_ref)
         # the reference from the simulation's state, and on its own
         _assert_same_view(ref, l_next, s_next, "one step")
         for got, got_terminated, how in (
@@ -155,7 +155,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
             _assert_same_view(ref, ref.reset(rng_lock, k, like=s_next), fresh, "reset")
             s_next = sim.scatter(done, fresh, s_next)
             r_next = ref.scatter(done, ref.reset(rng_ref, k, like=r_next), r_next)
-            _assert_same_draws(rng, rng_lock, rng_ref)
+            assert_same_draws(rng, rng_lock, rng_ref)
             steps[done] = 0
             episodes += done
         s, r = s_next, r_next
@@ -164,22 +164,11 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
     assert detections > 0 and misses > 0, (detections, misses)
 
 
-def _assert_same_draws(*generators: np.random.Generator) -> None:
-    """Every generator consumed the same draws (same state)."""
-    first = generators[0].bit_generator.state
-    for g in generators[1:]:
-        assert g.bit_generator.state == first, "the reference consumed other draws"
-
-
 def _assert_same_view(core: Core, got: GimbalState, want: GimbalState, how: str) -> None:
     """The states, the observations and the infos of ``got`` (reference) and ``want``
     (simulation) agree within the module's tolerances."""
     _assert_same_state(got, want, how)
-    for name, view in (("observe", core.observe), ("observe_agents", core.observe_agents)):
-        o_got, o_want = view(got), view(want)
-        assert o_got.dtype == o_want.dtype == np.float32
-        assert o_got.shape == o_want.shape
-        _assert_close(f"{how}: {name}", o_got, o_want, 0.0, atol=OBS_ATOL)
+    assert_same_observations(core, got, want, how, OBS_ATOL)
     i_got, i_want = core.info(got), core.info(want)
     assert i_got.keys() == i_want.keys()
     for key in ("in_view", "occluded", "detected", "visible_channels"):

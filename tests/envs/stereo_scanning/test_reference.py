@@ -56,6 +56,7 @@ from sensorgym.envs.stereo_scanning.simulation import ScanningParams, ScanningSt
 from sensorgym.envs.stereo_scanning.stereo_scanning import ENV_ID
 from sensorgym.trackers.stereo import association
 from sensorgym.trackers.stereo.period_tracking import ProposedParams, proposed_candidates
+from tests.reference_checks import assert_same_draws
 
 SEED = 20260738
 BATCH = 4
@@ -131,7 +132,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
         s_next, reward, terminated = sim.step(s, a, rng)
         l_next, l_reward, l_terminated = ref.step(s, a, lock)
         r_next, r_reward, r_terminated = ref.step(r, a, rng_ref)
-        _assert_same_draws(rng, lock, rng_ref)
+        assert_same_draws(rng, lock, rng_ref)
         _assert_same_view(params, ref, l_next, s_next, f"one step {t}")
         for got, got_terminated, how in ((l_reward, l_terminated, "one step"),
                                          (r_reward, r_terminated, "own state")):  # fmt: skip
@@ -149,23 +150,16 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
             _assert_same_view(params, ref, ref.reset(lock, k, like=s_next), fresh, f"reset {t}")
             s_next = sim.scatter(done, fresh, s_next)
             r_next = ref.scatter(done, ref.reset(rng_ref, k, like=r_next), r_next)
-            _assert_same_draws(rng, lock, rng_ref)
+            assert_same_draws(rng, lock, rng_ref)
             steps[done] = 0
             seen["episodes"] += k
         s, r = s_next, r_next
     _assert_same_view(params, ref, r, s, "own state, last")
-    _assert_same_draws(rng, rng_ref)
+    assert_same_draws(rng, rng_ref)
     # the episodes did what the case is for
     assert seen["episodes"] >= BATCH and seen["confirmed"] > 0 and seen["false"] > 0, seen
     if case == "small scene, small table":
         assert seen["terminations"] > 0, seen
-
-
-def _assert_same_draws(*generators: np.random.Generator) -> None:
-    """Every generator consumed the same draws (same state)."""
-    first = generators[0].bit_generator.state
-    for g in generators[1:]:
-        assert g.bit_generator.state == first, "the reference consumed other draws"
 
 
 def _assert_same_view(
