@@ -113,8 +113,10 @@ Workspace = namedtuple(
     "ones u r z bore r_fix mask M G G_true R x_pred P_pred rhs LU piv S K work inv",
 )
 
-#: rows of the diagnostics array ``info (3, B)`` (``simulation.info``)
-I_ERROR, I_FIXED, I_VIEWS = range(3)
+#: rows of the diagnostics array ``info (N_DIAG, B)`` (``simulation.info``)
+I_ERROR, I_FIXED, I_VIEWS, I_UNFIXED, I_SIGMA_SUM, I_SIGMA_COUNT = range(6)
+#: the number of those rows
+N_DIAG = 6
 
 
 @njit(**INLINE)
@@ -157,7 +159,7 @@ def step_kernel(lo, hi, receivers, settings, old, action, noise, new, out):
     observation and diagnostics. Reads the state ``old`` and writes the next into ``new``
     (tuples of arrays in the order of :data:`StateArrays`; ``new.velocity`` is
     ``old.velocity``, the drones fly straight) and ``out = (reward (B,), obs (B, obs_dim)
-    float32, info (3, B))``. ``receivers (n, 3)``; ``settings`` the params' record;
+    float32, info (N_DIAG, B))``. ``receivers (n, 3)``; ``settings`` the params' record;
     ``action (B, n, 2)`` raw actions; ``noise (B, n, m, 3)`` standard normal draws (ignored
     where ``σ_ang = 0``). No output may alias an input. Returns False (and stops) if an
     action is NaN or infinite.
@@ -293,17 +295,23 @@ def observe_row(p, receivers, s, b, obs, x_pred, P_pred, u):
 def info_row(s, b, info):
     """``simulation.info`` of scenario ``b`` of the state ``s`` into ``info[:, b]``: the mean
     position error of the tracks ``mean_j ‖x̂_j − p_j‖``, the number of drones fixed and of
-    receiver-drone views."""
-    x, position, seen, fixed = s.x, s.position, s.seen, s.fixed
+    receiver-drone views; for the tail measures (:func:`.simulation.tail_info`) the share of
+    drones without a fix and the sum and count of the fixed drones' finite CRLB ``σ_pos``."""
+    x, position, seen, fixed, bound = s.x, s.position, s.seen, s.fixed, s.bound
     n, m = seen.shape[1], seen.shape[2]
     error = 0.0
     n_fixed = 0.0
+    sigma_sum = 0.0
+    sigma_count = 0.0
     for j in range(m):
         d0 = x[b, j, 0] - position[b, j, 0]
         d1 = x[b, j, 1] - position[b, j, 1]
         d2 = x[b, j, 2] - position[b, j, 2]
         error += math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
         n_fixed += 1.0 if fixed[b, j] else 0.0
+        if fixed[b, j] and math.isfinite(bound[b, j]):
+            sigma_sum += bound[b, j]
+            sigma_count += 1.0
     views = 0.0
     for k in range(n):
         for j in range(m):
@@ -311,11 +319,14 @@ def info_row(s, b, info):
     info[I_ERROR, b] = error / m
     info[I_FIXED, b] = n_fixed
     info[I_VIEWS, b] = views
+    info[I_UNFIXED, b] = (m - n_fixed) / m
+    info[I_SIGMA_SUM, b] = sigma_sum
+    info[I_SIGMA_COUNT, b] = sigma_count
 
 
 @njit(**JIT)
 def observe_kernel(receivers, settings, state, obs, info):
-    """The observation ``obs (B, obs_dim)`` float32 and diagnostics ``info (3, B)`` of a state
+    """The observation ``obs (B, obs_dim)`` float32 and diagnostics ``info (N_DIAG, B)`` of a state
     (a tuple in the order of :data:`StateArrays`) that :func:`step_kernel` did not make (a
     reset, or a state built by hand)."""
     p = settings[0]

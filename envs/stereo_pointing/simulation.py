@@ -482,7 +482,7 @@ def step(
     p, x, P = np.empty((B, m, 3)), np.empty((B, m, 6)), np.empty((B, m, 6, 6))
     seen, fixed = np.empty((B, n, m), dtype=bool), np.empty((B, m), dtype=bool)
     bound, reward = np.empty((B, m)), np.empty(B)
-    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
+    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((kernels.N_DIAG, B))
     v = state.drone_velocity  # the drones fly straight: the new state's is the old one's
     outputs = ((t, az, el, p, v, x, P, seen, fixed, bound), (reward, obs, diag))
     if B < 2 * MIN_ROWS_PER_THREAD:  # what run_drawn_rows does for a batch this small, sooner
@@ -583,7 +583,7 @@ def _sources(state: PointingState) -> tuple[object, ...]:
 
 
 def _derived(params: PointingParams, state: PointingState) -> tuple[Any, ...]:
-    """``(params, observation, diagnostics (3, B), sources)`` of ``state``: those :func:`step`
+    """``(params, observation, diagnostics (N_DIAG, B), sources)`` of ``state``: those :func:`step`
     wrote, else computed by the compiled kernel and kept on the state (:class:`PointingState`).
     They are used only for the same params and the very field objects they were computed from
     (a copy of the state with other fields, e.g. the shells' autoreset merge, recomputes)."""
@@ -595,7 +595,7 @@ def _derived(params: PointingParams, state: PointingState) -> tuple[Any, ...]:
     ):
         return d
     B = state.t.shape[0]
-    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((3, B))
+    obs, diag = np.empty((B, params.obs_dim), dtype=np.float32), np.empty((kernels.N_DIAG, B))
     arrays = tuple(
         np.ascontiguousarray(a, dtype=bool if a.dtype == bool else np.float64)
         for a in map(np.asarray, state_arrays(state))
@@ -623,14 +623,18 @@ def info(params: PointingParams, state: PointingState) -> dict[str, FloatArray]:
         "position_error": diag[kernels.I_ERROR],
         "drones_fixed": diag[kernels.I_FIXED],
         "views": diag[kernels.I_VIEWS],
-        **tail_info(state),
+        # the tail measures' entries, :func:`tail_info` compiled
+        "unfixed_share": diag[kernels.I_UNFIXED],
+        "fixed_sigma_sum": diag[kernels.I_SIGMA_SUM],
+        "fixed_sigma_count": diag[kernels.I_SIGMA_COUNT],
     }
 
 
 def tail_info(state: PointingState) -> dict[str, FloatArray]:
     """The entries of :func:`info` for the tail measures, read off the state: the share of
     drones without a fix and, over the fixed drones with a finite bound, the sum and count of
-    their CRLB ``σ_pos`` (m)."""
+    their CRLB ``σ_pos`` (m). The readable form, used by :mod:`.reference`; :func:`info` reads
+    the same from the compiled diagnostics."""
     sigma = state.bound
     counted = state.fixed & np.isfinite(sigma)
     return {
