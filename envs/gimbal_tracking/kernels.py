@@ -76,6 +76,7 @@ SETTINGS = np.dtype(
         ("length_high", np.int64),
         ("search_after", np.int64),  # frames without detection before the gate searches
         ("reacquire_limit", np.int64),  # frames out of view that end the episode
+        ("relock", np.bool_),  # re-lock the predictor on a re-acquisition (theory §13.42)
     ],
     align=True,
 )
@@ -195,6 +196,9 @@ def step_kernel(lo, hi, settings, model, old, action, draws, new, out):
         az = az + sensor_noise[b, 0] * p.sensor_noise
         el = el + sensor_noise[b, 1] * p.sensor_noise
         copy_predictor(th[b], ph[b], delta[b], anchor[b], th2[b], ph2[b], delta2[b], anchor2[b])
+        if p.relock and found and since[b] > 0 and count[b] >= th.shape[1]:
+            # re-acquired after a loss: the coasted track moved onto the measurement (§13.42)
+            relock(th2[b], ph2[b], delta2[b], anchor2[b], wrap_angle(az - origin[b]), el, work)
         count2[b], slope2[b], origin2[b] = advance_predictor(
             p, th2[b], ph2[b], count[b], slope[b], delta2[b], anchor2[b], origin[b], az, el,
             found, work,
@@ -639,6 +643,38 @@ def advance_predictor(p, th, ph, count, slope, delta, anchor, origin, az, el, de
     abc_commit(p, update, was_ready and not detected, first, delta, anchor, coast, raw,
                anchor_new)  # fmt: skip
     return recentre(th, alpha if update else slope, delta, anchor, count2, origin)
+
+
+@njit(**INLINE)
+def relock(th, ph, delta, anchor, az, el, work):
+    """The coasted track moved onto the measured angles ``az`` (in the predictor's frame),
+    ``el`` before they are pushed (theory §13.42, :meth:`~sensorgym.trackers.angles.
+    prediction.ABCPredictor.relock`): ``C′ = OC′ (sin θ, cos θ, tan ϕ)`` at the horizontal
+    range ``OC′`` of ``C + δ̂``, the window's samples the angles of ``C′ − (N + 1 − i) δ̂``,
+    point C ``C′ − δ̂``; unchanged where a value is not finite or a sample at the origin.
+    ``work (9,)`` is scratch."""
+    W = th.shape[0]
+    C = work[:3]
+    a = wrap_angle(az)
+    # OC′ = |C + δ̂|ₓᵧ;  C′ = OC′ (sin θ, cos θ, tan ϕ)
+    rho = math.hypot(anchor[0] + delta[0], anchor[1] + delta[1])
+    C[0], C[1], C[2] = rho * math.sin(a), rho * math.cos(a), rho * math.tan(el)
+    ok = np.isfinite(rho) and rho > 0.0
+    for i in range(3):
+        ok = ok and np.isfinite(C[i])
+    for i in range(W):
+        k = W - i
+        x, y, z = C[0] - k * delta[0], C[1] - k * delta[1], C[2] - k * delta[2]
+        ok = ok and np.isfinite(x) and np.isfinite(y) and np.isfinite(z)
+        ok = ok and (x != 0.0 or y != 0.0 or z != 0.0)
+    if not ok:
+        return
+    for i in range(W):
+        k = W - i
+        x, y, z = C[0] - k * delta[0], C[1] - k * delta[1], C[2] - k * delta[2]
+        th[i], ph[i] = zup_angles(x, y, z)
+    for i in range(3):
+        anchor[i] = C[i] - delta[i]
 
 
 @njit(**INLINE)

@@ -284,15 +284,20 @@ def advance_predictor(
     origin: FloatArray,
     measured: FloatArray,
     detected: BoolArray,
+    reacquired: BoolArray | None = None,
 ) -> tuple[ABCState, FloatArray]:
     """Paper 001's predictor (theory §8.6) one frame on: the measured level angles ``(B, 2)``
-    where ``detected``, coasting along its conditional trajectory elsewhere (step 7).
+    where ``detected``, coasting along its conditional trajectory elsewhere (step 7). Where
+    ``reacquired`` (detected after a loss) and :attr:`~.simulation.GimbalParams.relock`, the
+    coasted track is first moved onto the measurement (theory §13.42).
 
     It runs in the level frame turned about ``OZ`` by ``origin (B,)`` (its ``OY`` there); once
     its latest azimuth lies more than 45° off that ``OY``, the frame is turned onto it
     (:func:`~sensorgym.trackers.angles.prediction.recentre`): the predictor's formulas are
     singular at ±90° (theory §13.20). Returns the predictor and its frame's origin."""
     az = wrap_angle(measured[:, 0] - origin)
+    if params.relock and reacquired is not None:
+        predictor = params.predictor.relock(predictor, az, measured[:, 1], reacquired)
     state = params.predictor.update(predictor, az, measured[:, 1], detected)
     latest = state.azimuth_window[:, -1]
     turn = np.where(np.abs(latest) > np.pi / 4, latest, 0.0)
@@ -462,7 +467,12 @@ def step(
     measured = from_tangent_offsets(reference, offsets)
     measured = measured + rng.standard_normal((B, 2)) * params.sensor_noise
     predictor, origin = advance_predictor(
-        params, state.predictor, state.predictor_origin, measured, detected
+        params,
+        state.predictor,
+        state.predictor_origin,
+        measured,
+        detected,
+        reacquired=detected & (state.since_detection > 0),
     )
 
     variance = fused.variance.reshape(B, 2)

@@ -154,6 +154,11 @@ class GimbalParams(FieldsOnlyPickle):
     """Paper 001's N: frames between the samples A and C (even)."""
     predictor_memory: float = 10.0
     """Effective memory of paper 001's exponential filter, frames."""
+    relock: bool = True
+    """Re-lock paper 001's predictor on the first detection after a loss: its coasted window
+    moved onto the new measurement (:meth:`~sensorgym.trackers.angles.prediction.ABCPredictor.
+    relock`, theory §13.42; not in the paper). False: the literal predictor, whose window
+    mixes coasted and measured samples after a loss and can diverge."""
     sigma_ref: float = 0.001
     """Angular error that earns zero reward, rad."""
     reward_clip: float = 5.0
@@ -385,6 +390,7 @@ class GimbalParams(FieldsOnlyPickle):
             "length_high": self.occlusion_length[1],
             "search_after": self.search_after,
             "reacquire_limit": self.reacquire_limit,
+            "relock": self.relock,
         }
         record = np.array(
             [tuple(fields[name] for name in kernels.SETTINGS.names)], kernels.SETTINGS

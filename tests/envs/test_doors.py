@@ -184,6 +184,7 @@ OTHER_VALUES["sensorgym/GimbalTracking-v0"] = {
     "sigma_ref": 0.002,
     "reward_clip": 3.0,
     "search_after": 5,
+    "relock": False,
     "reacquire_limit": 10,
 }
 

@@ -303,6 +303,61 @@ class ABCPredictor:
             anchor=np.where(upd[:, None], anchor, np.where(coasting[:, None], coast, state.anchor)),
         )
 
+    def relock(
+        self,
+        state: ABCState,
+        azimuth: ArrayLike,
+        elevation: ArrayLike,
+        mask: ArrayLike | None = None,
+    ) -> ABCState:
+        """The state a track re-acquired after a coast resumes from (not in paper 001; theory
+        §13.42): call it with the first measurement after the loss, then :meth:`update` with
+        the same measurement.
+
+        Coasting fills the window with the conditional trajectory's angles; when the image
+        returns, the measurement sits off that line by the prediction's error, and eq. (6) on
+        samples A, B from the coast and C measured sees a kink that no straight line has: the
+        raw slope, then the prediction, can swing by a half turn and the gate loses the target
+        again. Re-locking moves the coasted track onto the new measurement, keeping its motion:
+        C′ is the point on the measured ray at the horizontal range of the coasted ``C + δ̂``,
+        ``OC′ = |C + δ̂|ₓᵧ``, ``C′ = OC′ (sin θ, cos θ, tan ϕ)``, and the window's samples are
+        the angles of ``C′ − (N + 1 − i) δ̂`` (``i = 0 … N``, oldest first), point C is
+        ``C′ − δ̂``; ``α̂`` and ``δ̂`` are kept. The next :meth:`update` pushes the measurement,
+        the angles of ``C′``, onto a straight, uniformly travelled window.
+
+        Applies where ``mask`` and the track has its estimate; elsewhere, and where ``OC′`` is
+        not finite and positive, the state is returned unchanged.
+        """
+        if state.window != self.window + 1:
+            raise ValueError("state: window length does not match this predictor's N")
+        az, el, m = measurement_arrays(azimuth, elevation, state.batch_size, mask)
+        coast = state.anchor + state.delta
+        # OC′ = |C + δ̂|ₓᵧ;  C′ = OC′ (sin θ, cos θ, tan ϕ)
+        rho = np.hypot(coast[:, 0], coast[:, 1])
+        with np.errstate(invalid="ignore", over="ignore"):
+            C = rho[:, None] * np.stack([np.sin(az), np.cos(az), np.tan(el)], axis=-1)
+            # samples i = 0 … N at C′ − (N + 1 − i) δ̂
+            back = (self.window + 1 - np.arange(self.window + 1, dtype=np.float64))[None, :, None]
+            track = C[:, None, :] - back * state.delta[:, None, :]
+        ok = (
+            m
+            & state.ready
+            & np.isfinite(rho)
+            & (rho > 0.0)
+            & np.all(np.isfinite(C), axis=-1)
+            & np.all(np.isfinite(track), axis=(1, 2))
+        )
+        ok &= np.all(np.any(track != 0.0, axis=-1), axis=-1)  # no sample at the origin
+        th, ph = zup_angles_from_unit(np.where(ok[:, None, None], track, (0.0, 1.0, 0.0)))
+        return ABCState(
+            azimuth_window=np.where(ok[:, None], th, state.azimuth_window),
+            elevation_window=np.where(ok[:, None], ph, state.elevation_window),
+            count=state.count,
+            slope_angle=state.slope_angle,
+            delta=state.delta,
+            anchor=np.where(ok[:, None], C - state.delta, state.anchor),
+        )
+
     def predict(self, state: ABCState, steps: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Predicted azimuth and elevation ``k`` frames after the current one (theory §8.6 step 7).
 

@@ -26,7 +26,12 @@ rates), plus ``ATOL = 1e-12`` in SI units (rad, m, mrad²) for entries that are 
 arithmetic. Measured (defaults and three channels, two episodes each): the posteriors agree to
 about 1e-12, the variances and σ_LOS to about 6e-12 relative, the angles, the target and the
 predictor to 1e-16 or bit for bit, both after one step and over whole episodes of the reference
-alone (the tracker's recursions are contractive). The LLRs reach hundreds, so their ulps
+alone (the tracker's recursions are contractive) — except paper 001's conditional trajectory
+(the predictor's ``delta`` and ``anchor``) over whole episodes of the reference alone, compared
+to ``TRAJECTORY_RTOL = 1e-6``: where the target moves nearly along the line of sight
+(``cos(θ_P − θ_A)`` about 0.01, a window spanning a few mrad, §8.5) the increments δ̂ amplify
+the window's ulps about a millionfold while the window itself agrees to 1e-15 (measured: up to
+1.7e-9 relative, "three channels"), and the scale rule ``Y_C ← Y_C + δ̂_Y`` carries that on. The LLRs reach hundreds, so their ulps
 (and those of the exp and log that make posteriors of them) come to about 1e-13; numba reorders
 the tracker's sums (numpy's einsums and pairwise sums), and the CPU's libm and numpy's SIMD
 erf, atan2, exp and log differ by ulps. 1e-9 leaves over two orders of margin for any x86-64
@@ -61,6 +66,9 @@ EPISODES = 2
 RTOL = 1e-9
 ATOL = 1e-12
 OBS_ATOL = 1e-5
+#: the predictor's conditional trajectory (δ̂, point C) over whole episodes of the reference
+#: alone: near-radial motion makes it ill-conditioned in the window's angles (see above)
+TRAJECTORY_RTOL = 1e-6
 
 #: the reference as a simulation module (its reset, step, observation and diagnostics)
 REFERENCE = types.SimpleNamespace(
@@ -232,9 +240,10 @@ def _assert_same_state(got: GimbalState, want: GimbalState, how: str) -> None:
         _assert_close(f"{how}: predictor {name}", d, np.zeros_like(d), np.pi)
     d = wrap_half_turn(p.slope_angle - q.slope_angle)
     _assert_close(f"{how}: predictor slope_angle", d, np.zeros_like(d), np.pi)
+    rtol = TRAJECTORY_RTOL if how == "own state" else RTOL
     for name in ("delta", "anchor"):
         a, b = getattr(p, name), getattr(q, name)
-        _assert_close(f"{how}: predictor {name}", a, b, norm(b))
+        assert_close(f"{how}: predictor {name}", a, b, norm(b), rtol, ATOL)
 
 
 def _assert_close(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from sensorgym.envs.worlds.gimbal import StraightTrajectory, TurningTrajectory, measure_angles
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, LineFitPredictor
 from sensorgym.trackers.angles.prediction import ABCPredictor, recentre, trajectory_direction
+from sensorgym.trackers.geometry import wrap_angle, zup_angles_from_unit
 
 PAPER = StraightTrajectory()  # theory §8.7
 OBLIQUE = StraightTrajectory(heading=np.deg2rad(35.0))  # AT-6
@@ -300,3 +302,71 @@ def test_recentring_carries_the_prediction_across_azimuth_90() -> None:
         shift = state.azimuth_window[:, -1]
         state, psi = recentre(state, shift), psi + shift
     assert worst < 1e-9
+
+
+def _turn_during_loss(frames: int, turn_at: int, heading_change: float) -> tuple:
+    """Angles of OBLIQUE's path that turns its horizontal velocity by ``heading_change`` at
+    ``turn_at`` and flies straight on."""
+    p = OBLIQUE.positions(np.arange(frames)).copy()
+    v = p[1] - p[0]
+    c, s = np.cos(heading_change), np.sin(heading_change)
+    turned = np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
+    k = np.arange(frames - turn_at)[:, None]
+    p[turn_at:] = p[turn_at] + k * turned
+    return zup_angles_from_unit(p)
+
+
+def _worst_one_ahead(th, ph, seen, relock: bool) -> float:
+    """The largest one-frame-ahead prediction error (rad) after the loss ends."""
+    predictor = ABCPredictor()
+    state = predictor.initial_state(1)
+    back = int(np.flatnonzero(~seen)[-1]) + 1  # the first frame seen after the loss
+    worst = 0.0
+    for t in range(len(th) - 1):
+        a, e = (th[t], ph[t]) if seen[t] else (1.0, -1.0)
+        if relock:
+            state = predictor.relock(state, a, e, mask=seen[t] and t > 0 and not seen[t - 1])
+        state = predictor.update(state, a, e, mask=seen[t])
+        if t >= back:
+            pa, pe = predictor.predict(state, 1.0)
+            worst = max(worst, abs(wrap_angle(pa[0] - th[t + 1])), abs(pe[0] - ph[t + 1]))
+    return worst
+
+
+def test_relock_is_exact_after_a_noise_free_coast() -> None:
+    # a straight track coasts exactly, so moving the coasted track onto the returning
+    # measurement changes nothing
+    th, ph = OBLIQUE.angles(np.arange(350))
+    seen = np.ones(350, dtype=bool)
+    seen[200:260] = False
+    assert np.degrees(_worst_one_ahead(th, ph, seen, relock=True)) < 1e-9
+
+
+def test_relock_keeps_the_prediction_through_a_turn_during_a_loss() -> None:
+    # the target turns by 0.3 rad while lost for 60 frames (more than the window): the literal
+    # predictor's window then mixes the coasted line with the new measurements and its one-frame
+    # prediction goes mrad off (theory §13.42); re-locked it stays near the new line's
+    th, ph = _turn_during_loss(400, 200, 0.3)
+    seen = np.ones(400, dtype=bool)
+    seen[200:260] = False
+    literal = _worst_one_ahead(th, ph, seen, relock=False)
+    relocked = _worst_one_ahead(th, ph, seen, relock=True)
+    assert literal > 1e-3, literal
+    assert relocked < 0.2e-3, relocked
+
+
+def test_relock_leaves_unready_masked_and_degenerate_tracks_alone() -> None:
+    predictor = ABCPredictor()
+    th, ph = noise_free(OBLIQUE, 60)
+    ready = run(predictor, th, ph)
+    fresh = predictor.initial_state(1)
+    for state, mask in ((fresh, True), (ready, False)):
+        out = predictor.relock(state, 0.3, 0.1, mask=mask)
+        for name in ("azimuth_window", "elevation_window", "anchor", "delta"):
+            np.testing.assert_array_equal(getattr(out, name), getattr(state, name))
+    # a coasted point C at the origin has no range to carry: unchanged, finite
+    at_origin = dataclasses.replace(ready, anchor=-ready.delta)
+    out = predictor.relock(at_origin, 0.3, 0.1)
+    np.testing.assert_array_equal(out.azimuth_window, at_origin.azimuth_window)
+    with pytest.raises(ValueError, match="azimuth"):
+        predictor.relock(ready, np.nan, 0.1)
