@@ -23,6 +23,7 @@ from typing import Any
 from sensorgym.agents import bearings_maneuver as maneuver
 from sensorgym.agents import bearings_mpc as mpc
 from sensorgym.agents import book_maneuver as book
+from sensorgym.agents import gimbal_search
 from sensorgym.agents import gimbal_tracking as gimbal
 from sensorgym.agents import stereo_placement as placement
 from sensorgym.agents import stereo_pointing as pointing
@@ -118,6 +119,7 @@ RULES: dict[str, dict[str, RuleFactory]] = {
         "hold-last-rate": lambda params, _: gimbal.HoldLastRate(params),
         "kalman-servo": lambda params, _: gimbal.KalmanServo(params),
         "carrier-feedforward": lambda params, _: gimbal.CarrierFeedForward(params),
+        "feedforward-search": lambda params, _: gimbal_search.FeedForwardSearch(params),
         "truth-servo": lambda params, state_fn: gimbal.TruthServo(params, state_fn),
     },
 }

@@ -1,9 +1,10 @@
 """Action re-parameterisation and imitation teacher for training on ``sensorgym/GimbalTracking-v0``.
 
 :class:`AimOffsetAction` makes the policy's action an offset of the gimbal's aim from the
-direction the fieldable :class:`~sensorgym.agents.gimbal_tracking.CarrierFeedForward` servo
-drives to (paper 001's predicted direction, the carrier's motion fed forward). The zero action
-is exactly that rule. Where the rule fails — the predictor coasts straight through an
+direction a fieldable servo drives to: :class:`~sensorgym.agents.gimbal_tracking.CarrierFeedForward`
+(paper 001's predicted direction, the carrier's motion fed forward) or
+:class:`~sensorgym.agents.gimbal_search.FeedForwardSearch` (the same, searching about the
+prediction once the gate searches). The zero action is exactly that rule. Where the rule fails — the predictor coasts straight through an
 occlusion while the target turns, and the servo keeps pointing where a straight path would
 be — a policy that sees a stack of recent observations can aim elsewhere: ahead into the turn
 it saw begin, or around the prediction to find the target again. The scenarios and rewards are
@@ -23,6 +24,7 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv
 
+from sensorgym.agents.gimbal_search import FeedForwardSearch
 from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
 from sensorgym.train.wrappers import ObservedActionWrapper, find_wrapper
@@ -34,19 +36,26 @@ FloatArray = NDArray[np.float64]
 AIM_SCALE = 2.0
 
 
-class AimOffsetAction(ObservedActionWrapper):
-    """Action ``a ∈ [−1, 1]²``: aim the boresight at the carrier-feedforward servo's next-frame
-    direction offset by ``δ = s · FOV · a ⊙ |a|`` in body azimuth and elevation (rad), with the
-    servo's deadbeat rate command (``s = scale`` fields of view)."""
+#: the fieldable servos an aim offset can be taken from (``base``), by their rule names
+BASE_RULES = {"carrier-feedforward": CarrierFeedForward, "feedforward-search": FeedForwardSearch}
 
-    def __init__(self, venv: VecEnv, scale: float = AIM_SCALE):
+
+class AimOffsetAction(ObservedActionWrapper):
+    """Action ``a ∈ [−1, 1]²``: aim the boresight at the ``base`` servo's next-frame direction
+    (carrier-feedforward, or the same with its re-acquisition search) offset by
+    ``δ = s · FOV · a ⊙ |a|`` in body azimuth and elevation (rad), with the servo's deadbeat
+    rate command (``s = scale`` fields of view)."""
+
+    def __init__(self, venv: VecEnv, scale: float = AIM_SCALE, base: str = "carrier-feedforward"):
         if not (np.isfinite(scale) and scale > 0.0):
             raise ValueError(f"scale: need a positive number of fields of view, got {scale!r}")
+        if base not in BASE_RULES:
+            raise ValueError(f"base: expected one of {sorted(BASE_RULES)}, got {base!r}")
         super().__init__(venv, spaces.Box(-1.0, 1.0, (2,), np.float32))
         self.params: GimbalParams = venv.get_attr("params")[0]
         self.scale = float(scale) * self.params.field_of_view
         """Aim offset of a unit action, rad."""
-        self.rule = CarrierFeedForward(self.params)
+        self.rule: CarrierFeedForward | FeedForwardSearch = BASE_RULES[base](self.params)
 
     def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
         a = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, 2)

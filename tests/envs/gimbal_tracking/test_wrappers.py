@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sensorgym.agents.gimbal_search import FeedForwardSearch
 from sensorgym.agents.gimbal_tracking import CarrierFeedForward
 from sensorgym.train.env_wrappers.gimbal_tracking import AimOffsetAction, truth_aim
 from sensorgym.train.evaluation import env_params, make_sb3_env
@@ -23,13 +24,18 @@ def _returns(env, act, steps=200):
     return total
 
 
-def test_zero_offset_is_the_carrier_feedforward_rule():
-    wrapped = AimOffsetAction(make_sb3_env(ENV_ID, 4, seed=3))
+@pytest.mark.parametrize("base", ["carrier-feedforward", "feedforward-search"])
+def test_zero_offset_is_the_base_rule(base):
+    # 300 frames: long enough for occlusions and the search's hops
+    wrapped = AimOffsetAction(make_sb3_env(ENV_ID, 4, seed=3), base=base)
     plain = make_sb3_env(ENV_ID, 4, seed=3)
-    rule = CarrierFeedForward(env_params(plain))
+    params = env_params(plain)
+    rule = (
+        CarrierFeedForward(params) if base == "carrier-feedforward" else FeedForwardSearch(params)
+    )
     assert wrapped.action_space.shape == (2,)
-    zeros = _returns(wrapped, lambda obs: np.zeros((4, 2), np.float32), steps=120)
-    servo = _returns(plain, lambda obs: rule.predict(obs)[0], steps=120)
+    zeros = _returns(wrapped, lambda obs: np.zeros((4, 2), np.float32), steps=300)
+    servo = _returns(plain, lambda obs: rule.predict(obs)[0], steps=300)
     np.testing.assert_array_equal(zeros, servo)
 
 
@@ -48,6 +54,8 @@ def test_bad_arguments_are_named():
     env = make_sb3_env(ENV_ID, 2, seed=0)
     with pytest.raises(ValueError, match="scale"):
         AimOffsetAction(env, scale=0.0)
+    with pytest.raises(ValueError, match="base"):
+        AimOffsetAction(env, base="truth-servo")
     wrapped = AimOffsetAction(env)
     wrapped.reset()
     with pytest.raises(ValueError, match="actions"):
