@@ -41,7 +41,8 @@ FloatArray = NDArray[np.float64]
 GIMBAL, RATES, ATTITUDE, ATTITUDE_RATES = slice(0, 2), slice(2, 4), slice(4, 7), slice(7, 10)
 ESTIMATE_OFFSET, PREDICTED_OFFSET = slice(10, 12), slice(12, 14)
 ESTIMATE_LEVEL, PREDICTED_LEVEL = slice(14, 16), slice(16, 18)
-_ANGLE_SCALE = np.array([np.pi, np.pi / 2])
+#: the observation's level and gimbal angles are divided by these (azimuth, elevation), rad
+ANGLE_SCALE = np.array([np.pi, np.pi / 2])
 
 
 def rate_action(params: GimbalParams, change: FloatArray) -> FloatArray:
@@ -59,7 +60,7 @@ def aim_change(obs: FloatArray, level: FloatArray, attitude: FloatArray) -> Floa
     """Body-frame angle change ``(n, 2)`` that points the gimbal at level angles ``level (n, 2)``
     seen from a carrier at ``attitude (n, 3)`` (azimuth wrapped)."""
     target = body_angles(unit_from_zup_angles(level[:, 0], level[:, 1]), attitude)
-    change = target - obs[:, GIMBAL] * _ANGLE_SCALE
+    change = target - obs[:, GIMBAL] * ANGLE_SCALE
     change[:, 0] = wrap_angle(change[:, 0])
     return change
 
@@ -111,7 +112,7 @@ class CarrierFeedForward(MemorylessRule):
         T = self.params.frame_period
         # attitude_{k+1} ≈ attitude_k + ȧ_k T
         ahead = (obs[:, ATTITUDE] + obs[:, ATTITUDE_RATES] * T) * ATTITUDE_SCALE
-        level = obs[:, PREDICTED_LEVEL] * _ANGLE_SCALE
+        level = obs[:, PREDICTED_LEVEL] * ANGLE_SCALE
         return aim_change(obs, level, ahead)
 
     def act(self, obs: FloatArray) -> FloatArray:
@@ -166,11 +167,11 @@ class KalmanServo:
                 np.where(restart, 0, state.count),
             )
         seen = detected(self.params, obs)
-        level = obs[:, ESTIMATE_LEVEL] * _ANGLE_SCALE
+        level = obs[:, ESTIMATE_LEVEL] * ANGLE_SCALE
         first = seen & (state.count == 0)
         state = kf.update(state, level[:, 0], level[:, 1], seen)
         # the first rate: the tracker's own one-frame step, (prediction − estimate) per frame
-        step = obs[:, PREDICTED_LEVEL] * _ANGLE_SCALE - level
+        step = obs[:, PREDICTED_LEVEL] * ANGLE_SCALE - level
         step[:, 0] = wrap_angle(step[:, 0])
         mean = state.mean.copy()
         mean[:, :, 1] = np.where(first[:, None], step, mean[:, :, 1])

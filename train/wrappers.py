@@ -35,6 +35,7 @@ WRAPPERS: dict[str, str] = {
     "placement-target": "sensorgym.train.env_wrappers.stereo_placement:plan_target",
     "scan-modes": "sensorgym.train.env_wrappers.stereo_scanning:scan_modes",
     "gimbal-aim": "sensorgym.train.env_wrappers.gimbal_tracking:aim_offset",
+    "gimbal-turn-memory": "sensorgym.train.env_wrappers.gimbal_tracking:turn_memory",
 }
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 import sensorgym.envs  # noqa: F401  (registers the ids)
 from sensorgym.agents.gimbal_tracking import (
-    _ANGLE_SCALE,
+    ANGLE_SCALE,
     ATTITUDE,
     ATTITUDE_RATES,
     ESTIMATE_LEVEL,
@@ -38,14 +38,14 @@ class TurnAware(CarrierFeedForward):
             st = np.asarray(episode_start, bool)
             state["hist"][st] = np.nan
         det = detected(p, obs)
-        level = obs[:, ESTIMATE_LEVEL] * _ANGLE_SCALE
+        level = obs[:, ESTIMATE_LEVEL] * ANGLE_SCALE
         h = state["hist"]
         h[det] = np.roll(h[det], -1, axis=1)
         h[det, -1] = level[det]
         sd = np.rint(obs[:, 20 + p.n_channels] * (p.reacquire_limit + 1))
         T = p.frame_period
         ahead = (obs[:, ATTITUDE] + obs[:, ATTITUDE_RATES] * T) * ATTITUDE_SCALE
-        aim = obs[:, PREDICTED_LEVEL] * _ANGLE_SCALE
+        aim = obs[:, PREDICTED_LEVEL] * ANGLE_SCALE
         ok = ~np.isnan(h[:, 0, 0]) & (sd > 0)
         if ok.any():
             t = np.arange(M) - (M - 1)

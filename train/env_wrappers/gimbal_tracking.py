@@ -22,10 +22,17 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
-from stable_baselines3.common.vec_env import VecEnv
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from sensorgym.agents.gimbal_search import FeedForwardSearch
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
+from sensorgym.agents.gimbal_tracking import (
+    ANGLE_SCALE,
+    ESTIMATE_LEVEL,
+    CarrierFeedForward,
+    TruthServo,
+    detected,
+    rate_action,
+)
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
 from sensorgym.train.wrappers import ObservedActionWrapper, find_wrapper
 
@@ -103,3 +110,95 @@ def truth_aim(env: VecEnv) -> TruthAim:
 
     inner = find_wrapper(env, AimOffsetAction)
     return TruthAim(simulator_state(env), inner)
+
+
+class TurnMemory(VecEnvWrapper):
+    """Appends what the tracker's estimate did before the target was last lost: a quadratic fit
+    ``θ(t) ≈ θ₀ + θ̇ t + ½ θ̈ t²`` (level azimuth and elevation, ``t`` in frames from the last
+    detection) to the estimates of the last ``window`` frames with a detection, and the offset
+    ``½ θ̈ (s + 1)²`` its curvature adds to the straight path ``s`` frames after the last
+    detection. A turn begun before an occlusion bends the path the search should follow; the
+    env's observation (and a short frame stack) no longer shows it once the target has been
+    lost for a while.
+
+    Six features in fields of view, clipped to ``[−10, 10]``: ``θ̇ W`` (2) and ``½ θ̈ W²`` (2),
+    the motion and the bend over a window of ``W`` frames, and the offset (2). Zero until ``window/2``
+    detected frames of the episode exist; a slot's memory restarts with its episode."""
+
+    def __init__(self, venv: VecEnv, window: int = 40):
+        if isinstance(window, bool) or not isinstance(window, int) or window < 6:
+            raise ValueError(f"window: need an integer >= 6, got {window!r}")
+        box = venv.observation_space
+        if not isinstance(box, spaces.Box) or len(box.shape) != 1:
+            raise ValueError(f"gimbal-turn-memory: needs a flat Box observation, got {box}")
+        self.params: GimbalParams = venv.get_attr("params")[0]
+        self.window = window
+        low = np.append(box.low, np.full(6, -10.0, np.float32)).astype(box.dtype)
+        high = np.append(box.high, np.full(6, 10.0, np.float32)).astype(box.dtype)
+        super().__init__(venv, observation_space=spaces.Box(low, high, dtype=box.dtype))
+        n = venv.num_envs
+        self._angles = np.zeros((n, window, 2))  # detected level angles, oldest first
+        self._frames = np.zeros((n, window))  # their frame numbers in the episode
+        self._count = np.zeros(n, dtype=np.int64)  # detected frames held (≤ window)
+        self._frame = np.zeros(n, dtype=np.int64)  # frames into the episode
+
+    def _record(self, obs: NDArray[Any]) -> None:
+        """Push the detected slots' level estimates."""
+        seen = detected(self.params, np.asarray(obs, dtype=np.float64))
+        level = np.asarray(obs, dtype=np.float64)[:, ESTIMATE_LEVEL] * ANGLE_SCALE
+        for i in np.flatnonzero(seen):
+            self._angles[i] = np.roll(self._angles[i], -1, axis=0)
+            self._frames[i] = np.roll(self._frames[i], -1)
+            self._angles[i, -1] = level[i]
+            self._frames[i, -1] = self._frame[i]
+            self._count[i] = min(self._count[i] + 1, self.window)
+
+    def features(self) -> NDArray[np.float64]:
+        """The six features ``(n, 6)`` of every slot."""
+        n = self.num_envs
+        out = np.zeros((n, 6))
+        fov = self.params.field_of_view
+        for i in np.flatnonzero(self._count >= self.window // 2):
+            k = self._count[i]
+            y = self._angles[i, -k:].copy()
+            y[:, 0] = np.unwrap(y[:, 0])
+            t = self._frames[i, -k:] - self._frames[i, -1]  # ≤ 0, the last detection at 0
+            # least squares y = c₀ + c₁ t + c₂ t²: θ̇ = c₁, θ̈ = 2 c₂
+            design = np.stack([np.ones_like(t), t, t * t], -1)
+            coef, *_ = np.linalg.lstsq(design, y, rcond=None)
+            since = self._frame[i] - self._frames[i, -1]
+            W = self.window
+            out[i, 0:2] = coef[1] * W / fov  # θ̇ W: the motion over a window
+            out[i, 2:4] = coef[2] * W * W / fov  # ½ θ̈ W²: the bend over a window
+            out[i, 4:6] = coef[2] * (since + 1.0) ** 2 / fov
+        return np.clip(out, -10.0, 10.0)
+
+    def _with_features(self, obs: NDArray[Any]) -> NDArray[Any]:
+        return np.concatenate([obs, self.features().astype(obs.dtype)], axis=1)
+
+    def reset(self) -> NDArray[Any]:
+        obs = self.venv.reset()
+        self._count[:] = 0
+        self._frame[:] = 0
+        self._record(obs)
+        return self._with_features(obs)
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        for i in np.flatnonzero(dones):  # the terminal observation keeps the old memory
+            terminal = infos[i].get("terminal_observation")
+            if terminal is not None:
+                self._frame[i] += 1
+                infos[i]["terminal_observation"] = np.append(
+                    terminal, self.features()[i].astype(terminal.dtype)
+                )
+        self._frame += 1
+        self._frame[dones] = 0
+        self._count[dones] = 0
+        self._record(obs)
+        return self._with_features(obs), rewards, dones, infos
+
+
+def turn_memory(venv: VecEnv, **kwargs: Any) -> VecEnv:
+    """The ``gimbal-turn-memory`` wrapper factory (``sensorgym.train.wrappers.WRAPPERS``)."""
+    return TurnMemory(venv, **kwargs)

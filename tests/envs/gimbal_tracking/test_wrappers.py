@@ -3,12 +3,15 @@ imitation teacher."""
 
 from __future__ import annotations
 
+import gymnasium as gym
 import numpy as np
 import pytest
+from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents.gimbal_search import FeedForwardSearch
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward
-from sensorgym.train.env_wrappers.gimbal_tracking import AimOffsetAction, truth_aim
+from sensorgym.agents.gimbal_tracking import ANGLE_SCALE, ESTIMATE_LEVEL, CarrierFeedForward
+from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
+from sensorgym.train.env_wrappers.gimbal_tracking import AimOffsetAction, TurnMemory, truth_aim
 from sensorgym.train.evaluation import env_params, make_sb3_env
 
 ENV_ID = "sensorgym/GimbalTracking-v0"
@@ -62,3 +65,86 @@ def test_bad_arguments_are_named():
         wrapped.step(np.full((2, 2), np.nan, np.float32))
     with pytest.raises(ValueError, match="AimOffsetAction"):
         truth_aim(env)
+
+
+class _Scripted(VecEnv):
+    """A vector env of one slot whose observations follow a script: the level estimate on a
+    quadratic path, detected on the frames the script says, an episode end where it says."""
+
+    render_mode = None
+
+    def __init__(self, params, azimuth, elevation, seen, done):
+        self.params, self.k = params, 0
+        self.script = (azimuth, elevation, seen, done)
+        box = gym.spaces.Box(-10.0, 10.0, (params.obs_dim,), np.float32)
+        super().__init__(1, box, gym.spaces.Box(-1.0, 1.0, (2,), np.float32))
+
+    def _obs(self):
+        az, el, seen, _ = self.script
+        obs = np.zeros((1, self.params.obs_dim), np.float32)
+        obs[0, ESTIMATE_LEVEL] = np.array([az[self.k], el[self.k]]) / ANGLE_SCALE
+        obs[0, 19 + self.params.n_channels] = float(seen[self.k])
+        return obs
+
+    def reset(self):
+        self.k = 0
+        return self._obs()
+
+    def step_async(self, actions):
+        pass
+
+    def step_wait(self):
+        self.k += 1
+        done = np.array([self.script[3][self.k]])
+        info = (
+            [{"terminal_observation": np.zeros(self.params.obs_dim, np.float32)}]
+            if done[0]
+            else [{}]
+        )
+        return self._obs(), np.zeros(1), done, info
+
+    def close(self):
+        pass
+
+    def get_attr(self, name, indices=None):
+        return [getattr(self, name)]
+
+    def set_attr(self, name, value, indices=None):
+        setattr(self, name, value)
+
+    def env_method(self, *args, **kwargs):
+        return [None]
+
+    def env_is_wrapped(self, wrapper_class, indices=None):
+        return [False]
+
+
+def test_turn_memory_recovers_a_quadratic_path_and_restarts_with_the_episode():
+    params = GimbalParams()
+    W, frames = 40, 120
+    t = np.arange(frames, dtype=np.float64)
+    # float32 observations: angles near 0.3 rad keep ~3e-8 rad, far below the path's bend
+    rate, bend = np.array([2e-4, -1e-4]), np.array([3e-6, 1e-6])  # rad/frame, rad/frame² / 2
+    az = 0.3 + rate[0] * t + bend[0] * t**2
+    el = 0.1 + rate[1] * t + bend[1] * t**2
+    seen = (t < 70) | (t >= 100)
+    done = np.zeros(frames, bool)
+    env = TurnMemory(_Scripted(params, az, el, seen, done), window=W)
+    assert env.observation_space.shape == (params.obs_dim + 6,)
+    obs = env.reset()
+    np.testing.assert_array_equal(obs[0, -6:], 0.0)  # fewer than W/2 detections
+    fov = params.field_of_view
+    for _ in range(1, 95):
+        obs = env.step(np.zeros((1, 2), np.float32))[0]
+    # 94 frames in, the last detection at frame 69, lost for 25 frames
+    last = 69
+    slope = rate + 2.0 * bend * last  # θ̇ at the last detection
+    np.testing.assert_allclose(obs[0, -6:-4], slope * W / fov, rtol=2e-3)
+    np.testing.assert_allclose(obs[0, -4:-2], bend * W * W / fov, rtol=2e-2)
+    np.testing.assert_allclose(obs[0, -2:], bend * (94 - last + 1) ** 2 / fov, rtol=2e-2)
+    # an episode end clears the memory
+    done[95] = True
+    obs = env.step(np.zeros((1, 2), np.float32))[0]
+    np.testing.assert_array_equal(obs[0, -6:], 0.0)
+    with pytest.raises(ValueError, match="window"):
+        TurnMemory(_Scripted(params, az, el, seen, done), window=2)
