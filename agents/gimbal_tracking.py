@@ -18,6 +18,13 @@ where they aim:
   carrier's motion);
 * :class:`TruthServo` (truth-informed) — at the target's true direction next frame, from the
   true attitude then.
+
+With several gimbals (``n_gimbals > 1``) every rule acts per gimbal on that gimbal's block of
+the joint observation (:func:`gimbal_rows`): each aims at the shared track's direction, and a
+gimbal whose clear sector does not hold the direction it would aim at pre-points to the
+nearer edge of its sector at that elevation (:func:`pre_point`), ready to take the target over
+as it crosses into the sector. With one gimbal (whose sector is the whole circle) the rules
+act as they always have.
 """
 
 from __future__ import annotations
@@ -29,7 +36,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sensorgym.agents.protocol import MemorylessRule, as_batch
-from sensorgym.envs.gimbal_tracking.reference import body_angles, carrier_attitude, fly_target
+from sensorgym.envs.gimbal_tracking.reference import (
+    body_angles,
+    carrier_attitude,
+    fly_target,
+    nearest_in_sector,
+)
 from sensorgym.envs.gimbal_tracking.simulation import ATTITUDE_SCALE, GimbalParams, GimbalState
 from sensorgym.trackers.angles.baselines import AngleKalmanPredictor, KalmanAngleState
 from sensorgym.trackers.geometry import unit_from_zup_angles, wrap_angle
@@ -45,6 +57,34 @@ ESTIMATE_LEVEL, PREDICTED_LEVEL = slice(14, 16), slice(16, 18)
 ANGLE_SCALE = np.array([np.pi, np.pi / 2])
 
 
+def gimbal_rows(params: GimbalParams, obs: FloatArray) -> FloatArray:
+    """The joint observations ``(n, G · A)`` as one row per gimbal ``(n G, A)`` (scenario-major):
+    each row is laid out as one gimbal's observation
+    (:func:`~sensorgym.envs.gimbal_tracking.simulation.observe`)."""
+    return obs.reshape(obs.shape[0] * params.n_gimbals, params.agent_obs_dim)
+
+
+def pre_point(params: GimbalParams, rows: FloatArray, change: FloatArray) -> FloatArray:
+    """Body-frame changes ``(n G, 2)`` of the gimbals' rows ``rows (n G, A)`` with each aim's
+    azimuth moved into its gimbal's clear sector (:func:`~sensorgym.envs.gimbal_tracking.
+    reference.nearest_in_sector`: the nearer edge where the aim lies outside it); unchanged
+    for one gimbal."""
+    G = params.n_gimbals
+    if G == 1:
+        return change
+    azimuth = rows[:, GIMBAL][:, 0] * np.pi
+    aim = (azimuth + change[:, 0]).reshape(-1, G)
+    out = change.copy()
+    out[:, 0] = wrap_angle(nearest_in_sector(params, aim).reshape(-1) - azimuth)
+    return out
+
+
+def joint_action(params: GimbalParams, change: FloatArray) -> FloatArray:
+    """The joint action ``(n, 2G)`` of the gimbals' body-frame changes ``(n G, 2)``
+    (:func:`rate_action`)."""
+    return rate_action(params, change).reshape(-1, 2 * params.n_gimbals)
+
+
 def rate_action(params: GimbalParams, change: FloatArray) -> FloatArray:
     """Actions ``(n, 2)`` for body-frame angle changes ``(n, 2)`` (rad) within one frame:
     ``ω = Δ/T`` as a fraction of ``max_rate``, clipped to ``[−1, 1]``."""
@@ -52,7 +92,8 @@ def rate_action(params: GimbalParams, change: FloatArray) -> FloatArray:
 
 
 def detected(params: GimbalParams, obs: FloatArray) -> NDArray[np.bool_]:
-    """Whether the tracker detected the target this frame, ``(n,)``."""
+    """Whether the track measured the target this frame, ``(n,)``, from observations or from
+    one gimbal's rows."""
     return obs[:, 19 + params.n_channels] > 0.5
 
 
@@ -72,19 +113,21 @@ class HoldStill(MemorylessRule):
     params: GimbalParams
 
     def act(self, obs: FloatArray) -> FloatArray:
-        return np.zeros((obs.shape[0], 2))
+        return np.zeros((obs.shape[0], 2 * self.params.n_gimbals))
 
 
 @dataclass(frozen=True)
 class Paper001Servo(MemorylessRule):
     """Drive to paper 001's predicted direction for the next frame (theory §8.6), whether the
     target is seen or the predictor coasts through a loss; the carrier's motion is corrected a
-    frame late, as an error."""
+    frame late, as an error. Several gimbals: each pre-points outside its sector."""
 
     params: GimbalParams
 
     def act(self, obs: FloatArray) -> FloatArray:
-        return rate_action(self.params, obs[:, PREDICTED_OFFSET] * self.params.half_field)
+        rows = gimbal_rows(self.params, obs)
+        change = rows[:, PREDICTED_OFFSET] * self.params.half_field
+        return joint_action(self.params, pre_point(self.params, rows, change))
 
 
 @dataclass(frozen=True)
@@ -95,8 +138,11 @@ class HoldLastRate(MemorylessRule):
     params: GimbalParams
 
     def act(self, obs: FloatArray) -> FloatArray:
-        servo = rate_action(self.params, obs[:, PREDICTED_OFFSET] * self.params.half_field)
-        return np.where(detected(self.params, obs)[:, None], servo, obs[:, RATES])
+        rows = gimbal_rows(self.params, obs)
+        change = pre_point(self.params, rows, rows[:, PREDICTED_OFFSET] * self.params.half_field)
+        servo = rate_action(self.params, change)
+        action = np.where(detected(self.params, rows)[:, None], servo, rows[:, RATES])
+        return action.reshape(obs.shape[0], -1)
 
 
 @dataclass(frozen=True)
@@ -108,15 +154,17 @@ class CarrierFeedForward(MemorylessRule):
     params: GimbalParams
 
     def change(self, obs: FloatArray) -> FloatArray:
-        """The body-frame angle change ``(n, 2)`` (rad) it drives within the next frame."""
+        """The body-frame angle change ``(n G, 2)`` (rad) each gimbal drives within the next
+        frame (pre-pointed outside its sector)."""
         T = self.params.frame_period
+        rows = gimbal_rows(self.params, obs)
         # attitude_{k+1} ≈ attitude_k + ȧ_k T
-        ahead = (obs[:, ATTITUDE] + obs[:, ATTITUDE_RATES] * T) * ATTITUDE_SCALE
-        level = obs[:, PREDICTED_LEVEL] * ANGLE_SCALE
-        return aim_change(obs, level, ahead)
+        ahead = (rows[:, ATTITUDE] + rows[:, ATTITUDE_RATES] * T) * ATTITUDE_SCALE
+        level = rows[:, PREDICTED_LEVEL] * ANGLE_SCALE
+        return pre_point(self.params, rows, aim_change(rows, level, ahead))
 
     def act(self, obs: FloatArray) -> FloatArray:
-        return rate_action(self.params, self.change(obs))
+        return joint_action(self.params, self.change(obs))
 
 
 @dataclass(frozen=True)
@@ -178,8 +226,12 @@ class KalmanServo:
         state = KalmanAngleState(mean, state.covariance, state.count)
         az, el = kf.predict(state, 1.0)
         aim = np.where((state.count > 0)[:, None], np.stack([az, el], -1), level)
-        attitude = obs[:, ATTITUDE] * ATTITUDE_SCALE
-        action = rate_action(self.params, aim_change(obs, aim, attitude)).astype(np.float32)
+        # every gimbal aims at the filter's direction (the track's: one filter per scenario)
+        rows = gimbal_rows(self.params, obs)
+        G = self.params.n_gimbals
+        attitude = rows[:, ATTITUDE] * ATTITUDE_SCALE
+        change = pre_point(self.params, rows, aim_change(rows, np.repeat(aim, G, 0), attitude))
+        action = joint_action(self.params, change).astype(np.float32)
         return (action[0] if single else action), state
 
 
@@ -194,7 +246,8 @@ class TruthServo(MemorylessRule):
     GimbalState`, as many scenarios as observations."""
 
     def change(self, obs: FloatArray) -> FloatArray:
-        """The body-frame angle change ``(n, 2)`` (rad) onto the true direction next frame."""
+        """The body-frame angle change ``(n G, 2)`` (rad) of each gimbal onto the true direction
+        next frame (outside its clear sector: onto the nearer edge at that elevation)."""
         s: GimbalState = self.state_fn()
         p = self.params
         frame = s.frame + 1
@@ -202,9 +255,12 @@ class TruthServo(MemorylessRule):
         position, _ = fly_target(p, s.target_position, s.target_velocity, s.turn_rate, turning)
         attitude, _ = carrier_attitude(p, s.carrier_phase, frame)
         los = position / np.linalg.norm(position, axis=-1, keepdims=True)
-        change = body_angles(los, attitude) - s.gimbal_angles
-        change[:, 0] = wrap_angle(change[:, 0])
-        return change
+        aim = np.repeat(body_angles(los, attitude)[:, None, :], p.n_gimbals, 1)
+        if p.n_gimbals > 1:
+            aim[..., 0] = nearest_in_sector(p, aim[..., 0])
+        change = aim - s.gimbal_angles
+        change[..., 0] = wrap_angle(change[..., 0])
+        return change.reshape(-1, 2)
 
     def act(self, obs: FloatArray) -> FloatArray:
-        return rate_action(self.params, self.change(obs))
+        return joint_action(self.params, self.change(obs))

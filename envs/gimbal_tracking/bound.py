@@ -23,6 +23,14 @@ By induction from the state's own ``d_0``, every policy's ``d_k`` is at least
 
 the variance of a tracker sure of the object in every channel every frame. So
 ``r_k ≤ B_k = clip(ln(σ_ref/σ*_k), −R, R)`` (and ``−R ≤ B_k`` covers the frames out of view).
+
+**Several gimbals** (``n_gimbals = G > 1``, theory §11.8.2): each gimbal's fused tracker runs
+the recursion above on its own images, so each gimbal's ``d_{g,k} ≥ d*_{g,k}`` from its own
+start; the track's ``σ_k`` is one gimbal's (the measuring gimbal's,
+:func:`.reference.measuring_gimbal`), so ``σ_k ≥ min_g σ*_{g,k}`` and
+``B_k = clip(ln(σ_ref/min_g σ*_{g,k}), −R, R)``. It holds whichever gimbal measures and however
+the policy hands the target over; it does not credit two gimbals' estimates combined, which
+the env never does.
 An episode that terminates early sums fewer frames; its return is at most the largest partial
 sum ``max_T Σ_{k≤T} B_k`` over the time limit, which is the episode bound.
 
@@ -50,8 +58,9 @@ ENV_ID = "sensorgym/GimbalTracking-v0"
 
 
 def least_variance(params: GimbalParams, start: FloatArray, steps: int) -> FloatArray:
-    """``d*_k`` ``(B, steps, 2)`` (mrad²): the least posterior variance of each plane in each of
-    the next ``steps`` frames from the variances ``start (B, 2)`` (module docstring)."""
+    """``d*_k`` ``(B, steps, …, 2)`` (mrad²): the least posterior variance of each plane in each
+    of the next ``steps`` frames from the variances ``start (B, …, 2)`` (the state's
+    ``(B, G, 2)``: per gimbal; module docstring)."""
     if steps < 1:
         raise ValueError(f"steps: must be >= 1, got {steps}")
     model = params.fusion_tracker.model
@@ -59,7 +68,7 @@ def least_variance(params: GimbalParams, start: FloatArray, steps: int) -> Float
     d0 = model.transition_variance
     info = float(np.sum(np.max(model.fisher_information, axis=1)))  # Σ_n I_n*
     d = np.array(start, dtype=np.float64)
-    out = np.empty((d.shape[0], steps, 2))
+    out = np.empty((d.shape[0], steps, *d.shape[1:]))
     for k in range(steps):
         D = R2 * d + d0  # D_k = R_λ² d*_{k−1} + d₀
         d = 1.0 / (1.0 / D + info)  # d*_k = [D_k⁻¹ + Σ_n I_n*]⁻¹
@@ -70,8 +79,8 @@ def least_variance(params: GimbalParams, start: FloatArray, steps: int) -> Float
 def step_bounds(params: GimbalParams, state: GimbalState, steps: int) -> FloatArray:
     """``B_k`` ``(B, steps)`` of the module docstring: no policy's reward in each of the next
     ``steps`` frames from ``state`` exceeds it."""
-    d = least_variance(params, state.fusion_variance, steps)
-    sigma = los_sigma(params, d)  # σ*_k, rad
+    d = least_variance(params, state.fusion_variance, steps)  # (B, steps, G, 2)
+    sigma = los_sigma(params, d).min(-1)  # min_g σ*_{g,k}, rad
     R = params.reward_clip
     return np.clip(np.log(params.sigma_ref / sigma), -R, R)
 

@@ -86,9 +86,10 @@ SETTINGS = np.dtype(
 #: chains ``view_pi (N, 3, 3)`` and contrasts ``contrast (N, 3)``; the pixel noise
 #: ``noise (N,)``; the gate's pixel centres ``gate (J,)`` (mrad); paper 004's templates ``s``
 #: and slopes ``ds`` ``(N, M, J)``, its energy terms ``ss = Σ_j s²`` and ``sds = Σ_j s s′``,
-#: its Fisher information ``info`` ``(N, M)`` and its view chains ``model_pi (N, M, M)``.
+#: its Fisher information ``info`` ``(N, M)`` and its view chains ``model_pi (N, M, M)``; the
+#: gimbals' clear sectors ``sectors (G, 2)`` as ``(low, width)`` (rad, body azimuth).
 ModelArrays = namedtuple(
-    "ModelArrays", "amp omega axis view_pi contrast noise gate s ds ss sds info model_pi"
+    "ModelArrays", "amp omega axis view_pi contrast noise gate s ds ss sds info model_pi sectors"
 )
 
 #: The arrays of a :class:`.simulation.GimbalState`, in the order the kernels take them
@@ -104,14 +105,15 @@ StateArrays = namedtuple(
 
 #: Scratch of one call (:func:`workspace`): the attitude ``att (3,)`` and its rotation
 #: ``R (3, 3)``, the gate's images ``images (2, N, J)`` and profiles ``profile (2, J)``, the
-#: tracker's LLRs ``Pi`` and discriminator outputs ``dPi`` ``(N, M)``, the fused offsets
-#: ``offsets (2,)`` and the predictor's ``work (9,)`` (:func:`advance_predictor`).
+#: tracker's LLRs ``Pi`` and discriminator outputs ``dPi`` ``(N, M)``, each gimbal's fused
+#: offsets ``offsets (G, 2)`` and the predictor's ``work (9,)`` (:func:`advance_predictor`).
 Workspace = namedtuple("Workspace", "att R images profile Pi dPi offsets work")
 
 
 @njit(**INLINE)
-def workspace(channels, views, pixels):
-    """Scratch for the rows of one call: ``channels`` N, ``views`` M, ``pixels`` J."""
+def workspace(channels, views, pixels, gimbals):
+    """Scratch for the rows of one call: ``channels`` N, ``views`` M, ``pixels`` J, ``gimbals``
+    G."""
     return Workspace(
         np.empty(3),
         np.empty((3, 3)),
@@ -119,7 +121,7 @@ def workspace(channels, views, pixels):
         np.empty((2, pixels)),
         np.empty((channels, views)),
         np.empty((channels, views)),
-        np.empty(2),
+        np.empty((gimbals, 2)),
         np.empty(9),
     )
 
@@ -136,12 +138,14 @@ def step_kernel(lo, hi, settings, model, old, action, draws, new, out):
     """One frame of the scenarios ``lo ≤ b < hi`` (:func:`.reference.step`): reads the state
     ``old`` and writes the next into ``new`` (tuples of arrays in the order of
     :data:`StateArrays`; ``new`` shares ``turn_rate`` … ``phase`` with ``old``) and
-    ``out = (reward, terminated)`` ``(B,)``. ``action (B, 1, 2)`` is clipped to ``[−1, 1]``;
+    ``out = (reward, terminated)`` ``(B,)``. ``action (B, G, 2)`` is clipped to ``[−1, 1]``;
     ``draws = (gap, length, view, pixel, sensor)``: the occlusions' uniforms ``(B,)`` and
-    ``(B,)``, the views' ``(B, N)``, the gate's standard normal pixel noise ``(B, 2, N, J)``
-    and the angle sensors' ``(B, 2)``. ``model`` is in the order of :data:`ModelArrays`."""
+    ``(B,)``, the views' ``(B, G, N)``, the gates' standard normal pixel noise
+    ``(B, G, 2, N, J)`` and the angle sensors' ``(B, 2)``. ``model`` is in the order of
+    :data:`ModelArrays`."""
     p = settings[0]
-    amp, omega, axis, view_pi, contrast, noise, gate, s, ds, ss, sds, info, model_pi = model
+    amp, omega, axis, view_pi, contrast, noise, gate, s = model[:8]
+    sectors = model[13]
     frame, pos, vel, turn_rate, turn_start, turn_end, phase, gimbal, rates, views = old[:10]
     occ_start, occ_end, out_of_view, since, variance, posterior = old[10:16]
     th, ph, count, slope, delta, anchor, origin, _, _, predicted = old[16:26]
@@ -151,48 +155,52 @@ def step_kernel(lo, hi, settings, model, old, action, draws, new, out):
     predicted2, detected2, in_view2, occluded2, visible2, sigma2 = new[25:]
     u_gap, u_length, u_view, pixel_noise, sensor_noise = draws
     reward_out, terminated = out
-    ws = workspace(s.shape[0], s.shape[1], s.shape[2])
+    ws = workspace(s.shape[0], s.shape[1], s.shape[2], gimbal.shape[1])
     att, R, images, profile, Pi, dPi, offsets, work = ws
     for b in range(lo, hi):
         f = frame[b] + 1
         frame2[b] = f
-        # 1. the drives under the rate command (§11.8)
-        drive_gimbal(p, gimbal[b], rates[b], action[b, 0], gimbal2[b], rates2[b])
         # 2. the target flies on (a level turn in its interval), the carrier rolls, pitches
-        # and yaws
+        # and yaws; occlusions hide the target from every gimbal (§11.8)
         w = turn_rate[b] if turn_start[b] < f <= turn_end[b] else 0.0
         fly_target(p, pos[b], vel[b], w, pos2[b], vel2[b])
         carrier_attitude(p, amp, omega, axis, phase[b], f, att)
         body_to_level(att, R)
-        # 3. occlusions and each channel's view chain decide what can be seen (§9.1), the
-        # field of view and the vignetting where
         occluded2[b] = schedule_occlusions(
             p, f, occ_start, occ_end, u_gap[b], u_length[b], b, occ_start2, occ_end2
         )
-        step_views(view_pi, views[b], u_view[b], views2[b])
-        seen, gain = view_geometry(p, pos2[b], R, gimbal2[b])
-        in_view2[b] = seen
-        for n in range(views2.shape[1]):
-            visible2[b, n] = views2[b, n] > 0 and seen and not occluded2[b]
-        # 4. the gate's images about paper 001's prediction (or the boresight in search),
-        # paper 004's fused offsets and its MAP detection, in both planes (§9.2)
-        gate_centre(p, since[b], predicted[b], gimbal2[b], R, reference2[b])
-        render_gate(
-            p, gate, contrast, noise, pos2[b], reference2[b], views2[b], visible2[b], gain,
-            pixel_noise[b], profile, images,
-        )  # fmt: skip
-        found = True
-        for plane in range(2):
-            channel_terms(s, ds, ss, sds, noise, images[plane], Pi, dPi)
-            offsets[plane], variance2[b, plane], seen_here = fuse_channels(
-                p, info, model_pi, variance[b, plane], posterior[b, plane], Pi, dPi,
-                posterior2[b, plane],
+        seen_any, found, best = False, False, 0
+        for g in range(gimbal.shape[1]):
+            # 1. the gimbal's drives under its rate command (§11.8)
+            drive_gimbal(p, gimbal[b, g], rates[b, g], action[b, g], gimbal2[b, g], rates2[b, g])
+            # 3. its channels' view chains (§9.1); its field of view, clear sector, vignetting
+            step_views(view_pi, views[b, g], u_view[b, g], views2[b, g])
+            seen, gain = view_geometry(p, pos2[b], R, gimbal2[b, g], sectors[g])
+            seen_any = seen_any or seen
+            for n in range(views2.shape[2]):
+                visible2[b, g, n] = views2[b, g, n] > 0 and seen and not occluded2[b]
+            # 4. its gate's images about the track's prediction (or its boresight in search),
+            # paper 004's fused offsets and its MAP detection, in both planes (§9.2)
+            gate_centre(p, since[b], predicted[b], gimbal2[b, g], R, reference2[b, g])
+            render_gate(
+                p, gate, contrast, noise, pos2[b], reference2[b, g], views2[b, g], visible2[b, g],
+                gain, pixel_noise[b, g], profile, images,
             )  # fmt: skip
-            found = found and seen_here
+            here = fuse_gate(
+                p, model, images, Pi, dPi, variance[b, g], posterior[b, g], variance2[b, g],
+                posterior2[b, g], offsets[g],
+            )  # fmt: skip
+            # the measuring gimbal: of the detecting ones, the least d_α + d_β (first of equals)
+            if g > 0 and measures_better(here, found, variance2[b, g], variance2[b, best]):
+                best = g
+            found = found or here
+        in_view2[b] = seen_any
         detected2[b] = found
-        # 5. the fused direction, with the angle sensors' noise, is paper 001's measurement;
-        # its predictor coasts where nothing was detected (§8.6)
-        az, el = from_tangent_offsets(reference2[b], offsets[0] / MRAD, offsets[1] / MRAD)
+        # 5. the measuring gimbal's fused direction, with the angle sensors' noise, is paper
+        # 001's measurement; its predictor coasts where no gimbal detected the target (§8.6)
+        az, el = from_tangent_offsets(
+            reference2[b, best], offsets[best, 0] / MRAD, offsets[best, 1] / MRAD
+        )
         az = az + sensor_noise[b, 0] * p.sensor_noise
         el = el + sensor_noise[b, 1] * p.sensor_noise
         copy_predictor(th[b], ph[b], delta[b], anchor[b], th2[b], ph2[b], delta2[b], anchor2[b])
@@ -208,10 +216,11 @@ def step_kernel(lo, hi, settings, model, old, action, draws, new, out):
                          estimate2[b])  # fmt: skip
         predicted_angles(th2[b], ph2[b], ready, delta2[b], anchor2[b], origin2[b], 1.0,
                          predicted2[b])  # fmt: skip
-        # 6. σ_LOS of the fused direction, the reward, the episode's end (§11.8)
-        sigma2[b] = los_sigma(p, variance2[b, 0], variance2[b, 1])
-        reward_out[b] = reward(p, sigma2[b], seen)
-        out_of_view2[b] = 0 if seen else out_of_view[b] + 1
+        # 6. σ_LOS of the measuring gimbal's fused direction, the reward (−R out of every
+        # gimbal's view), the episode's end (§11.8)
+        sigma2[b] = los_sigma(p, variance2[b, best, 0], variance2[b, best, 1])
+        reward_out[b] = reward(p, sigma2[b], seen_any)
+        out_of_view2[b] = 0 if seen_any else out_of_view[b] + 1
         since2[b] = 0 if found else since[b] + 1
         terminated[b] = out_of_view2[b] > p.reacquire_limit
 
@@ -240,41 +249,64 @@ def lock_on_kernel(settings, azimuth, elevation, noise, predictor, origin):
 
 @njit(**JIT)
 def observe_kernel(settings, model, state, obs):
-    """The observation ``obs (B, 21 + N)`` float32 of every row of ``state`` (the table of
-    :func:`.simulation.observe`, :func:`.reference.observe`), clipped to ``±OBS_CLIP``."""
+    """The joint observation ``obs (B, G · A)`` float32 of every row of ``state``: each gimbal's
+    ``A`` entries in turn (the table of :func:`.simulation.observe`, :func:`.reference.
+    observe_agents`), clipped to ``±OBS_CLIP``."""
     p = settings[0]
     amp, omega, axis = model[:3]
+    sectors = model[13]
     frame, _, _, _, _, _, phase, gimbal, rates = state[:9]
-    posterior = state[15]
+    variance, posterior = state[14], state[15]
     estimate, predicted, detected = state[24:27]
     since, sigma = state[13], state[30]
     att, att_rates, R = np.empty(3), np.empty(3), np.empty((3, 3))
-    N = posterior.shape[2]
+    G, N = posterior.shape[1], posterior.shape[3]
+    A = obs.shape[1] // G
     half_pi = np.pi / 2
     for b in range(frame.shape[0]):
         carrier_attitude(p, amp, omega, axis, phase[b], frame[b], att)
         carrier_rates(p, amp, omega, axis, phase[b], frame[b], att_rates)
         body_to_level(att, R)
-        o = obs[b]
-        put(o, 0, gimbal[b, 0] / np.pi)
-        put(o, 1, gimbal[b, 1] / half_pi)
-        for i in range(2):
-            put(o, 2 + i, rates[b, i] / p.max_rate)
-        for i in range(3):
-            put(o, 4 + i, att[i] / p.attitude_scale)
-            put(o, 7 + i, att_rates[i] / p.attitude_scale)
-        body_offset(p, R, gimbal[b], estimate[b], o, 10)
-        body_offset(p, R, gimbal[b], predicted[b], o, 12)
-        put(o, 14, estimate[b, 0] / np.pi)
-        put(o, 15, estimate[b, 1] / half_pi)
-        put(o, 16, predicted[b, 0] / np.pi)
-        put(o, 17, predicted[b, 1] / half_pi)
-        put(o, 18, math.log(sigma[b] / p.sigma_ref))
-        for n in range(N):
-            # each channel's object probability, the mean of the two planes'
-            put(o, 19 + n, ((1.0 - posterior[b, 0, n, 0]) + (1.0 - posterior[b, 1, n, 0])) / 2.0)
-        put(o, 19 + N, 1.0 if detected[b] else 0.0)
-        put(o, 20 + N, since[b] / (p.reacquire_limit + 1))
+        for g in range(G):
+            o = obs[b, g * A : (g + 1) * A]
+            put(o, 0, gimbal[b, g, 0] / np.pi)
+            put(o, 1, gimbal[b, g, 1] / half_pi)
+            for i in range(2):
+                put(o, 2 + i, rates[b, g, i] / p.max_rate)
+            for i in range(3):
+                put(o, 4 + i, att[i] / p.attitude_scale)
+                put(o, 7 + i, att_rates[i] / p.attitude_scale)
+            body_offset(p, R, gimbal[b, g], estimate[b], o, 10)
+            ahead = body_offset(p, R, gimbal[b, g], predicted[b], o, 12)
+            put(o, 14, estimate[b, 0] / np.pi)
+            put(o, 15, estimate[b, 1] / half_pi)
+            put(o, 16, predicted[b, 0] / np.pi)
+            put(o, 17, predicted[b, 1] / half_pi)
+            put(o, 18, math.log(sigma[b] / p.sigma_ref))
+            for n in range(N):
+                # each channel's object probability, the mean of the two planes'
+                q_az, q_el = 1.0 - posterior[b, g, 0, n, 0], 1.0 - posterior[b, g, 1, n, 0]
+                put(o, 19 + n, (q_az + q_el) / 2.0)
+            put(o, 19 + N, 1.0 if detected[b] else 0.0)
+            put(o, 20 + N, since[b] / (p.reacquire_limit + 1))
+            if G > 1:
+                own = detects(posterior[b, g, 0]) and detects(posterior[b, g, 1])
+                put(o, 21 + N, 1.0 if in_sector(ahead, sectors[g]) else 0.0)
+                put(o, 22 + N, sectors[g, 0] / np.pi)
+                put(o, 23 + N, (sectors[g, 0] + sectors[g, 1]) / np.pi)
+                put(o, 24 + N, 1.0 if own else 0.0)
+                own_sigma = los_sigma(p, variance[b, g, 0], variance[b, g, 1])
+                put(o, 25 + N, math.log(own_sigma / p.sigma_ref))
+
+
+@njit(**INLINE)
+def detects(post):
+    """The MAP detection of one plane's view posteriors ``post (N, M)``: some channel's object
+    posterior beats the background's (:func:`.reference.gimbal_detections`)."""
+    for n in range(post.shape[0]):
+        if 1.0 - post[n, 0] > 0.5:
+            return True
+    return False
 
 
 @njit(**JIT)
@@ -283,6 +315,7 @@ def info_kernel(settings, model, state, diag):
     :data:`.simulation.INFO_KEYS` (:func:`.reference.info`)."""
     p = settings[0]
     amp, omega, axis = model[:3]
+    sectors = model[13]
     frame, pos, _, _, _, _, phase, gimbal = state[:8]
     estimate, _, detected, in_view, occluded, visible, sigma = state[24:]
     att, R = np.empty(3), np.empty((3, 3))
@@ -292,23 +325,33 @@ def info_kernel(settings, model, state, diag):
         r = math.sqrt(pos[b, 0] * pos[b, 0] + pos[b, 1] * pos[b, 1] + pos[b, 2] * pos[b, 2])
         lx, ly, lz = pos[b, 0] / r, pos[b, 1] / r, pos[b, 2] / r
         ex, ey, ez = unit_from_zup(estimate[b, 0], estimate[b, 1])
-        ux, uy, uz = unit_from_zup(gimbal[b, 0], gimbal[b, 1])
-        # the boresight in the level frame, R u_B
-        bx = R[0, 0] * ux + R[0, 1] * uy + R[0, 2] * uz
-        by = R[1, 0] * ux + R[1, 1] * uy + R[1, 2] * uz
-        bz = R[2, 0] * ux + R[2, 1] * uy + R[2, 2] * uz
+        # the target's body azimuth (u_B = Rᵀ u_L): which gimbals' clear sectors hold it
+        body_az = math.atan2(
+            R[0, 0] * lx + R[1, 0] * ly + R[2, 0] * lz, R[0, 1] * lx + R[1, 1] * ly + R[2, 1] * lz
+        )
+        clear_any = False
+        for g in range(gimbal.shape[1]):
+            clear_any = clear_any or in_sector(body_az, sectors[g])
+        pointing, seen = np.inf, 0.0
+        for g in range(gimbal.shape[1]):
+            ux, uy, uz = unit_from_zup(gimbal[b, g, 0], gimbal[b, g, 1])
+            # the boresight in the level frame, R u_B
+            bx = R[0, 0] * ux + R[0, 1] * uy + R[0, 2] * uz
+            by = R[1, 0] * ux + R[1, 1] * uy + R[1, 2] * uz
+            bz = R[2, 0] * ux + R[2, 1] * uy + R[2, 2] * uz
+            if in_sector(body_az, sectors[g]) or not clear_any:
+                pointing = min(pointing, angle_between(bx, by, bz, lx, ly, lz))
+            for n in range(visible.shape[2]):
+                seen += 1.0 if visible[b, g, n] else 0.0
         az, el = zup_angles(lx, ly, lz)
         diag[0, b] = angle_between(ex, ey, ez, lx, ly, lz)
-        diag[1, b] = angle_between(bx, by, bz, lx, ly, lz)
+        diag[1, b] = pointing
         diag[2, b] = wrap_angle(estimate[b, 0] - az)
         diag[3, b] = estimate[b, 1] - el
         diag[4, b] = sigma[b]
         diag[5, b] = 1.0 if in_view[b] else 0.0
         diag[6, b] = 1.0 if occluded[b] else 0.0
         diag[7, b] = 1.0 if detected[b] else 0.0
-        seen = 0.0
-        for n in range(visible.shape[1]):
-            seen += 1.0 if visible[b, n] else 0.0
         diag[8, b] = seen
 
 
@@ -321,7 +364,8 @@ def put(o, i, value):
 @njit(**INLINE)
 def body_offset(p, R, gimbal, angles, o, i):
     """``o[i], o[i + 1]``: the body-frame offset of the level direction at ``angles (2,)`` from
-    the gimbal's ``(α, β)``, azimuth wrapped, ``/ h`` (``u_B = Rᵀ u_L``)."""
+    the gimbal's ``(α, β)``, azimuth wrapped, ``/ h`` (``u_B = Rᵀ u_L``); returns the
+    direction's body azimuth."""
     x, y, z = unit_from_zup(angles[0], angles[1])
     bx = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
     by = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
@@ -329,6 +373,7 @@ def body_offset(p, R, gimbal, angles, o, i):
     az, el = zup_angles(bx, by, bz)
     put(o, i, wrap_angle(az - gimbal[0]) / p.half_field)
     put(o, i + 1, (el - gimbal[1]) / p.half_field)
+    return az
 
 
 @njit(**INLINE)
@@ -489,10 +534,11 @@ def step_views(view_pi, views, u, views2):
 
 
 @njit(**INLINE)
-def view_geometry(p, target, R, gimbal):
+def view_geometry(p, target, R, gimbal, sector):
     """Whether the target at ``target (3,)`` lies in the square field of view (and in front)
-    of the gimbal at ``gimbal (2,)`` on a carrier turned by ``R``, and the optics' contrast
-    factor ``clip(1 − v (ρ/h)², 0, 1)`` (:func:`.reference.view_geometry`)."""
+    of the gimbal at ``gimbal (2,)`` on a carrier turned by ``R`` and in its clear ``sector``
+    ``(low, width)`` (:func:`in_sector`), and the optics' contrast factor
+    ``clip(1 − v (ρ/h)², 0, 1)`` (:func:`.reference.view_geometry`)."""
     r = math.sqrt(target[0] * target[0] + target[1] * target[1] + target[2] * target[2])
     lx, ly, lz = target[0] / r, target[1] / r, target[2] / r
     # u_B = Rᵀ u_L
@@ -503,9 +549,16 @@ def view_geometry(p, target, R, gimbal):
     h = p.half_field
     bx, by, bz = unit_from_zup(gimbal[0], gimbal[1])
     front = x * bx + y * by + z * bz > 0.0
-    seen = front and abs(o_az) <= h and abs(o_el) <= h
+    seen = front and abs(o_az) <= h and abs(o_el) <= h and in_sector(math.atan2(x, y), sector)
     rho2 = (o_az * o_az + o_el * o_el) / (h * h)
     return seen, clip(1.0 - p.vignetting * rho2, 0.0, 1.0)
+
+
+@njit(**INLINE)
+def in_sector(azimuth, sector):
+    """Whether the body ``azimuth`` lies in the clear ``sector`` ``(low, width)``:
+    ``(a − low) mod 2π <= width`` (:func:`.reference.in_sector`)."""
+    return (azimuth - sector[0]) % (2.0 * math.pi) <= sector[1]
 
 
 # --- the tracker: gate, images, paper 004's fusion (theory §9.1–9.2) ---------------------------
@@ -549,6 +602,33 @@ def render_gate(p, gate, contrast, noise, target, centre, views, visible, gain, 
         for plane in range(2):
             for j in range(gate.shape[0]):
                 images[plane, n, j] = c * profile[plane, j] + noise[n] * draws[plane, n, j]
+
+
+@njit(**INLINE)
+def fuse_gate(p, model, images, Pi, dPi, variance, prior, variance2, post, offsets):
+    """Paper 004's update of both planes of one gimbal's gate images ``images (2, N, J)``
+    (:func:`channel_terms`, :func:`fuse_channels`): the prior ``variance (2,)`` and view
+    posteriors ``prior (2, N, M)`` to ``variance2``, ``post``; writes the fused offsets
+    ``offsets (2,)`` (mrad) and returns the MAP detection (an object view in both planes)."""
+    noise, _, s, ds, ss, sds, info, model_pi = model[5:13]
+    found = True
+    for plane in range(2):
+        channel_terms(s, ds, ss, sds, noise, images[plane], Pi, dPi)
+        offsets[plane], variance2[plane], seen_here = fuse_channels(
+            p, info, model_pi, variance[plane], prior[plane], Pi, dPi, post[plane]
+        )
+        found = found and seen_here
+    return found
+
+
+@njit(**INLINE)
+def measures_better(detected, best_detected, variance, best_variance):
+    """Whether a gimbal's fused direction (``detected``, ``variance (2,)``) replaces the best so
+    far as the track's measurement (:func:`.reference.measuring_gimbal`): a detection beats
+    none, and of equals the smaller ``d_α + d_β``."""
+    if detected != best_detected:
+        return detected
+    return variance[0] + variance[1] < best_variance[0] + best_variance[1]
 
 
 @njit(**INLINE)

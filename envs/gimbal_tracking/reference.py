@@ -154,9 +154,10 @@ def carrier_attitude(
 def drive_gimbal(
     params: GimbalParams, angles: FloatArray, rates: FloatArray, action: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
-    """One frame of the rate- and acceleration-limited drives: the commanded rate
-    ``ω_c = a · max_rate`` is approached by at most ``max_acceleration · T`` per frame and the
-    angles move by the new rate over the frame; elevation stops at its limits (rate zeroed)."""
+    """One frame of the rate- and acceleration-limited drives of every gimbal (``(..., 2)``:
+    azimuth, elevation): the commanded rate ``ω_c = a · max_rate`` is approached by at most
+    ``max_acceleration · T`` per frame and the angles move by the new rate over the frame;
+    elevation stops at its limits (rate zeroed)."""
     T = params.frame_period
     command = np.clip(action, -1.0, 1.0) * params.max_rate
     step = params.max_acceleration * T
@@ -164,10 +165,10 @@ def drive_gimbal(
     new_rates = rates + np.clip(command - rates, -step, step)
     new_angles = angles + new_rates * T
     low, high = params.elevation_limits
-    stopped = (new_angles[:, 1] < low) | (new_angles[:, 1] > high)
-    new_angles[:, 0] = wrap_angle(new_angles[:, 0])
-    new_angles[:, 1] = np.clip(new_angles[:, 1], low, high)
-    new_rates[:, 1] = np.where(stopped, 0.0, new_rates[:, 1])
+    stopped = (new_angles[..., 1] < low) | (new_angles[..., 1] > high)
+    new_angles[..., 0] = wrap_angle(new_angles[..., 0])
+    new_angles[..., 1] = np.clip(new_angles[..., 1], low, high)
+    new_rates[..., 1] = np.where(stopped, 0.0, new_rates[..., 1])
     return new_angles, new_rates
 
 
@@ -208,27 +209,47 @@ def schedule_occlusions(
 
 
 def step_views(params: GimbalParams, views: IntArray, rng: np.random.Generator) -> IntArray:
-    """Each channel's view ``(B, N)`` after one step of its Markov chain ``π^{(n)}`` (theory
-    §9.1; view 0 is the background: the object does not stand out in that band)."""
+    """Each gimbal's channels' views ``(B, G, N)`` after one step of their Markov chains
+    ``π^{(n)}`` (theory §9.1; view 0 is the background: the object does not stand out in that
+    band); one uniform each, in the order of the array (scenario, gimbal, channel)."""
     pi = params.view_transition  # (N, M, M)
-    rows = pi[np.arange(views.shape[1])[None, :], views]  # (B, N, M)
+    rows = pi[np.arange(views.shape[-1]), views]  # (B, G, N, M)
     u = rng.uniform(size=views.shape)[..., None]
     return np.minimum(np.sum(np.cumsum(rows, -1) < u, -1), rows.shape[-1] - 1)
+
+
+def in_sector(params: GimbalParams, azimuth: FloatArray) -> BoolArray:
+    """Whether body azimuths ``azimuth (..., G)`` lie in each gimbal's clear sector
+    (:attr:`~.simulation.GimbalParams.sectors`: ``(a − low) mod 2π <= width``)."""
+    low, width = params.sectors[:, 0], params.sectors[:, 1]
+    return np.mod(azimuth - low, 2.0 * np.pi) <= width
+
+
+def nearest_in_sector(params: GimbalParams, azimuth: FloatArray) -> FloatArray:
+    """Body azimuths ``azimuth (..., G)`` moved into each gimbal's clear sector: unchanged
+    inside it, else the nearer of its edges (where a gimbal waits for the hand-over)."""
+    low, width = params.sectors[:, 0], params.sectors[:, 1]
+    past = np.mod(azimuth - low, 2.0 * np.pi)  # counter-clockwise from low, [0, 2π)
+    # outside: past the high edge by past − width, short of the low edge by 2π − past
+    edge = np.where(past - width <= 2.0 * np.pi - past, low + width, low)
+    return np.where(past <= width, azimuth, wrap_angle(edge))
 
 
 def view_geometry(
     params: GimbalParams, target: FloatArray, attitude: FloatArray, gimbal: FloatArray
 ) -> tuple[FloatArray, BoolArray, FloatArray]:
-    """The target's offsets ``(B, 2)`` from the boresight in the image (rad), whether it lies in
-    the square field of view (and in front), and the optics' contrast factor
-    ``1 − v (ρ/h)²`` (``ρ`` the radial offset, ``h`` half the field of view, ``v`` the
-    vignetting, floored at 0)."""
+    """The target's offsets ``(B, G, 2)`` from each gimbal's boresight ``gimbal (B, G, 2)`` in
+    its image (rad), whether it is in that gimbal's view — in its square field of view, in
+    front, and in its clear sector (its body azimuth, :func:`in_sector`) — and the optics'
+    contrast factor ``1 − v (ρ/h)²`` (``ρ`` the radial offset, ``h`` half the field of view,
+    ``v`` the vignetting, floored at 0)."""
     los = target / np.linalg.norm(target, axis=-1, keepdims=True)
-    u_body = np.einsum("bji,bj->bi", body_to_level(attitude), los)
+    u_body = np.einsum("bji,bj->bi", body_to_level(attitude), los)[:, None, :]
     offsets = tangent_offsets(u_body, gimbal)
     h = params.half_field
-    front = np.sum(u_body * unit_from_zup_angles(gimbal[:, 0], gimbal[:, 1]), -1) > 0.0
-    in_view = front & np.all(np.abs(offsets) <= h, -1)
+    front = np.sum(u_body * unit_from_zup_angles(gimbal[..., 0], gimbal[..., 1]), -1) > 0.0
+    clear = in_sector(params, np.arctan2(u_body[..., 0], u_body[..., 1]))
+    in_view = front & np.all(np.abs(offsets) <= h, -1) & clear
     rho2 = np.sum(offsets**2, -1) / h**2
     return offsets, in_view, np.clip(1.0 - params.vignetting * rho2, 0.0, 1.0)
 
@@ -239,15 +260,16 @@ def view_geometry(
 def gate_centre(
     params: GimbalParams, state: GimbalState, gimbal: FloatArray, attitude: FloatArray
 ) -> FloatArray:
-    """Level angles ``(B, 2)`` the tracking gate is centred on this frame: paper 001's
-    prediction, or — once the target has gone undetected for ``search_after`` frames — the
-    boresight (the gimbal's angles ``gimbal (B, 2)`` seen from ``attitude (B, 3)``, both known
-    to the tracker): a coasted prediction that has missed the target no longer finds it, and
-    re-acquisition takes pointing the field of view's centre at it."""
+    """Level angles ``(B, G, 2)`` each gimbal's tracking gate is centred on this frame: the
+    shared track's prediction, or — once the target has gone undetected for ``search_after``
+    frames — the gimbal's own boresight (its angles ``gimbal (B, G, 2)`` seen from
+    ``attitude (B, 3)``, both known to the tracker): a coasted prediction that has missed the
+    target no longer finds it, and re-acquisition takes pointing a field of view's centre at
+    it."""
     searching = state.since_detection >= params.search_after
-    boresight = level_direction(gimbal, attitude)
+    boresight = level_direction(gimbal, attitude[:, None, :])
     az, el = zup_angles_from_unit(boresight)
-    return np.where(searching[:, None], np.stack([az, el], -1), state.predicted)
+    return np.where(searching[:, None, None], np.stack([az, el], -1), state.predicted[:, None])
 
 
 def render_gate(
@@ -258,24 +280,24 @@ def render_gate(
     gain: FloatArray,
     rng: np.random.Generator,
 ) -> FloatArray:
-    """Images ``(B, 2, N, J)`` of the tracking gate of each channel in each plane (theory §9.1
-    eq. (2)): the view's blurred rectangle shifted by the target's offset ``residual (B, 2)``
-    (mrad) from the gate centre, times the optics' ``gain (B,)``, where ``visible (B, N)``;
-    plus white pixel noise ``σ_n``."""
-    x = params.gate_centres_mrad[None, None, :] - residual[..., None]  # (B, 2, J)
+    """Images ``(B, G, 2, N, J)`` of each gimbal's tracking gate in each channel and plane
+    (theory §9.1 eq. (2)): the view's blurred rectangle shifted by the target's offset
+    ``residual (B, G, 2)`` (mrad) from the gate centre, times the optics' ``gain (B, G)``,
+    where ``visible (B, G, N)``; plus white pixel noise ``σ_n`` (drawn in the array's order)."""
+    x = params.gate_centres_mrad - residual[..., None]  # (B, G, 2, J)
     profile, _ = box_profile(x, params.target_size * MRAD, params.blur * MRAD)
-    contrast = params.view_contrast[np.arange(views.shape[1])[None, :], views]  # (B, N)
-    contrast = np.where(visible, contrast * gain[:, None], 0.0)
-    noise = rng.standard_normal((*residual.shape, views.shape[1], x.shape[-1]))
-    sigma = np.asarray(params.channel_noise)[None, None, :, None]
-    return contrast[:, None, :, None] * profile[:, :, None, :] + sigma * noise
+    contrast = params.view_contrast[np.arange(views.shape[-1]), views]  # (B, G, N)
+    contrast = np.where(visible, contrast * gain[..., None], 0.0)
+    noise = rng.standard_normal((*residual.shape, views.shape[-1], x.shape[-1]))
+    sigma = np.asarray(params.channel_noise)[:, None]
+    return contrast[..., None, :, None] * profile[..., :, None, :] + sigma * noise
 
 
 def fuse_channels(params: GimbalParams, state: FusionState, images: FloatArray) -> FusionState:
-    """Paper 004's update (theory §9.2) of both planes, ``images (B, 2, N, J)``: the tracker
-    runs on ``2B`` rows (azimuth and elevation planes of each scenario), its gate centred on
-    the prediction, so its extrapolated offset is 0."""
-    return params.fusion_tracker.update(state, images.reshape(-1, *images.shape[2:]))
+    """Paper 004's update (theory §9.2) of both planes of every gimbal, ``images
+    (B, G, 2, N, J)``: the tracker runs on ``2BG`` rows (each scenario's gimbals' azimuth and
+    elevation planes), its gate centred on the prediction, so its extrapolated offset is 0."""
+    return params.fusion_tracker.update(state, images.reshape(-1, *images.shape[-2:]))
 
 
 def advance_predictor(
@@ -314,9 +336,25 @@ def predicted_angles(
 
 def los_sigma(params: GimbalParams, variance: FloatArray) -> FloatArray:
     """``σ_LOS`` (rad): the angular error bound of the fused direction,
-    ``√(d_α + d_β + 2 σ_s²)`` with ``d`` the fused tracker's posterior variances ``(B, 2)``
+    ``√(d_α + d_β + 2 σ_s²)`` with ``d`` the fused tracker's posterior variances ``(..., 2)``
     (mrad²) and ``σ_s`` the angle sensors' noise."""
     return np.sqrt(np.sum(variance, -1) / MRAD**2 + 2.0 * params.sensor_noise**2)
+
+
+def gimbal_detections(view_posterior: FloatArray) -> BoolArray:
+    """Each gimbal's MAP detection ``(B, G)`` from its view posteriors ``(B, G, 2, N, M)``
+    (theory §9.2): some channel's object posterior beats the background's, in both planes."""
+    return np.all(np.any(1.0 - view_posterior[..., 0] > 0.5, -1), -1)
+
+
+def measuring_gimbal(variance: FloatArray, detected: BoolArray) -> IntArray:
+    """The gimbal ``(B,)`` whose fused direction is the track's measurement: of the gimbals
+    that detected the target (``detected (B, G)``), the one of least posterior variance
+    ``d_α + d_β`` (``variance (B, G, 2)``); of all of them where none did (its ``σ_LOS`` is
+    the track's); the first of equals."""
+    total = variance.sum(-1)
+    key = np.where(detected.any(-1, keepdims=True) & ~detected, np.inf, total)
+    return np.argmin(key, -1)
 
 
 def reward(params: GimbalParams, sigma: FloatArray, in_view: BoolArray) -> FloatArray:
@@ -360,31 +398,39 @@ def start(
     """Scenarios with the target at ``target_position (B, 3)`` (m, level frame) flying at
     ``target_velocity (B, 3)`` (m/s) at frame 0, after lock-on: the rest is drawn, in this
     order — its turn (rate, sign, onset, length), the carrier's phases, the first occlusion,
-    the channels' views, the gimbal's cue error, the lock-on's sensor noise. ``lock``
-    replaces :func:`lock_on` (same signature and draws: the simulation's compiled one)."""
+    the channels' views ``(B, G, N)``, the gimbals' cue errors ``(B, G, 2)``, the lock-on's
+    sensor noise. ``lock`` replaces :func:`lock_on` (same signature and draws: the
+    simulation's compiled one). Each gimbal points at the target within its cue error where
+    its clear sector holds the target, else at the target's elevation and the nearer edge of
+    its sector (:func:`nearest_in_sector`); all at rest."""
     from sensorgym.envs.gimbal_tracking.simulation import GimbalState
 
-    B = target_position.shape[0]
+    B, G = target_position.shape[0], params.n_gimbals
     rate = rng.uniform(*params.turn_rate, B) * draw_signs(rng, B)
     onset = draw_integers(rng, params.turn_start, B)
     length = draw_integers(rng, params.turn_length, B)
     phases = rng.uniform(-np.pi, np.pi, (B, params.motion_terms[0].shape[0]))
     gap = draw_integers(rng, params.occlusion_gap, B)
     occ = draw_integers(rng, params.occlusion_length, B)
-    views = draw_integers(rng, (1, params.view_contrast.shape[1] - 1), (B, params.n_channels))
-    cue = rng.standard_normal((B, 2)) * params.cue_error
+    views = draw_integers(rng, (1, params.view_contrast.shape[1] - 1), (B, G, params.n_channels))
+    cue = rng.standard_normal((B, G, 2)) * params.cue_error
     lock = lock_on if lock is None else lock
     predictor, origin = lock(params, target_position, target_velocity, rng)
 
     frame = np.zeros(B, dtype=np.int64)
     attitude, _ = carrier_attitude(params, phases, frame)
     los = target_position / np.linalg.norm(target_position, axis=-1, keepdims=True)
-    gimbal = body_angles(los, attitude) + cue
-    gimbal[:, 1] = np.clip(gimbal[:, 1], *params.elevation_limits)
-    _, in_view, _ = view_geometry(params, target_position, attitude, gimbal)
-    fusion = params.fusion_tracker.initial_state(2 * B, variance=(params.pixel_pitch * MRAD) ** 2)
+    aim = np.repeat(body_angles(los, attitude)[:, None, :], G, 1)
+    aim[..., 0] = nearest_in_sector(params, aim[..., 0])
+    gimbal = aim + cue
+    gimbal[..., 1] = np.clip(gimbal[..., 1], *params.elevation_limits)
+    _, seen, _ = view_geometry(params, target_position, attitude, gimbal)
+    in_view = seen.any(-1)
+    fusion = params.fusion_tracker.initial_state(
+        2 * B * G, variance=(params.pixel_pitch * MRAD) ** 2
+    )
     estimate = predicted_angles(params.predictor, predictor, origin, 0.0)
-    variance = fusion.variance.reshape(B, 2)
+    variance = fusion.variance.reshape(B, G, 2)
     return GimbalState(
         frame=frame,
         target_position=target_position.copy(),
@@ -394,24 +440,24 @@ def start(
         turn_end=onset + length,
         carrier_phase=phases,
         gimbal_angles=gimbal,
-        gimbal_rates=np.zeros((B, 2)),
+        gimbal_rates=np.zeros((B, G, 2)),
         views=views,
         occlusion_start=gap,
         occlusion_end=gap + occ,
         out_of_view=np.where(in_view, 0, 1),
         since_detection=np.zeros(B, dtype=np.int64),
         fusion_variance=variance,
-        view_posterior=fusion.view_posterior.reshape(B, 2, *fusion.view_posterior.shape[1:]),
+        view_posterior=fusion.view_posterior.reshape(B, G, 2, *fusion.view_posterior.shape[1:]),
         predictor=predictor,
         predictor_origin=origin,
-        reference=estimate,
+        reference=np.repeat(estimate[:, None, :], G, 1),
         estimate=estimate,
         predicted=predicted_angles(params.predictor, predictor, origin, 1.0),
         detected=np.ones(B, dtype=bool),
         in_view=in_view,
         occluded=np.zeros(B, dtype=bool),
-        visible=np.ones((B, params.n_channels), dtype=bool) & in_view[:, None],
-        sigma_los=los_sigma(params, variance),
+        visible=np.ones((B, G, params.n_channels), dtype=bool) & seen[..., None],
+        sigma_los=los_sigma(params, variance[:, 0]),
     )
 
 
@@ -429,12 +475,17 @@ def reset(
 def step(
     params: GimbalParams, state: GimbalState, action: FloatArray, rng: np.random.Generator
 ) -> tuple[GimbalState, FloatArray, BoolArray]:
-    """One frame of every scenario under ``action (B, 1, 2)`` (already checked finite)."""
+    """One frame of every scenario under ``action (B, G, 2)`` (already checked finite).
+
+    Every gimbal images its gate and runs its fused tracker; the track (one paper 001
+    predictor) takes the fused direction of the detecting gimbal of least posterior variance
+    (:func:`measuring_gimbal`), whose ``σ_LOS`` is the reward's; the target is in view while
+    it is in some gimbal's (field of view and clear sector)."""
     from sensorgym.envs.gimbal_tracking.simulation import GimbalState
 
-    B = state.frame.shape[0]
+    B, G = state.frame.shape[0], params.n_gimbals
     frame = state.frame + 1
-    gimbal, rates = drive_gimbal(params, state.gimbal_angles, state.gimbal_rates, action[:, 0])
+    gimbal, rates = drive_gimbal(params, state.gimbal_angles, state.gimbal_rates, action)
     turning = (frame > state.turn_start) & (frame <= state.turn_end)
     position, velocity = fly_target(
         params, state.target_position, state.target_velocity, state.turn_rate, turning
@@ -444,27 +495,32 @@ def step(
         params, frame, state.occlusion_start, state.occlusion_end, rng
     )
     views = step_views(params, state.views, rng)
-    _, in_view, gain = view_geometry(params, position, attitude, gimbal)
-    visible = (views > 0) & (in_view & ~occluded)[:, None]
+    _, seen, gain = view_geometry(params, position, attitude, gimbal)  # (B, G)
+    in_view = seen.any(-1)
+    visible = (views > 0) & (seen & ~occluded[:, None])[..., None]
 
     reference = gate_centre(params, state, gimbal, attitude)
-    # the target's offset from the gate centre, in the level frame's image plane (the image
-    # derotated with the known attitude)
+    # the target's offset from each gate's centre, in the level frame's image plane (the
+    # images derotated with the known attitude)
     los = position / np.linalg.norm(position, axis=-1, keepdims=True)
-    residual = tangent_offsets(los, reference) * MRAD
+    residual = tangent_offsets(los[:, None, :], reference) * MRAD
     images = render_gate(params, residual, views, visible, gain, rng)
+    rows = 2 * B * G
     prior = FusionState(
-        estimate=np.zeros(2 * B),
-        variance=state.fusion_variance.reshape(2 * B),
-        view_posterior=state.view_posterior.reshape(2 * B, *state.view_posterior.shape[2:]),
-        loop_open=np.zeros(2 * B, dtype=bool),
+        estimate=np.zeros(rows),
+        variance=state.fusion_variance.reshape(rows),
+        view_posterior=state.view_posterior.reshape(rows, *state.view_posterior.shape[3:]),
+        loop_open=np.zeros(rows, dtype=bool),
     )
     fused = fuse_channels(params, prior, images)
-    # MAP decision (theory §9.2): detected where some channel's object posterior beats the
-    # background's, in both planes
-    detected = np.all(np.any(fused.object_probability > 0.5, -1).reshape(B, 2), -1)
-    offsets = fused.estimate.reshape(B, 2) / MRAD
-    measured = from_tangent_offsets(reference, offsets)
+    posterior = fused.view_posterior.reshape(B, G, 2, *fused.view_posterior.shape[1:])
+    variance = fused.variance.reshape(B, G, 2)
+    # MAP decision (theory §9.2) per gimbal; the track's measurement from the best detecting
+    best = measuring_gimbal(variance, gimbal_detections(posterior))
+    detected = gimbal_detections(posterior).any(-1)
+    rows_b = np.arange(B)
+    offsets = fused.estimate.reshape(B, G, 2)[rows_b, best] / MRAD
+    measured = from_tangent_offsets(reference[rows_b, best], offsets)
     measured = measured + rng.standard_normal((B, 2)) * params.sensor_noise
     predictor, origin = advance_predictor(
         params,
@@ -475,8 +531,7 @@ def step(
         reacquired=detected & (state.since_detection > 0),
     )
 
-    variance = fused.variance.reshape(B, 2)
-    sigma = los_sigma(params, variance)
+    sigma = los_sigma(params, variance[rows_b, best])
     out_of_view = np.where(in_view, 0, state.out_of_view + 1)
     new = GimbalState(
         frame=frame,
@@ -494,7 +549,7 @@ def step(
         out_of_view=out_of_view,
         since_detection=np.where(detected, 0, state.since_detection + 1),
         fusion_variance=variance,
-        view_posterior=fused.view_posterior.reshape(B, 2, *fused.view_posterior.shape[1:]),
+        view_posterior=posterior,
         predictor=predictor,
         predictor_origin=origin,
         reference=reference,
@@ -513,47 +568,65 @@ def step(
 # -- what the agent sees, and the diagnostics -----------------------------------------------
 
 
-def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
-    """The agent's observation ``(B, 21 + N)`` float32 (the table of
-    :func:`.simulation.observe`): the drives, the carrier's attitude and rates, the body
-    offsets and level angles of the tracker's estimate and prediction, ``ln(σ_LOS/σ_ref)``,
-    the channels' object probabilities, the detection and the frames since it."""
+def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """Each gimbal's observation ``(B, G, agent_obs_dim)`` float32 (the table of
+    :func:`.simulation.observe`): its drives, the carrier's attitude and rates, the body
+    offsets of the track's estimate and prediction from its boresight and their level angles,
+    ``ln(σ_LOS/σ_ref)``, its channels' object probabilities, the track's detection and the
+    frames since it; for ``G > 1`` also whether its clear sector holds the prediction, the
+    sector's edges, its own detection and its own ``ln(σ/σ_ref)``."""
     from sensorgym.envs.gimbal_tracking.simulation import ATTITUDE_SCALE
 
+    B, G = state.frame.shape[0], params.n_gimbals
     attitude, rates = carrier_attitude(params, state.carrier_phase, state.frame)
-    g = state.gimbal_angles
+    g = state.gimbal_angles  # (B, G, 2)
     h = params.half_field
     scale = np.array([np.pi, np.pi / 2])
 
+    def body(angles: FloatArray) -> FloatArray:
+        return body_angles(unit_from_zup_angles(angles[:, 0], angles[:, 1]), attitude)[:, None]
+
     def offset(angles: FloatArray) -> FloatArray:
-        d = body_angles(unit_from_zup_angles(angles[:, 0], angles[:, 1]), attitude) - g
-        d[:, 0] = wrap_angle(d[:, 0])
+        d = body(angles) - g
+        d[..., 0] = wrap_angle(d[..., 0])
         return d / h
 
-    probability = 1.0 - state.view_posterior[..., 0]  # (B, 2, N)
-    obs = np.concatenate(
-        [
-            g / scale,
-            state.gimbal_rates / params.max_rate,
-            attitude / ATTITUDE_SCALE,
-            rates / ATTITUDE_SCALE,
-            offset(state.estimate),
-            offset(state.predicted),
-            state.estimate / scale,
-            state.predicted / scale,
-            np.log(state.sigma_los / params.sigma_ref)[:, None],
-            probability.mean(1),
-            state.detected[:, None].astype(np.float64),
-            (state.since_detection / (params.reacquire_limit + 1))[:, None],
-        ],
-        -1,
-    )
-    return clip_observation(obs)
+    def shared(x: FloatArray) -> FloatArray:
+        return np.broadcast_to(x[:, None, :], (B, G, x.shape[-1]))
+
+    probability = 1.0 - state.view_posterior[..., 0]  # (B, G, 2, N)
+    blocks = [
+        g / scale,
+        state.gimbal_rates / params.max_rate,
+        shared(attitude / ATTITUDE_SCALE),
+        shared(rates / ATTITUDE_SCALE),
+        offset(state.estimate),
+        offset(state.predicted),
+        shared(state.estimate / scale),
+        shared(state.predicted / scale),
+        shared(np.log(state.sigma_los / params.sigma_ref)[:, None]),
+        probability.mean(2),
+        shared(state.detected[:, None].astype(np.float64)),
+        shared((state.since_detection / (params.reacquire_limit + 1))[:, None]),
+    ]
+    if G > 1:
+        low, width = params.sectors[:, 0], params.sectors[:, 1]
+        clear = in_sector(params, body(state.predicted)[..., 0])
+        own = los_sigma(params, state.fusion_variance)
+        blocks += [
+            clear[..., None].astype(np.float64),
+            np.broadcast_to(np.stack([low, low + width], -1) / np.pi, (B, G, 2)),
+            gimbal_detections(state.view_posterior)[..., None].astype(np.float64),
+            np.log(own / params.sigma_ref)[..., None],
+        ]
+    return clip_observation(np.concatenate(blocks, -1))
 
 
-def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
-    """The one gimbal's view ``(B, 1, obs_dim)``: :func:`observe`."""
-    return observe(params, state)[:, None, :]
+def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
+    """The joint observation ``(B, obs_dim)``: the gimbals' observations
+    (:func:`observe_agents`) one after another."""
+    obs = observe_agents(params, state)
+    return obs.reshape(obs.shape[0], -1)
 
 
 def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
@@ -561,20 +634,24 @@ def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
     los = state.target_position / np.linalg.norm(state.target_position, axis=-1, keepdims=True)
     est = unit_from_zup_angles(state.estimate[:, 0], state.estimate[:, 1])
     attitude, _ = carrier_attitude(params, state.carrier_phase, state.frame)
-    boresight = level_direction(state.gimbal_angles, attitude)
+    boresight = level_direction(state.gimbal_angles, attitude[:, None, :])  # (B, G, 3)
     truth = np.stack(zup_angles_from_unit(los), -1)
 
     def angle(u: FloatArray, w: FloatArray) -> FloatArray:
         return np.arctan2(np.linalg.norm(np.cross(u, w), axis=-1), np.sum(u * w, -1))
 
+    # the pointing error of the gimbals whose clear sector holds the target (of all if none)
+    pointing = angle(boresight, los[:, None, :])
+    clear = in_sector(params, body_angles(los, attitude)[:, None, 0])
+    clear = clear | ~clear.any(-1, keepdims=True)
     return {
         "los_error": angle(est, los),
-        "pointing_error": angle(boresight, los),
+        "pointing_error": np.where(clear, pointing, np.inf).min(-1),
         "estimate_error_azimuth": wrap_angle(state.estimate[:, 0] - truth[:, 0]),
         "estimate_error_elevation": state.estimate[:, 1] - truth[:, 1],
         "sigma_los": state.sigma_los,
         "in_view": state.in_view.astype(np.float64),
         "occluded": state.occluded.astype(np.float64),
         "detected": state.detected.astype(np.float64),
-        "visible_channels": state.visible.sum(-1).astype(np.float64),
+        "visible_channels": state.visible.sum((-2, -1)).astype(np.float64),
     }

@@ -12,6 +12,8 @@ from sensorgym.envs.gimbal_tracking.reference import (
     MRAD,
     body_to_level,
     carrier_attitude,
+    gimbal_detections,
+    measuring_gimbal,
     tangent_offsets,
 )
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams, GimbalState
@@ -24,12 +26,22 @@ TRAIL = 25
 _LEGEND_PX = 48
 
 
-def image_offsets(params: GimbalParams, state: GimbalState, directions: np.ndarray) -> np.ndarray:
+def shown_gimbal(state: GimbalState) -> int:
+    """The gimbal drawn for scenario 0: the one whose fused direction the track measured (or
+    would have: :func:`~.reference.measuring_gimbal`)."""
+    detected = gimbal_detections(state.view_posterior[:1])
+    return int(measuring_gimbal(state.fusion_variance[:1], detected)[0])
+
+
+def image_offsets(
+    params: GimbalParams, state: GimbalState, directions: np.ndarray, gimbal: int = 0
+) -> np.ndarray:
     """Offsets (mrad) in scenario 0's image of level-frame ``directions (T, 3)``, seen through
-    the boresight of ``state``."""
+    the boresight of ``state``'s gimbal ``gimbal``."""
     attitude, _ = carrier_attitude(params, state.carrier_phase[:1], state.frame[:1])
     u_body = directions @ body_to_level(attitude)[0]  # rows: Rᵀ u
-    return MRAD * tangent_offsets(u_body, np.broadcast_to(state.gimbal_angles[0], (len(u_body), 2)))
+    axis = np.broadcast_to(state.gimbal_angles[0, gimbal], (len(u_body), 2))
+    return MRAD * tangent_offsets(u_body, axis)
 
 
 class Scene:
@@ -38,7 +50,8 @@ class Scene:
     tracking gate, the tracker's estimate with its 2σ ellipse (paper 004's posterior variances)
     and its prediction for the next frame, a legend and a status line (step, time, the step's
     reward and the return so far, ``σ_LOS``, the channels the target stands out in). The view
-    is fixed: 1.6 half fields around the boresight."""
+    is fixed: 1.6 half fields around the boresight. With several gimbals it is the measuring
+    gimbal's (:func:`shown_gimbal`), named in the status line."""
 
     def __init__(self, params: GimbalParams, size: int = 480):
         from matplotlib.lines import Line2D
@@ -80,28 +93,30 @@ class Scene:
         """The RGB frame ``(size + 48, size, 3)`` of the episode so far (``rewards``: one per
         step, for the status line)."""
         params, now = self.params, history[-1]
+        k = shown_gimbal(now)
         trail = np.array([s.target_position[0] for s in history[-TRAIL:]])
         trail /= np.linalg.norm(trail, axis=-1, keepdims=True)
-        track = image_offsets(params, now, trail)
+        track = image_offsets(params, now, trail, k)
         self.track.set_data(track[:, 0], track[:, 1])
         self.target.set_data([track[-1, 0]], [track[-1, 1]])
         self.target.set_markerfacecolor("none" if now.occluded[0] else "tab:red")
-        angles = np.stack([now.reference[0], now.estimate[0], now.predicted[0]])
+        angles = np.stack([now.reference[0, k], now.estimate[0], now.predicted[0]])
         gate, est, pred = image_offsets(
-            params, now, unit_from_zup_angles(angles[:, 0], angles[:, 1])
+            params, now, unit_from_zup_angles(angles[:, 0], angles[:, 1]), k
         )
         g = self.half_gate
         self.gate.set_data(
             gate[0] + g * np.array([-1, 1, 1, -1, -1]), gate[1] + g * np.array([-1, -1, 1, 1, -1])
         )
         self.estimate.set_data([est[0]], [est[1]])
-        ring = sigma_ellipse(np.diag(now.fusion_variance[0]))
+        ring = sigma_ellipse(np.diag(now.fusion_variance[0, k]))
         self.ellipse.set_data(est[0] + ring[0], est[1] + ring[1])
         self.predicted.set_data([pred[0]], [pred[1]])
-        seen = int(now.visible[0].sum())
+        seen = int(now.visible[0, k].sum())
         t = float(now.frame[0]) * params.frame_period
+        which = f"gimbal {k} of {params.n_gimbals}   " if params.n_gimbals > 1 else ""
         self.title.set_text(
-            f"{status_line(t, rewards)}\nσ_LOS {MRAD * float(now.sigma_los[0]):.3g} mrad   "
+            f"{status_line(t, rewards)}\n{which}σ_LOS {MRAD * float(now.sigma_los[0]):.3g} mrad   "
             f"seen in {seen} of {params.n_channels} channels"
             + ("   occluded" if now.occluded[0] else "")
         )

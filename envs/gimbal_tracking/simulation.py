@@ -59,6 +59,10 @@ IntArray = NDArray[np.int64]
 #: attitude (rad) and attitude rates (rad/s) are observed divided by this
 ATTITUDE_SCALE = 0.1
 
+#: the default sectors of ``G > 1`` gimbals reach this far past the equal split on each
+#: side, rad (2.5°: neighbours share 5°, about three fields of view, for the hand-over)
+SECTOR_OVERLAP = float(np.deg2rad(2.5))
+
 #: no settings take compiled paths the defaults do not: every params compiles the same step and
 #: lock-on (the channels, views, pixels, carrier terms and predictor window are array lengths,
 #: read inside the loops; the switches of the trackers are fixed by the env)
@@ -167,7 +171,21 @@ class GimbalParams(FieldsOnlyPickle):
     """Frames without detection after which the tracking gate leaves the coasting prediction
     for the boresight (search: re-acquisition where the gimbal points), frames."""
     reacquire_limit: int = 50
-    """The episode terminates once the target has been out of view for more frames than this."""
+    """The episode terminates once the target has been out of view for more frames than this
+    (out of view of every gimbal)."""
+    n_gimbals: int = 1
+    """Gimbals on the carrier, ``G``, sharing one target and one track (issue 40: a hand-over
+    problem): each has its own drives, channels and paper 004 fused tracker, and is one
+    PettingZoo agent (``gimbal_0`` …); they sit at the carrier's one point (their parallax at
+    the target's kilometres is negligible)."""
+    gimbal_sectors: tuple[tuple[float, float], ...] = ()
+    """Per gimbal, the body-frame azimuth interval ``(low, high)``, rad, in which it has a clear
+    view (``−π ≤ low < high ≤ low + 2π``, counter-clockwise from ``low`` to ``high`` as azimuth
+    grows); outside it the carrier's superstructure blocks its line of sight: the target is
+    not visible to that gimbal (an occlusion for it alone). Empty: one gimbal sees the whole
+    circle; ``G > 1`` gimbals get ``G`` equal sectors centred on ``2πk/G`` (gimbal 0 dead
+    ahead), each widened by :data:`SECTOR_OVERLAP` on either side so that neighbours overlap
+    and the target can be handed over (:attr:`sectors`)."""
 
     def __post_init__(self) -> None:
         check_fields(self)  # every field of its annotated type: no bool for a count or a number
@@ -267,11 +285,48 @@ class GimbalParams(FieldsOnlyPickle):
             raise ValueError(f"search_after: must be >= 1 frame, got {self.search_after}")
         if self.reacquire_limit < 0:
             raise ValueError(f"reacquire_limit: must be >= 0, got {self.reacquire_limit}")
+        if self.n_gimbals < 1:
+            raise ValueError(f"n_gimbals: must be >= 1, got {self.n_gimbals}")
+        if self.gimbal_sectors and len(self.gimbal_sectors) != self.n_gimbals:
+            raise ValueError(
+                f"gimbal_sectors: one (low, high) per gimbal ({self.n_gimbals}), "
+                f"got {self.gimbal_sectors!r}"
+            )
+        for lo, hi in self.gimbal_sectors:
+            if not (np.isfinite(lo) and np.isfinite(hi) and -np.pi <= lo < hi <= lo + 2 * np.pi):
+                raise ValueError(
+                    f"gimbal_sectors: need finite −π <= low < high <= low + 2π, got {(lo, hi)}"
+                )
 
     @property
     def n_channels(self) -> int:
         """Number of imaging channels ``N``."""
         return len(self.channel_contrast)
+
+    @functools.cached_property
+    def sectors(self) -> FloatArray:
+        """Each gimbal's clear sector as ``(low, width)`` ``(G, 2)``, rad: the body azimuth
+        ``a`` is clear where ``(a − low) mod 2π <= width`` (:attr:`gimbal_sectors`, or its
+        default: the whole circle for one gimbal, ``G`` overlapping equal sectors for more)."""
+        if self.gimbal_sectors:
+            pairs = np.array(self.gimbal_sectors, dtype=np.float64)
+        elif self.n_gimbals == 1:
+            pairs = np.array([[-np.pi, np.pi]])
+        else:
+            G = self.n_gimbals
+            centre = 2.0 * np.pi * np.arange(G) / G
+            half = np.pi / G + SECTOR_OVERLAP
+            low = (centre - half + np.pi) % (2.0 * np.pi) - np.pi
+            pairs = np.stack([low, low + 2.0 * half], -1)
+        out = np.stack([pairs[:, 0], pairs[:, 1] - pairs[:, 0]], -1)
+        out.flags.writeable = False
+        return out
+
+    @property
+    def agent_obs_dim(self) -> int:
+        """One gimbal's observation length: ``21 + N``, and ``26 + N`` for ``G > 1`` (its
+        sector, own detection and own ``σ``: :func:`observe`)."""
+        return 21 + self.n_channels + (5 if self.n_gimbals > 1 else 0)
 
     @property
     def half_field(self) -> float:
@@ -425,6 +480,7 @@ class GimbalParams(FieldsOnlyPickle):
             np.sum(s * ds, axis=-1),
             model.fisher_information,
             model.transition,
+            self.sectors,
         )
         out = []
         for a in arrays:
@@ -435,8 +491,9 @@ class GimbalParams(FieldsOnlyPickle):
 
     @property
     def obs_dim(self) -> int:
-        """Observation length ``21 + N`` (23 for two channels, see :func:`observe`)."""
-        return 21 + self.n_channels
+        """Observation length ``G ·`` :attr:`agent_obs_dim`: ``21 + N`` for one gimbal (23 for
+        two channels, see :func:`observe`)."""
+        return self.n_gimbals * self.agent_obs_dim
 
 
 @dataclass(frozen=True)
@@ -458,43 +515,48 @@ class GimbalState:
     carrier_phase: FloatArray = field(repr=False)
     """(B, K) phases of the carrier's sinusoids, rad."""
     gimbal_angles: FloatArray
-    """(B, 2) gimbal azimuth α and elevation β, body frame, rad."""
+    """(B, G, 2) each gimbal's azimuth α and elevation β, body frame, rad."""
     gimbal_rates: FloatArray
-    """(B, 2) their rates, rad/s."""
+    """(B, G, 2) their rates, rad/s."""
     views: IntArray = field(repr=False)
-    """(B, N) each channel's true view (0 background, 1 bright, 2 dark)."""
+    """(B, G, N) each gimbal's channels' true views (0 background, 1 bright, 2 dark)."""
     occlusion_start: IntArray = field(repr=False)
     """(B,) first frame of the current or next occlusion."""
     occlusion_end: IntArray = field(repr=False)
     """(B,) the frame after it."""
     out_of_view: IntArray
-    """(B,) consecutive frames, up to this one, with the target out of the field of view."""
+    """(B,) consecutive frames, up to this one, with the target out of every gimbal's view."""
     since_detection: IntArray
     """(B,) frames since the tracker last detected the target (0: detected this frame)."""
     fusion_variance: FloatArray
-    """(B, 2) paper 004's posterior variance ``d`` in the azimuth and elevation planes, mrad²."""
+    """(B, G, 2) each gimbal's paper 004 posterior variance ``d`` in the azimuth and elevation
+    planes, mrad²."""
     view_posterior: FloatArray = field(repr=False)
-    """(B, 2, N, 3) paper 004's view posteriors per plane and channel."""
+    """(B, G, 2, N, 3) each gimbal's paper 004 view posteriors per plane and channel."""
     predictor: ABCState = field(repr=False)
     """Paper 001's predictor, in the level frame turned by ``predictor_origin``."""
     predictor_origin: FloatArray = field(repr=False)
     """(B,) level azimuth of the ``OY`` axis of the predictor's frame, rad."""
     reference: FloatArray = field(repr=False)
-    """(B, 2) level azimuth and elevation the gate was centred on this frame (the prediction), rad."""
+    """(B, G, 2) level azimuth and elevation each gimbal's gate was centred on this frame (the
+    prediction, or its boresight in search), rad."""
     estimate: FloatArray
     """(B, 2) the tracker's level azimuth and elevation of the target this frame, rad."""
     predicted: FloatArray
     """(B, 2) its prediction for the next frame, rad."""
     detected: BoolArray
-    """(B,) the tracker measured the target this frame (else its predictor coasted)."""
+    """(B,) some gimbal's tracker detected the target this frame, and the track measured it
+    (else its predictor coasted)."""
     in_view: BoolArray
-    """(B,) the target lies in the field of view (ground truth)."""
+    """(B,) the target lies in some gimbal's view: its field of view and its clear sector
+    (ground truth)."""
     occluded: BoolArray = field(repr=False)
     """(B,) the target is occluded this frame (ground truth)."""
     visible: BoolArray = field(repr=False)
-    """(B, N) the target stands out in channel n this frame (ground truth)."""
+    """(B, G, N) the target stands out in gimbal g's channel n this frame (ground truth)."""
     sigma_los: FloatArray
-    """(B,) ``σ_LOS``, the fused direction's angular error bound, rad."""
+    """(B,) ``σ_LOS``, the angular error bound of the measuring gimbal's fused direction
+    (:func:`.reference.measuring_gimbal`), rad."""
 
     @property
     def batch_size(self) -> int:
@@ -519,8 +581,11 @@ _FIELD_DTYPES: tuple[tuple[str, type], ...] = tuple(
 
 
 def spaces(params: GimbalParams) -> EnvSpaces:
-    """One agent, ``gimbal_0``, commanding the rates of both axes; its view is :func:`observe`."""
-    return EnvSpaces.build("gimbal", 1, params.obs_dim, params.obs_dim, 2)
+    """One agent per gimbal, ``gimbal_0 … gimbal_{G−1}``, each commanding the rates of its two
+    axes; each agent's view is its row of :func:`observe_agents`, the joint view
+    (:func:`observe`) theirs one after another (for one gimbal: the same)."""
+    G = params.n_gimbals
+    return EnvSpaces.build("gimbal", G, params.obs_dim, params.agent_obs_dim, 2)
 
 
 def draw_target(
@@ -595,27 +660,29 @@ def reset(
 def step(
     params: GimbalParams, state: GimbalState, action: ArrayLike, rng: np.random.Generator
 ) -> tuple[GimbalState, FloatArray, BoolArray]:
-    """Advance every scenario one frame under ``action`` ``(B, 1, 2)`` (or ``(B, 2)``): gimbal
-    rate commands in ``[−1, 1]`` (clipped); NaN or infinite values raise ``ValueError``.
-    Returns ``(state, reward (B,), terminated (B,))``; the time limit is the shells'."""
-    B = state.batch_size
+    """Advance every scenario one frame under ``action`` ``(B, G, 2)`` (or ``(B, 2G)``): each
+    gimbal's rate commands in ``[−1, 1]`` (clipped); NaN or infinite values raise
+    ``ValueError``. Returns ``(state, reward (B,), terminated (B,))``; the time limit is the
+    shells'."""
+    B, G = state.batch_size, params.n_gimbals
     try:
         a = np.asarray(action, dtype=np.float64)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"action: cannot be read as floats ({exc})") from None
-    if a.size != 2 * B:
-        raise ValueError(f"action: expected {2 * B} values (B, 1, 2), got shape {a.shape}")
-    a = a.reshape(B, 1, 2)
+    if a.size != 2 * B * G:
+        raise ValueError(f"action: expected {2 * B * G} values (B, {G}, 2), got shape {a.shape}")
+    a = a.reshape(B, G, 2)
     if not np.all(np.isfinite(a)):
         raise ValueError("action: contains NaN or infinite values")
     N, J = params.n_channels, params.gate_pixels
     # the draws of the numpy step, in its order: the occlusions' gaps and lengths, the views'
-    # chains, the gate's pixel noise, the angle sensors' noise
+    # chains, the gates' pixel noise (per scenario, gimbal, plane, channel, pixel), the angle
+    # sensors' noise
     draws = (
         rng.uniform(0.0, 1.0, B),
         rng.uniform(0.0, 1.0, B),
-        rng.uniform(size=(B, N)),
-        rng.standard_normal((B, 2, N, J)),
+        rng.uniform(size=(B, G, N)),
+        rng.standard_normal((B, G, 2, N, J)),
         rng.standard_normal((B, 2)),
     )
     old = state_arrays(state)
@@ -625,15 +692,15 @@ def step(
         np.empty((B, 3)),  # target_position
         np.empty((B, 3)),  # target_velocity
         *old[3:7],  # the turn and the carrier's phases do not change
-        np.empty((B, 2)),  # gimbal_angles
-        np.empty((B, 2)),  # gimbal_rates
-        np.empty((B, N), dtype=np.int64),  # views
+        np.empty((B, G, 2)),  # gimbal_angles
+        np.empty((B, G, 2)),  # gimbal_rates
+        np.empty((B, G, N), dtype=np.int64),  # views
         np.empty(B, dtype=np.int64),  # occlusion_start
         np.empty(B, dtype=np.int64),  # occlusion_end
         np.empty(B, dtype=np.int64),  # out_of_view
         np.empty(B, dtype=np.int64),  # since_detection
-        np.empty((B, 2)),  # fusion_variance
-        np.empty((B, 2, N, 3)),  # view_posterior
+        np.empty((B, G, 2)),  # fusion_variance
+        np.empty((B, G, 2, N, 3)),  # view_posterior
         np.empty((B, W)),  # the predictor's azimuth_window
         np.empty((B, W)),  # elevation_window
         np.empty(B, dtype=np.int64),  # count
@@ -641,13 +708,13 @@ def step(
         np.empty((B, 3)),  # delta
         np.empty((B, 3)),  # anchor
         np.empty(B),  # predictor_origin
-        np.empty((B, 2)),  # reference
+        np.empty((B, G, 2)),  # reference
         np.empty((B, 2)),  # estimate
         np.empty((B, 2)),  # predicted
         np.empty(B, dtype=bool),  # detected
         np.empty(B, dtype=bool),  # in_view
         np.empty(B, dtype=bool),  # occluded
-        np.empty((B, N), dtype=bool),  # visible
+        np.empty((B, G, N), dtype=bool),  # visible
         np.empty(B),  # sigma_los
     )
     reward, terminated = np.empty(B), np.empty(B, dtype=bool)
@@ -693,25 +760,31 @@ def carrier_attitude(params: GimbalParams, state: GimbalState) -> tuple[FloatArr
 
 
 def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
-    """The agent's observation ``(B, 21 + N)`` float32 — own drives, the carrier's attitude and
-    the tracker's output, no ground truth. ``h`` is half the field of view; "body offset" of a
-    level direction is its body-frame (azimuth, elevation) minus the gimbal's (α, β), azimuth
-    wrapped.
+    """The joint observation ``(B, G · A)`` float32 — the gimbals' observations
+    (:func:`observe_agents`, ``A = agent_obs_dim``) one after another; for one gimbal its
+    ``(B, 21 + N)`` — own drives, the carrier's attitude and the track's output, no ground
+    truth. ``h`` is half the field of view; "body offset" of a level direction is its
+    body-frame (azimuth, elevation) minus the gimbal's (α, β), azimuth wrapped. Gimbal ``g``'s
+    entries start at ``g · A``:
 
     | index      | meaning                                                                   |
     |------------|---------------------------------------------------------------------------|
-    | 0, 1       | gimbal ``α/π``, ``β/(π/2)``                                                  |
-    | 2, 3       | gimbal rates ``/ max_rate``                                                 |
+    | 0, 1       | the gimbal's ``α/π``, ``β/(π/2)``                                            |
+    | 2, 3       | its rates ``/ max_rate``                                                    |
     | 4–6        | carrier roll, pitch, yaw ``/ 0.1`` rad                                      |
     | 7–9        | their rates ``/ 0.1`` rad/s                                                 |
-    | 10, 11     | body offset of the tracker's estimate this frame ``/ h``                    |
+    | 10, 11     | body offset of the track's estimate this frame from its boresight ``/ h``  |
     | 12, 13     | body offset of its prediction for the next frame, at this frame's attitude ``/ h`` |
     | 14, 15     | the estimate's level ``θ/π``, ``ϕ/(π/2)``                                   |
     | 16, 17     | the prediction's level ``θ/π``, ``ϕ/(π/2)``                                 |
-    | 18         | ``ln(σ_LOS/σ_ref)``                                                          |
-    | 19 … 18+N  | each channel's posterior object probability (mean of the two planes)        |
-    | 19+N       | 1.0 if the tracker detected the target this frame                           |
+    | 18         | ``ln(σ_LOS/σ_ref)`` of the track                                            |
+    | 19 … 18+N  | its channels' posterior object probability (mean of the two planes)        |
+    | 19+N       | 1.0 if the track measured the target this frame (some gimbal detected it)   |
     | 20+N       | frames since the last detection ``/ reacquire_limit`` (``+ 1``)              |
+    | 21+N       | ``G > 1`` only: 1.0 if its clear sector holds the prediction's body azimuth |
+    | 22+N, 23+N | ``G > 1`` only: its sector's edges ``low/π``, ``high/π`` (body azimuth)     |
+    | 24+N       | ``G > 1`` only: 1.0 if its own fused tracker detected the target            |
+    | 25+N       | ``G > 1`` only: ``ln(σ/σ_ref)`` of its own fused direction                  |
 
     Every entry is clipped to ``[−OBS_CLIP, OBS_CLIP]``.
     """
@@ -721,17 +794,18 @@ def observe(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
 
 
 def observe_agents(params: GimbalParams, state: GimbalState) -> NDArray[np.float32]:
-    """The one gimbal's view ``(B, 1, obs_dim)``: :func:`observe`."""
-    return observe(params, state)[:, None, :]
+    """Each gimbal's view ``(B, G, agent_obs_dim)`` (the table of :func:`observe`)."""
+    return observe(params, state).reshape(state.batch_size, params.n_gimbals, -1)
 
 
 def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
     """Diagnostics (ground truth included: for evaluation, never for the policy): the angle
-    between the tracker's estimate and the target (``los_error``, rad), between the boresight
-    and the target (``pointing_error``, rad), the estimate's azimuth and elevation errors
+    between the track's estimate and the target (``los_error``, rad), between the boresight
+    and the target (``pointing_error``, rad; for several gimbals the least over those whose
+    clear sector holds the target, over all where none does), the estimate's azimuth and elevation errors
     (``estimate_error_azimuth``, ``estimate_error_elevation``, rad: paper 001's prediction
-    error through a loss), ``σ_LOS`` (rad), whether the target is in view, occluded, detected,
-    and how many channels it stands out in."""
+    error through a loss), ``σ_LOS`` (rad), whether the target is in some gimbal's view,
+    occluded, detected, and in how many channels (of all gimbals) it stands out."""
     diag = np.empty((len(INFO_KEYS), state.batch_size))
     kernels.info_kernel(params.kernel_settings, params.kernel_model, state_arrays(state), diag)
     return dict(zip(INFO_KEYS, diag, strict=True))

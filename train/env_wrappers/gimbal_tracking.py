@@ -58,8 +58,11 @@ class AimOffsetAction(ObservedActionWrapper):
             raise ValueError(f"scale: need a positive number of fields of view, got {scale!r}")
         if base not in BASE_RULES:
             raise ValueError(f"base: expected one of {sorted(BASE_RULES)}, got {base!r}")
+        params: GimbalParams = venv.get_attr("params")[0]
+        if params.n_gimbals != 1:
+            raise ValueError(f"n_gimbals: the aim offset drives one gimbal, got {params.n_gimbals}")
         super().__init__(venv, spaces.Box(-1.0, 1.0, (2,), np.float32))
-        self.params: GimbalParams = venv.get_attr("params")[0]
+        self.params = params
         self.scale = float(scale) * self.params.field_of_view
         """Aim offset of a unit action, rad."""
         self.rule: CarrierFeedForward | FeedForwardSearch = BASE_RULES[base](self.params)

@@ -23,7 +23,7 @@ FLOAT32 = 1e-6  # the rewards pass through float32 buffers
 def _episodes(act, frames: int = FRAMES, seed: int = SEED, **fields):
     """``frames`` frames of ``SCENARIOS`` scenarios of the native vector env: the rewards
     ``(SCENARIOS, frames)`` (NaN after an episode's end), the tracker's posterior variances
-    ``(SCENARIOS, frames, 2)``, the frame bounds from the start state and its episode bound
+    ``(SCENARIOS, frames, G, 2)``, the frame bounds from the start state and its episode bound
     over ``frames`` frames."""
     env = gym.make_vec(ENV_ID, num_envs=SCENARIOS, vectorization_mode="vector_entry_point",
                        **fields)  # fmt: skip
@@ -34,7 +34,7 @@ def _episodes(act, frames: int = FRAMES, seed: int = SEED, **fields):
     least = bound.least_variance(params, start.fusion_variance, frames)
     rewards, variance = (
         np.full((SCENARIOS, frames), np.nan),
-        np.full((SCENARIOS, frames, 2), np.inf),
+        np.full((SCENARIOS, frames, *start.fusion_variance.shape[1:]), np.inf),
     )
     live = np.ones(SCENARIOS, dtype=bool)
     for k in range(frames):

@@ -324,14 +324,14 @@ def test_a_long_loss_moves_the_gate_to_the_boresight():
         action, _ = truth.predict(core.observe(params, state))
         state, _, _ = core.step(params, state, action[:, None, :], rng)
         attitude, _ = core.carrier_attitude(params, state)
-        axis = reference.level_direction(state.gimbal_angles, attitude)
-        on_axis = reference.tangent_offsets(axis, state.reference)
+        axis = reference.level_direction(state.gimbal_angles[:, 0], attitude)
+        on_axis = reference.tangent_offsets(axis, state.reference[:, 0])
         if 16 <= frame <= 49:  # searching: the gate on the gimbal's axis, not the prediction
             assert np.all(before.since_detection >= params.search_after)
             np.testing.assert_allclose(on_axis, 0.0, atol=1e-12)
-            assert np.all(np.abs(state.reference - before.predicted).max(-1) > 0.0)
+            assert np.all(np.abs(state.reference[:, 0] - before.predicted).max(-1) > 0.0)
         if frame <= 14:  # not yet: the gate on paper 001's prediction
-            np.testing.assert_array_equal(state.reference, before.predicted)
+            np.testing.assert_array_equal(state.reference[:, 0], before.predicted)
     assert state.detected.all() and not state.occluded.any()
 
 
