@@ -186,6 +186,8 @@ OTHER_VALUES["sensorgym/GimbalTracking-v0"] = {
     "search_after": 5,
     "relock": False,
     "reacquire_limit": 10,
+    "n_gimbals": 2,
+    "gimbal_sectors": ((-1.0, 1.0),),
 }
 
 

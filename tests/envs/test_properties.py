@@ -184,11 +184,17 @@ def test_stereo_scanning_params(kappa, position_sigma, period, drones, clutter, 
     speeds=span(1.0, 600.0),
     turn=span(0.0, 0.5),
     window=st.integers(1, 30).map(lambda n: 2 * n),
+    gimbals=st.integers(1, 3),
+    sector=st.one_of(st.just(None), span(-np.pi, np.pi)),
 )
-def test_gimbal_tracking_params(fov, rate, noise, contrast, ranges, speeds, turn, window):
+def test_gimbal_tracking_params(
+    fov, rate, noise, contrast, ranges, speeds, turn, window, gimbals, sector
+):
     def make():
         n = len(contrast)
         return GimbalParams(
+            n_gimbals=gimbals,
+            gimbal_sectors=() if sector is None else (sector,) * gimbals,
             field_of_view=fov,
             max_rate=rate,
             sensor_noise=noise,

@@ -5,6 +5,8 @@ policy reaches the bound."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -82,6 +84,50 @@ def test_random_actions_never_exceed_it() -> None:
         return rng.uniform(-1.5, 1.5, env.action_space.shape).astype(np.float32)
 
     _assert_below(*_episodes(act))
+
+
+#: several gimbals (theory §11.8.2): two with the default sectors, and two splitting the circle
+#: at dead ahead with targets starting near it (hand-overs)
+GIMBALS = {
+    "two gimbals": {"n_gimbals": 2},
+    "hand-over": {
+        "n_gimbals": 2,
+        "gimbal_sectors": ((-np.pi, 0.02), (-0.02, np.pi)),
+        "start_azimuth": (-0.3, 0.3),
+    },
+}
+
+
+@pytest.mark.parametrize("fields", list(GIMBALS))
+@pytest.mark.parametrize("name", sorted(RULES[ENV_ID]))
+def test_no_rule_exceeds_the_bound_with_several_gimbals(name: str, fields: str) -> None:
+    _assert_below(*_episodes(_rule(name), **GIMBALS[fields]))
+
+
+@pytest.mark.parametrize("fields", list(GIMBALS))
+def test_random_actions_never_exceed_it_with_several_gimbals(fields: str) -> None:
+    rng = np.random.default_rng(6)
+
+    def act(env, obs, k):
+        return rng.uniform(-1.5, 1.5, env.action_space.shape).astype(np.float32)
+
+    _assert_below(*_episodes(act, **GIMBALS[fields]))
+
+
+def test_with_several_gimbals_the_bound_is_the_least_gimbals():
+    """The frame bound of two gimbals is that of the one whose least variance is smaller: a
+    gimbal that starts sure of the target sets it."""
+    env = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", n_gimbals=2)
+    env.reset(seed=0)
+    params, start = env.params, env.simulator_state
+    sure = dataclasses.replace(start, fusion_variance=start.fusion_variance * [[[1.0], [0.01]]])
+    alone = dataclasses.replace(
+        start, fusion_variance=sure.fusion_variance[:, 1:]
+    )  # the sure gimbal alone
+    np.testing.assert_array_equal(
+        bound.step_bounds(params, sure, 50), bound.step_bounds(params, alone, 50)
+    )
+    assert np.all(bound.step_bounds(params, sure, 50) >= bound.step_bounds(params, start, 50))
 
 
 def test_an_episode_that_ends_early_is_bounded_by_its_best_partial_sum() -> None:

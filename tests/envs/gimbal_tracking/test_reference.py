@@ -115,6 +115,16 @@ CASES = {
         SEED + 4,
     ),
     "no carrier motion": (GimbalParams(**_STILL), SEED + 5),
+    # two gimbals clear to port and to starboard of dead ahead, 0.04 rad in common, targets
+    # starting near it: hand-overs (and the carrier's yaw moving the target across the edges)
+    "two gimbals, hand-over": (
+        GimbalParams(
+            n_gimbals=2,
+            gimbal_sectors=((-np.pi, 0.02), (-0.02, np.pi)),
+            start_azimuth=(-0.3, 0.3),
+        ),
+        SEED + 6,
+    ),
 }
 
 
@@ -130,6 +140,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
     s, r = sim.reset(rng, BATCH), ref.reset(rng_ref, BATCH)
     steps, episodes = np.zeros(BATCH, int), np.zeros(BATCH, int)
     terminations = truncations = detections = misses = 0
+    measured_by = np.zeros(params.n_gimbals, int)  # detected frames each gimbal measured
     while episodes.min() < EPISODES:
         # the reference on its own matches the simulation (resets included)
         _assert_same_view(ref, r, s, "own state")
@@ -152,6 +163,9 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
         terminations += int(terminated.sum())
         detections += int(s_next.detected.sum())
         misses += int((~s_next.detected & s_next.in_view).sum())
+        detected = reference.gimbal_detections(s_next.view_posterior)
+        by = reference.measuring_gimbal(s_next.fusion_variance, detected)[s_next.detected]
+        measured_by += np.bincount(by, minlength=params.n_gimbals)
         steps += 1
         truncated = ~terminated & (steps >= max_steps)
         truncations += int(truncated.sum())
@@ -170,6 +184,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
     # the episodes exercised what they are meant to: ends of both kinds, detections and losses
     assert terminations > 0 and truncations > 0, (terminations, truncations)
     assert detections > 0 and misses > 0, (detections, misses)
+    assert np.all(measured_by > 0), measured_by  # every gimbal measured the track: hand-overs
 
 
 def _assert_same_view(core: Core, got: GimbalState, want: GimbalState, how: str) -> None:
