@@ -44,48 +44,63 @@ class GimbalTrackingEnv(CoreEnv):
     the target has gone undetected for ``search_after`` frames (25: 1 s) the gate searches at
     the boresight instead: re-acquisition takes pointing the field of view's centre at the
     target. The agent commands the drives; the optics lose contrast off axis (``vignetting``)
-    and a target out of view is not seen at all. Simulation core:
+    and a target out of view is not seen at all.
+
+    Several gimbals (``n_gimbals = G``, theory §11.8.2; a hand-over problem) share the carrier,
+    the target and the one track: each has its own drives, channels and fused tracker and sees
+    the target only inside its clear body-azimuth sector (``gimbal_sectors``; by default ``G``
+    equal sectors overlapping by 5°), outside it the superstructure blocks its view. The track
+    measures the fused direction of the detecting gimbal of least posterior variance; the
+    target is in view while it is in some gimbal's. One gimbal (the default) sees the whole
+    circle and is the env as it always was. Simulation core:
     :mod:`sensorgym.envs.gimbal_tracking.simulation` (its step compiled in :mod:`.kernels`,
     the stages readable in numpy in :mod:`.reference`).
 
     ## Action Space
 
-    ``Box(-1, 1, (2,), float32)``; values outside ``[-1, 1]`` are clipped, NaN raises.
+    ``Box(-1, 1, (2G,), float32)`` (``(2,)`` for one gimbal); values outside ``[-1, 1]`` are
+    clipped, NaN raises.
 
-    | index | action                       | scaled to            | unit  |
-    |-------|------------------------------|----------------------|-------|
-    | 0     | azimuth drive rate command   | ``a · max_rate``     | rad/s |
-    | 1     | elevation drive rate command | ``a · max_rate``     | rad/s |
+    | index  | action                                  | scaled to         | unit  |
+    |--------|-----------------------------------------|-------------------|-------|
+    | 2g     | gimbal g's azimuth drive rate command   | ``a · max_rate``  | rad/s |
+    | 2g + 1 | gimbal g's elevation drive rate command | ``a · max_rate``  | rad/s |
 
     Each drive's rate moves towards its command by at most ``max_acceleration · T`` per frame
     (``T = frame_period``); elevation stops at ``elevation_limits``.
 
     ## Observation Space
 
-    ``Box(-10, 10, (21 + N,), float32)`` (23 for two channels), no ground truth (table in
+    ``Box(-10, 10, (G · A,), float32)``: each gimbal's ``A`` entries in turn, ``A = 21 + N``
+    for one gimbal (23 for two channels), ``26 + N`` for several; no ground truth (table in
     :func:`~sensorgym.envs.gimbal_tracking.simulation.observe`): the gimbal's angles and rates,
-    the carrier's attitude and rates, where the tracker's estimate and its next-frame
-    prediction lie relative to the boresight (in half fields of view) and in the level frame,
-    ``ln(σ_LOS/σ_ref)``, each channel's posterior detection probability, whether the target was
-    detected this frame and the frames since it last was.
+    the carrier's attitude and rates, where the track's estimate and its next-frame
+    prediction lie relative to the gimbal's boresight (in half fields of view) and in the level
+    frame, ``ln(σ_LOS/σ_ref)``, each of its channels' posterior detection probability, whether
+    the target was detected this frame and the frames since it last was; with several gimbals
+    also whether its clear sector holds the prediction, the sector's edges, its own detection
+    and its own ``ln(σ/σ_ref)``.
 
     ## Rewards
 
     Per frame ``clip(ln(σ_ref/σ_LOS), −R, R)`` with ``σ_LOS = √(d_α + d_β + 2σ_s²)`` the angular
     error bound of the fused direction (``d`` paper 004's posterior variances in the two
-    planes, ``σ_s`` the angle sensors' noise); ``−R`` while the target is outside the field of
-    view. Defaults ``σ_ref = 1 mrad``, ``R = 5``.
+    planes, ``σ_s`` the angle sensors' noise; with several gimbals the measuring gimbal's);
+    ``−R`` while the target is outside every gimbal's view (field of view and clear sector).
+    Defaults ``σ_ref = 1 mrad``, ``R = 5``.
 
     ## Starting State
 
     The tracker has locked on: its predictor has seen the ``N + 1`` frames before the episode.
     The target at a uniform range in ``start_range``, azimuth, elevation, speed, aspect (the
-    angle between its path and the line of sight) and climb uniform in their params; the gimbal points at it within ``cue_error`` per axis, at
-    rest; each channel sees an object view.
+    angle between its path and the line of sight) and climb uniform in their params; each
+    gimbal points at it within ``cue_error`` per axis (where its clear sector does not hold the
+    target: at its elevation and the nearer edge of the sector), at rest; each channel sees an
+    object view.
 
     ## Episode End
 
-    * Termination: the target has been out of the field of view for more than
+    * Termination: the target has been out of every gimbal's view for more than
       ``reacquire_limit`` frames (50: 2 s).
     * Truncation: the time limit, ``max_episode_steps`` in the registration (500 frames, 20 s).
 
@@ -95,11 +110,23 @@ class GimbalTrackingEnv(CoreEnv):
     a field of :class:`~sensorgym.envs.gimbal_tracking.simulation.GimbalParams` (units in its
     docstrings), given as a keyword or as ``params=GimbalParams(...)``; the same keywords work
     for ``gym.make_vec`` and :func:`parallel_env`. ``render_mode="rgb_array"`` draws the field
-    of view around the boresight: the target, the tracker's estimate and prediction.
+    of view around the boresight (of the measuring gimbal): the target, the tracker's estimate
+    and prediction.
+
+    | argument          | default | meaning                                                   |
+    |-------------------|---------|-----------------------------------------------------------|
+    | ``n_gimbals``     | 1       | gimbals on the carrier, one agent each                    |
+    | ``gimbal_sectors``| ``()``  | per gimbal its clear body-azimuth sector ``(low, high)``, |
+    |                   |         | rad; empty: the whole circle for one gimbal, ``G`` equal  |
+    |                   |         | sectors overlapping by 5° for more                        |
+
+    (the other fields: channels, losses, carrier motion, tracker and reward, as documented
+    in :class:`~sensorgym.envs.gimbal_tracking.simulation.GimbalParams`).
 
     ## Version History
 
-    * v0: initial version (issue 40; CHANGELOG.md)
+    * v0: initial version (issue 40; CHANGELOG.md); ``n_gimbals`` added (the default one
+      gimbal unchanged)
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 25}
@@ -122,17 +149,19 @@ class GimbalTrackingVectorEnv(CoreVectorEnv):
 
 
 class GimbalTrackingParallelEnv(CoreParallelEnv):
-    """The gimbal as a PettingZoo agent (PettingZoo Parallel).
+    """The gimbals as PettingZoo agents (PettingZoo Parallel).
 
     ## Description
 
     The multi-agent form of ``sensorgym/GimbalTracking-v0`` (same core,
-    :mod:`sensorgym.envs.gimbal_tracking.simulation`); one gimbal for now, the hand-over
-    between several gimbals on one carrier is to come (issue 40).
+    :mod:`sensorgym.envs.gimbal_tracking.simulation`): ``n_gimbals`` gimbals on one carrier
+    share one target and one track, each clear over its own sector of body azimuth
+    (``gimbal_sectors``), so that keeping the target takes handing it over between them
+    (issue 40, theory §11.8.2).
 
     ## Agents
 
-    ``"gimbal_0"``.
+    ``"gimbal_0" … "gimbal_{G−1}"`` (one for the default ``n_gimbals = 1``).
 
     ## Action Space (per agent)
 
@@ -141,15 +170,19 @@ class GimbalTrackingParallelEnv(CoreParallelEnv):
 
     ## Observation Space (per agent)
 
-    ``Box(-10, 10, (21 + N,), float32)``: the single env's observation.
+    ``Box(-10, 10, (A,), float32)``: the gimbal's block of the single env's observation,
+    ``A = 21 + N`` for one gimbal, ``26 + N`` for several (own drives, the track seen from its
+    boresight, its channels, its sector, its own detection and ``σ``).
 
     ## Rewards
 
-    One team reward: ``clip(ln(σ_ref/σ_LOS), −R, R)``, ``−R`` out of view (the single env's).
+    One team reward: ``clip(ln(σ_ref/σ_LOS), −R, R)``, ``−R`` out of every gimbal's view (the
+    single env's).
 
     ## Episode End
 
-    Terminated when the target has been out of view for more than ``reacquire_limit`` frames;
+    Terminated when the target has been out of every gimbal's view for more than
+    ``reacquire_limit`` frames;
     truncated after ``max_episode_steps`` steps.
 
     ## Arguments

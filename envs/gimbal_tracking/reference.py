@@ -10,7 +10,10 @@ contrast the off-axis optics leave; each channel images the tracking gate
 boresight (:func:`gate_centre`); paper 004's fused tracker measures the target's offset from it
 (:func:`fuse_channels`); the predictor takes the fused direction as its
 measurement, or coasts through a loss (:func:`advance_predictor`); the reward reads the fused
-estimate's angular error bound (:func:`reward`).
+estimate's angular error bound (:func:`reward`). With several gimbals (theory §11.8.2) the
+drives, views, view geometry (with each gimbal's clear sector, :func:`in_sector`), gates and
+fused trackers run per gimbal on a gimbal axis after the scenario's, and the track measures
+the direction of the gimbal :func:`measuring_gimbal` picks.
 
 This module is the readable numpy spec of the env's reset and step, and the reference its
 compiled kernels (:mod:`.kernels`, which :mod:`.simulation` runs) are checked against:

@@ -25,6 +25,14 @@ are the functions of :mod:`.reference` (theory §11.8):
    error bound, ``−R`` while the target is out of the field of view; the episode terminates
    when it has been out of view for more than ``reacquire_limit`` frames.
 
+With ``n_gimbals = G > 1`` (theory §11.8.2) stages 1, 3 and 4 run per gimbal — its drives,
+its channels' views, its field of view and clear sector (:attr:`GimbalParams.sectors`), its
+gate and fused tracker — and the one predictor (the track) takes the fused direction of the
+detecting gimbal of least posterior variance (:func:`.reference.measuring_gimbal`), whose
+``σ_LOS`` is the reward's; "in view" is in some gimbal's view. The per-gimbal state fields and
+draws carry a gimbal axis after the scenario's, for one gimbal too (which draws what it always
+drew).
+
 The step is compiled (:func:`.kernels.step_kernel`, the stages of :mod:`.reference` in
 numba, large batches split over threads by :func:`sensorgym.envs.shells.rows.run_rows`), and so
 are the reset's lock-on of paper 001's predictor (:func:`.kernels.lock_on_kernel`),
