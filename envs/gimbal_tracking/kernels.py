@@ -7,9 +7,10 @@ and :func:`info_kernel` are :func:`.reference.observe` and :func:`.reference.inf
 the stages of the readable numpy form, :mod:`.reference` (theory §8, §9, §11.8), one inlined
 function per stage under the reference's name: :func:`drive_gimbal`, :func:`fly_target`,
 :func:`carrier_attitude` (and :func:`body_to_level`), :func:`schedule_occlusions`,
-:func:`step_views`, :func:`view_geometry`, :func:`gate_centre`, :func:`render_gate`,
-:func:`fuse_channels` (with :func:`channel_terms`: paper 004's
-:meth:`~sensorgym.trackers.fusion.tracker.FusionTracker.update` of one image plane),
+:func:`step_views`, :func:`view_geometry` (with :func:`in_sector`), :func:`gate_centre`,
+:func:`render_gate`, :func:`fuse_gate` (both planes of one gimbal: :func:`fuse_channels` with
+:func:`channel_terms`, paper 004's :meth:`~sensorgym.trackers.fusion.tracker.FusionTracker.
+update` of one image plane), :func:`measures_better` (:func:`.reference.measuring_gimbal`),
 :func:`advance_predictor` (paper 001's
 :meth:`~sensorgym.trackers.angles.prediction.ABCPredictor.update` as :func:`push_window`,
 :func:`abc_estimates` and :func:`abc_commit`, then :func:`recentre`), :func:`predicted_angles`,
@@ -18,6 +19,8 @@ numpy's Generator, in the order and shapes of the numpy form, and passed in: see
 not depend on the kernel or on the split of the rows.
 
 The step reads the old state's arrays and writes freshly allocated ones (states are values).
+Per scenario it runs the gimbals' stages (drives, views, view geometry, gate, fusion) in a
+loop over the gimbal axis, then the one track's.
 
 What the kernels take:
 
