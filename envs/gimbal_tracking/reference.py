@@ -518,9 +518,11 @@ def step(
     fused = fuse_channels(params, prior, images)
     posterior = fused.view_posterior.reshape(B, G, 2, *fused.view_posterior.shape[1:])
     variance = fused.variance.reshape(B, G, 2)
-    # MAP decision (theory §9.2) per gimbal; the track's measurement from the best detecting
-    best = measuring_gimbal(variance, gimbal_detections(posterior))
-    detected = gimbal_detections(posterior).any(-1)
+    # each gimbal's MAP decision (theory §9.2); the track measures the direction of the
+    # detecting gimbal of least variance, and detects where some gimbal does
+    seen_by = gimbal_detections(posterior)
+    best = measuring_gimbal(variance, seen_by)
+    detected = seen_by.any(-1)
     rows_b = np.arange(B)
     offsets = fused.estimate.reshape(B, G, 2)[rows_b, best] / MRAD
     measured = from_tangent_offsets(reference[rows_b, best], offsets)

@@ -190,7 +190,8 @@ class GimbalParams(FieldsOnlyPickle):
     """Per gimbal, the body-frame azimuth interval ``(low, high)``, rad, in which it has a clear
     view (``−π ≤ low < high ≤ low + 2π``, counter-clockwise from ``low`` to ``high`` as azimuth
     grows); outside it the carrier's superstructure blocks its line of sight: the target is
-    not visible to that gimbal (an occlusion for it alone). Empty: one gimbal sees the whole
+    not visible to that gimbal (an occlusion for it alone; the gimbal may still slew there).
+    Empty: one gimbal sees the whole
     circle; ``G > 1`` gimbals get ``G`` equal sectors centred on ``2πk/G`` (gimbal 0 dead
     ahead), each widened by :data:`SECTOR_OVERLAP` on either side so that neighbours overlap
     and the target can be handed over (:attr:`sectors`)."""
