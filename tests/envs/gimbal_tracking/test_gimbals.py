@@ -300,3 +300,17 @@ def _crossing(params: GimbalParams, rule, frames: int = 250, batch: int = 3):
         detected = reference.gimbal_detections(state.view_posterior)
         by.append(reference.measuring_gimbal(state.fusion_variance, detected))
     return np.array(in_view), ended, np.array(by)
+
+
+def test_the_agent_view_of_the_vector_env_is_the_joint_view_split_per_gimbal():
+    kwargs = {"vectorization_mode": "vector_entry_point", "n_gimbals": 2}
+    joint = gym.make_vec(ENV_ID, 3, **kwargs)
+    agents = gym.make_vec(ENV_ID, 3, agent_view=True, **kwargs)
+    obs, _ = joint.reset(seed=4)
+    per_agent, _ = agents.reset(seed=4)
+    assert per_agent.shape == (3, 2, joint.unwrapped.params.agent_obs_dim)
+    np.testing.assert_array_equal(per_agent.reshape(3, -1), obs)
+    action = np.random.default_rng(0).uniform(-1, 1, (3, 4)).astype(np.float32)
+    _, r_joint, *_ = joint.step(action)
+    _, r_agents, *_ = agents.step(action.reshape(3, 2, 2))
+    np.testing.assert_array_equal(r_joint, r_agents)
