@@ -314,12 +314,13 @@ def detects(post):
 
 @njit(**JIT)
 def info_kernel(settings, model, state, diag):
-    """The diagnostics ``diag (9, B)`` of every row of ``state``, in the order of
+    """The diagnostics ``diag (10, B)`` of every row of ``state``, in the order of
     :data:`.simulation.INFO_KEYS` (:func:`.reference.info`)."""
     p = settings[0]
     amp, omega, axis = model[:3]
     sectors = model[13]
     frame, pos, _, _, _, _, phase, gimbal = state[:8]
+    variance, posterior = state[14], state[15]
     estimate, _, detected, in_view, occluded, visible, sigma = state[24:]
     att, R = np.empty(3), np.empty((3, 3))
     for b in range(frame.shape[0]):
@@ -332,9 +333,13 @@ def info_kernel(settings, model, state, diag):
         body_az = math.atan2(
             R[0, 0] * lx + R[1, 0] * ly + R[2, 0] * lz, R[0, 1] * lx + R[1, 1] * ly + R[2, 1] * lz
         )
-        clear_any = False
+        clear_any, best, found = False, 0, False
         for g in range(gimbal.shape[1]):
             clear_any = clear_any or in_sector(body_az, sectors[g])
+            here = detects(posterior[b, g, 0]) and detects(posterior[b, g, 1])
+            if g > 0 and measures_better(here, found, variance[b, g], variance[b, best]):
+                best = g
+            found = found or here
         pointing, seen = np.inf, 0.0
         for g in range(gimbal.shape[1]):
             ux, uy, uz = unit_from_zup(gimbal[b, g, 0], gimbal[b, g, 1])
@@ -356,6 +361,7 @@ def info_kernel(settings, model, state, diag):
         diag[6, b] = 1.0 if occluded[b] else 0.0
         diag[7, b] = 1.0 if detected[b] else 0.0
         diag[8, b] = seen
+        diag[9, b] = best
 
 
 @njit(**INLINE)

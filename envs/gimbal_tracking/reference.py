@@ -659,4 +659,7 @@ def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
         "occluded": state.occluded.astype(np.float64),
         "detected": state.detected.astype(np.float64),
         "visible_channels": state.visible.sum((-2, -1)).astype(np.float64),
+        "measuring_gimbal": measuring_gimbal(
+            state.fusion_variance, gimbal_detections(state.view_posterior)
+        ).astype(np.float64),
     }

@@ -814,7 +814,9 @@ def info(params: GimbalParams, state: GimbalState) -> dict[str, FloatArray]:
     clear sector holds the target, over all where none does), the estimate's azimuth and elevation errors
     (``estimate_error_azimuth``, ``estimate_error_elevation``, rad: paper 001's prediction
     error through a loss), ``σ_LOS`` (rad), whether the target is in some gimbal's view,
-    occluded, detected, and in how many channels (of all gimbals) it stands out."""
+    occluded, detected, in how many channels (of all gimbals) it stands out, and which gimbal
+    the track measured (``measuring_gimbal``, its index: 0 for one gimbal; a change between
+    frames is a hand-over)."""
     diag = np.empty((len(INFO_KEYS), state.batch_size))
     kernels.info_kernel(params.kernel_settings, params.kernel_model, state_arrays(state), diag)
     return dict(zip(INFO_KEYS, diag, strict=True))
@@ -831,4 +833,5 @@ INFO_KEYS = (
     "occluded",
     "detected",
     "visible_channels",
+    "measuring_gimbal",
 )

@@ -163,8 +163,7 @@ def test_reference_matches_the_compiled_simulation(case: str) -> None:
         terminations += int(terminated.sum())
         detections += int(s_next.detected.sum())
         misses += int((~s_next.detected & s_next.in_view).sum())
-        detected = reference.gimbal_detections(s_next.view_posterior)
-        by = reference.measuring_gimbal(s_next.fusion_variance, detected)[s_next.detected]
+        by = sim.info(s_next)["measuring_gimbal"].astype(int)[s_next.detected]
         measured_by += np.bincount(by, minlength=params.n_gimbals)
         steps += 1
         truncated = ~terminated & (steps >= max_steps)
@@ -194,7 +193,7 @@ def _assert_same_view(core: Core, got: GimbalState, want: GimbalState, how: str)
     assert_same_observations(core, got, want, how, OBS_ATOL)
     i_got, i_want = core.info(got), core.info(want)
     assert i_got.keys() == i_want.keys()
-    for key in ("in_view", "occluded", "detected", "visible_channels"):
+    for key in ("in_view", "occluded", "detected", "visible_channels", "measuring_gimbal"):
         np.testing.assert_array_equal(i_got[key], i_want[key], err_msg=f"{how}: info {key}")
     for key in ("los_error", "pointing_error", "estimate_error_elevation", "sigma_los"):
         # angles between directions: differences of unit vectors' entries, on the scale 1
