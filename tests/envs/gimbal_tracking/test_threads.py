@@ -31,6 +31,7 @@ def _episodes(monkeypatch, threads: str, params: GimbalParams, mode: str) -> lis
         GimbalParams(reacquire_limit=3),
         GimbalParams(channel_contrast=(4.0,), channel_noise=(1.0,), lose_probability=(0.05,),
                      return_probability=(0.3,), aspect_change_probability=(0.05,)),
+        GimbalParams(n_gimbals=3, reacquire_limit=3),  # the gimbal loop of every row
     ],
 )  # fmt: skip
 def test_two_threads_equal_one_bit_for_bit(monkeypatch, params, mode):
