@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward, rate_action
+from sensorgym.agents.gimbal_tracking import CarrierFeedForward, gimbal_rows, joint_action
 from sensorgym.agents.protocol import MemorylessRule
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
 
@@ -68,15 +68,20 @@ class FeedForwardSearch(MemorylessRule):
         return search_offsets(0.5 * p.gate_pixels * p.pixel_pitch, self.rings)
 
     def change(self, obs: FloatArray) -> FloatArray:
-        """The body-frame angle change ``(n, 2)`` (rad) it drives within the next frame."""
+        """The body-frame angle change ``(n G, 2)`` (rad) each gimbal drives within the next
+        frame; with several gimbals only those whose clear sector holds the prediction search
+        (the others pre-point to their sector's edge)."""
         p = self.params
+        rows = gimbal_rows(p, obs)
         # frames since the last detection (observed divided by reacquire_limit + 1)
-        since = np.rint(obs[:, 20 + p.n_channels] * (p.reacquire_limit + 1)).astype(np.int64)
-        pattern = self.offsets
+        since = np.rint(rows[:, 20 + p.n_channels] * (p.reacquire_limit + 1)).astype(np.int64)
         searching = since >= p.search_after
+        if p.n_gimbals > 1:
+            searching &= rows[:, 21 + p.n_channels] > 0.5
+        pattern = self.offsets
         index = (np.maximum(since - p.search_after, 0) // self.dwell) % len(pattern)
         offset = np.where(searching[:, None], pattern[index], 0.0)
         return CarrierFeedForward(p).change(obs) + offset
 
     def act(self, obs: FloatArray) -> FloatArray:
-        return rate_action(self.params, self.change(obs))
+        return joint_action(self.params, self.change(obs))

@@ -135,6 +135,10 @@ class TurnMemory(VecEnvWrapper):
         if not isinstance(box, spaces.Box) or len(box.shape) != 1:
             raise ValueError(f"gimbal-turn-memory: needs a flat Box observation, got {box}")
         self.params: GimbalParams = venv.get_attr("params")[0]
+        if self.params.n_gimbals != 1:
+            raise ValueError(
+                f"n_gimbals: the turn memory reads one gimbal, got {self.params.n_gimbals}"
+            )
         self.window = window
         low = np.append(box.low, np.full(6, -10.0, np.float32)).astype(box.dtype)
         high = np.append(box.high, np.full(6, 10.0, np.float32)).astype(box.dtype)
