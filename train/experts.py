@@ -59,6 +59,7 @@ EXPERTS: dict[str, str] = {
     "placement-truth-target": "sensorgym.train.env_wrappers.stereo_placement:truth_target",
     "scan-entry-search": "sensorgym.train.env_wrappers.stereo_scanning:entry_search_expert",
     "gimbal-truth-aim": "sensorgym.train.env_wrappers.gimbal_tracking:truth_aim",
+    "gimbal-truth-centre": "sensorgym.train.env_wrappers.gimbal_tracking:truth_centre",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

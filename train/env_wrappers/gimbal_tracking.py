@@ -87,9 +87,13 @@ class TruthAim:
     ``[−1, 1]``), ``Δ`` the body-frame angle changes of :class:`TruthServo` and
     :class:`CarrierFeedForward`."""
 
-    def __init__(self, state_fn: Any, wrapper: AimOffsetAction):
+    def __init__(self, state_fn: Any, wrapper: AimOffsetAction, centre: bool = False):
         self.wrapper = wrapper
         self.truth = TruthServo(wrapper.params, state_fn)
+        self.centre = centre
+        """Teach the offset from the carrier-feedforward servo's aim, not the base rule's: over
+        a ``feedforward-search`` base, where the search pattern should be centred."""
+        self.servo = CarrierFeedForward(wrapper.params)
 
     def predict(
         self,
@@ -101,7 +105,8 @@ class TruthAim:
         """SB3's ``predict``: the teacher's actions ``(N, 2)`` for the simulator's scenarios
         (the observation is the student's; the teacher reads the wrapper's latest)."""
         obs = np.asarray(self.wrapper.last_obs, dtype=np.float64)
-        offset = self.truth.change(obs) - self.wrapper.rule.change(obs)
+        reference = self.servo if self.centre else self.wrapper.rule
+        offset = self.truth.change(obs) - reference.change(obs)
         x = np.clip(offset / self.wrapper.scale, -1.0, 1.0)
         return (np.sign(x) * np.sqrt(np.abs(x))).astype(np.float32), None
 
@@ -113,6 +118,17 @@ def truth_aim(env: VecEnv) -> TruthAim:
 
     inner = find_wrapper(env, AimOffsetAction)
     return TruthAim(simulator_state(env), inner)
+
+
+def truth_centre(env: VecEnv) -> TruthAim:
+    """The ``gimbal-truth-centre`` expert factory: :class:`TruthAim` teaching the offset of the
+    true direction from the carrier-feedforward servo's aim, so that over a
+    ``feedforward-search`` base the student learns where to centre the search (the pattern's
+    own hops are added by the wrapper)."""
+    from sensorgym.train.evaluation import simulator_state
+
+    inner = find_wrapper(env, AimOffsetAction)
+    return TruthAim(simulator_state(env), inner, centre=True)
 
 
 class TurnMemory(VecEnvWrapper):

@@ -11,7 +11,12 @@ from stable_baselines3.common.vec_env import VecEnv
 from sensorgym.agents.gimbal_search import FeedForwardSearch
 from sensorgym.agents.gimbal_tracking import ANGLE_SCALE, ESTIMATE_LEVEL, CarrierFeedForward
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
-from sensorgym.train.env_wrappers.gimbal_tracking import AimOffsetAction, TurnMemory, truth_aim
+from sensorgym.train.env_wrappers.gimbal_tracking import (
+    AimOffsetAction,
+    TurnMemory,
+    truth_aim,
+    truth_centre,
+)
 from sensorgym.train.evaluation import env_params, make_sb3_env
 
 ENV_ID = "sensorgym/GimbalTracking-v0"
@@ -148,3 +153,24 @@ def test_turn_memory_recovers_a_quadratic_path_and_restarts_with_the_episode():
     np.testing.assert_array_equal(obs[0, -6:], 0.0)
     with pytest.raises(ValueError, match="window"):
         TurnMemory(_Scripted(params, az, el, seen, done), window=2)
+
+
+def test_the_truth_centre_teacher_ignores_the_search_hops():
+    """Over a ``feedforward-search`` base the centre teacher's offset is the true direction's
+    from the carrier-feedforward servo's aim (where to centre the search), while the aim
+    teacher's also cancels the search's hop."""
+    wrapped = AimOffsetAction(make_sb3_env(ENV_ID, 6, seed=5), base="feedforward-search")
+    centre, aim = truth_centre(wrapped), truth_aim(wrapped)
+    servo = CarrierFeedForward(wrapped.params)
+    wrapped.reset()
+    hops = 0
+    for _ in range(300):
+        obs = np.asarray(wrapped.last_obs, dtype=np.float64)
+        truth = centre.truth.change(obs)
+        for teacher, reference in ((centre, servo), (aim, wrapped.rule)):
+            a = teacher.predict(obs)[0].astype(np.float64)
+            want = np.clip((truth - reference.change(obs)) / wrapped.scale, -1.0, 1.0)
+            np.testing.assert_allclose(a * np.abs(a), want, atol=1e-6)
+        hops += int(np.any(wrapped.rule.change(obs) != servo.change(obs)))
+        wrapped.step(np.zeros((6, 2), np.float32))
+    assert hops > 0  # the episodes searched, so the two teachers differed
