@@ -42,6 +42,7 @@ from numba import njit
 from numba.extending import register_jitable
 
 from sensorgym.envs.shells.contract import OBS_CLIP
+from sensorgym.envs.shells.uncounted import uncounted
 from sensorgym.envs.stereo_scanning.association_kernels import (
     ALGORITHMIC,
     ALTERNATIVE,
@@ -675,7 +676,9 @@ def step_rows(lo, hi, settings, geometry, action, old, draws, new, out):
             for x in range(3):
                 if not math.isfinite(action[i, k, x]):
                     return False
-    # the tuples taken apart once: the stages get plain arrays
+    # the tuples taken apart once: the stages get plain arrays, uncounted (the caller holds
+    # its arguments, and ``scratch`` its buffers, until the row loop is done)
+    geometry, action, old, draws, new, out = uncounted((geometry, action, old, draws, new, out))
     t_in, p_in, v_in, acceleration, enter, exited_in, tracks_in, track_int_in, next_id_in = old
     normals, apparent, clutter_count, clutter_uv = draws
     t, drone_p, drone_v, exited, tracks, track_int, next_id = new[:7]
@@ -683,7 +686,8 @@ def step_rows(lo, hi, settings, geometry, action, old, draws, new, out):
     reward, terminated = out
     n, F, T, m = fixes.shape[1], fixes.shape[2], tracks.shape[1], drone_p.shape[1]
     used_n = 3 if p.tracker == PROPOSED else 2
-    fx, pairs, gates, solved, found, refine, assoc, truth, motion = workspace(n, F, T, m, used_n)
+    scratch = workspace(n, F, T, m, used_n)
+    fx, pairs, gates, solved, found, refine, assoc, truth, motion = uncounted(scratch)
     la, sig, cones = fx
     O, R, P, b, offsets = geometry[:5]
     a1, ak, Pc, bc, dt, ones, X, J, Q, kap, M1 = solved
@@ -739,7 +743,14 @@ def step_rows(lo, hi, settings, geometry, action, old, draws, new, out):
         t[i] = t0 + p.period
         # 6. what the new state shows
         observation(i, p, t, tracks, track_int, sectors, fix_count, obs)
-    return True
+    return _held(scratch)
+
+
+@njit(**_JIT)
+def _held(scratch):
+    """True. The step's last use of its counted ``scratch``: numba releases a value after its
+    last use, so the buffers the uncounted views borrow from outlive the row loop."""
+    return len(scratch) > 0
 
 
 @njit(**_JIT)
