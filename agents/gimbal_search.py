@@ -17,6 +17,7 @@ count restarts and the servo is the carrier-feedforward servo again.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,11 +62,16 @@ class FeedForwardSearch(MemorylessRule):
         if self.dwell < 1 or self.rings < 0:
             raise ValueError(f"dwell must be >= 1 and rings >= 0, got {self.dwell}, {self.rings}")
 
-    @property
+    @functools.cached_property
     def offsets(self) -> FloatArray:
         """The pattern (rad), radii in half-gates of the env's tracking gate."""
         p = self.params
         return search_offsets(0.5 * p.gate_pixels * p.pixel_pitch, self.rings)
+
+    @functools.cached_property
+    def servo(self) -> CarrierFeedForward:
+        """The carrier-feedforward servo it offsets."""
+        return CarrierFeedForward(self.params)
 
     def change(self, obs: FloatArray) -> FloatArray:
         """The body-frame angle change ``(n G, 2)`` (rad) each gimbal drives within the next
@@ -81,7 +87,7 @@ class FeedForwardSearch(MemorylessRule):
         pattern = self.offsets
         index = (np.maximum(since - p.search_after, 0) // self.dwell) % len(pattern)
         offset = np.where(searching[:, None], pattern[index], 0.0)
-        return CarrierFeedForward(p).change(obs) + offset
+        return self.servo.change(obs) + offset
 
     def act(self, obs: FloatArray) -> FloatArray:
         return joint_action(self.params, self.change(obs))

@@ -208,14 +208,15 @@ class TurnMemory(VecEnvWrapper):
 
     def step_wait(self) -> Any:
         obs, rewards, dones, infos = self.venv.step_wait()
-        for i in np.flatnonzero(dones):  # the terminal observation keeps the old memory
-            terminal = infos[i].get("terminal_observation")
-            if terminal is not None:
-                self._frame[i] += 1
-                infos[i]["terminal_observation"] = np.append(
-                    terminal, self.features()[i].astype(terminal.dtype)
-                )
         self._frame += 1
+        if np.any(dones):  # the terminal observations keep the ended episodes' memory
+            ended = self.features()
+            for i in np.flatnonzero(dones):
+                terminal = infos[i].get("terminal_observation")
+                if terminal is not None:
+                    infos[i]["terminal_observation"] = np.append(
+                        terminal, ended[i].astype(terminal.dtype)
+                    )
         self._frame[dones] = 0
         self._count[dones] = 0
         self._record(obs)
