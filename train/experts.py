@@ -60,6 +60,7 @@ EXPERTS: dict[str, str] = {
     "scan-entry-search": "sensorgym.train.env_wrappers.stereo_scanning:entry_search_expert",
     "gimbal-truth-aim": "sensorgym.train.env_wrappers.gimbal_tracking:truth_aim",
     "gimbal-truth-centre": "sensorgym.train.env_wrappers.gimbal_tracking:truth_centre",
+    "gimbal-truth-hop": "sensorgym.train.env_wrappers.gimbal_search:truth_hop",
 }
 
 #: an expert named ``rule:<name>`` is the rule registered as ``<name>`` for the env

@@ -36,6 +36,7 @@ WRAPPERS: dict[str, str] = {
     "scan-modes": "sensorgym.train.env_wrappers.stereo_scanning:scan_modes",
     "gimbal-aim": "sensorgym.train.env_wrappers.gimbal_tracking:aim_offset",
     "gimbal-turn-memory": "sensorgym.train.env_wrappers.gimbal_tracking:turn_memory",
+    "gimbal-search-order": "sensorgym.train.env_wrappers.gimbal_search:search_order",
 }
 
 

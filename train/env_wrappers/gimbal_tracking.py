@@ -166,34 +166,43 @@ class TurnMemory(VecEnvWrapper):
         self._frame = np.zeros(n, dtype=np.int64)  # frames into the episode
 
     def _record(self, obs: NDArray[Any]) -> None:
-        """Push the detected slots' level estimates."""
+        """Push the detected slots' level estimates (oldest first: every held row shifts one
+        place towards the start)."""
         seen = detected(self.params, np.asarray(obs, dtype=np.float64))
-        level = np.asarray(obs, dtype=np.float64)[:, ESTIMATE_LEVEL] * ANGLE_SCALE
-        for i in np.flatnonzero(seen):
-            self._angles[i] = np.roll(self._angles[i], -1, axis=0)
-            self._frames[i] = np.roll(self._frames[i], -1)
-            self._angles[i, -1] = level[i]
-            self._frames[i, -1] = self._frame[i]
-            self._count[i] = min(self._count[i] + 1, self.window)
+        if not seen.any():
+            return
+        level = np.asarray(obs, dtype=np.float64)[seen][:, ESTIMATE_LEVEL] * ANGLE_SCALE
+        self._angles[seen] = np.roll(self._angles[seen], -1, axis=1)
+        self._frames[seen] = np.roll(self._frames[seen], -1, axis=1)
+        self._angles[seen, -1] = level
+        self._frames[seen, -1] = self._frame[seen]
+        self._count[seen] = np.minimum(self._count[seen] + 1, self.window)
 
     def features(self) -> NDArray[np.float64]:
-        """The six features ``(n, 6)`` of every slot."""
-        n = self.num_envs
+        """The six features ``(n, 6)`` of every slot: the least-squares fits of all slots at once
+        through their 3 × 3 normal equations, in ``τ = t / W`` (well conditioned), over each
+        slot's held rows."""
+        n, W = self.num_envs, self.window
         out = np.zeros((n, 6))
+        fit = np.flatnonzero(self._count >= W // 2)
+        if fit.size == 0:
+            return out
         fov = self.params.field_of_view
-        for i in np.flatnonzero(self._count >= self.window // 2):
-            k = self._count[i]
-            y = self._angles[i, -k:].copy()
-            y[:, 0] = np.unwrap(y[:, 0])
-            t = self._frames[i, -k:] - self._frames[i, -1]  # ≤ 0, the last detection at 0
-            # least squares y = c₀ + c₁ t + c₂ t²: θ̇ = c₁, θ̈ = 2 c₂
-            design = np.stack([np.ones_like(t), t, t * t], -1)
-            coef, *_ = np.linalg.lstsq(design, y, rcond=None)
-            since = self._frame[i] - self._frames[i, -1]
-            W = self.window
-            out[i, 0:2] = coef[1] * W / fov  # θ̇ W: the motion over a window
-            out[i, 2:4] = coef[2] * W * W / fov  # ½ θ̈ W²: the bend over a window
-            out[i, 4:6] = coef[2] * (since + 1.0) ** 2 / fov
+        count = self._count[fit]
+        held = np.arange(W)[None, :] >= (W - count)[:, None]  # the last `count` rows
+        y = self._angles[fit].copy()
+        # unwrap the azimuth from the first held row on (rows before it are stale)
+        first = W - count
+        az = np.where(held, y[..., 0], y[np.arange(fit.size), first, 0][:, None])
+        y[..., 0] = np.unwrap(az, axis=1)
+        tau = (self._frames[fit] - self._frames[fit, -1:]) / W  # ≤ 0, the last detection at 0
+        basis = np.stack([np.ones_like(tau), tau, tau * tau], -1) * held[..., None]
+        # least squares y = d₀ + d₁ τ + d₂ τ²  ⇔  (BᵀB) d = Bᵀy; then θ̇ = d₁ / W, θ̈ = 2 d₂ / W²
+        d = np.linalg.solve(basis.transpose(0, 2, 1) @ basis, basis.transpose(0, 2, 1) @ y)
+        since = (self._frame[fit] - self._frames[fit, -1])[:, None]
+        out[fit, 0:2] = d[:, 1] / fov  # θ̇ W: the motion over a window
+        out[fit, 2:4] = d[:, 2] / fov  # ½ θ̈ W²: the bend over a window
+        out[fit, 4:6] = d[:, 2] * ((since + 1.0) / W) ** 2 / fov
         return np.clip(out, -10.0, 10.0)
 
     def _with_features(self, obs: NDArray[Any]) -> NDArray[Any]:
