@@ -851,7 +851,8 @@ def held_out(env: str) -> str:
     head = " | ".join(f"seed {s}: trained | best rule | paired difference [95 %]" for s in seeds)
     lines = [
         "Source: `docs/scores/` (seed 10000) and `docs/scores/seed31337/` (`sensorgym benchmark "
-        "--episodes 256 --all-rules --seed 31337 --out docs/scores/seed31337`).",
+        f"--env sensorgym/{env} --episodes {docs[1]['settings']['episodes']} --all-rules "
+        "--seed 31337 --out docs/scores/seed31337`).",
         "",
         f"| run | {head} |",
         "| --- |" + " ---: |" * (3 * len(docs)),

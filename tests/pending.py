@@ -21,9 +21,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 #: env id -> the parts it does not have yet (issue 40 delivers GimbalTracking-v0 in parts)
-PENDING: dict[str, frozenset[str]] = {
-    "sensorgym/GimbalTracking-v0": frozenset({"policies"}),
-}
+PENDING: dict[str, frozenset[str]] = {}
 
 #: every part an entry may name
 PARTS = frozenset({"golden", "kernels", "picture", "ppo_recipe", "scores", "bound", "policies"})
