@@ -851,7 +851,13 @@ def held_out(env: str) -> str:
     head = " | ".join(f"seed {s}: trained | best rule | paired difference [95 %]" for s in seeds)
     lines = [
         "Source: `docs/scores/` (seed 10000) and `docs/scores/seed31337/` (`sensorgym benchmark "
-        f"--env sensorgym/{env} --episodes {docs[1]['settings']['episodes']} --all-rules "
+        f"--env sensorgym/{env} --episodes {docs[1]['settings']['episodes']} "
+        + (
+            ""
+            if docs[1]["settings"]["n_envs"] == 16
+            else f"--n-envs {docs[1]['settings']['n_envs']} "
+        )
+        + "--all-rules "
         "--seed 31337 --out docs/scores/seed31337`).",
         "",
         f"| run | {head} |",
