@@ -23,7 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward, gimbal_rows, joint_action
+from sensorgym.agents.gimbal_tracking import (
+    CarrierFeedForward,
+    frames_since_detection,
+    gimbal_rows,
+    joint_action,
+)
 from sensorgym.agents.protocol import MemorylessRule
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
 
@@ -79,8 +84,7 @@ class FeedForwardSearch(MemorylessRule):
         (the others pre-point to their sector's edge)."""
         p = self.params
         rows = gimbal_rows(p, obs)
-        # frames since the last detection (observed divided by reacquire_limit + 1)
-        since = np.rint(rows[:, 20 + p.n_channels] * (p.reacquire_limit + 1)).astype(np.int64)
+        since = frames_since_detection(p, rows)
         searching = since >= p.search_after
         if p.n_gimbals > 1:
             searching &= rows[:, 21 + p.n_channels] > 0.5

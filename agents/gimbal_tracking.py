@@ -97,6 +97,12 @@ def detected(params: GimbalParams, obs: FloatArray) -> NDArray[np.bool_]:
     return obs[:, 19 + params.n_channels] > 0.5
 
 
+def frames_since_detection(params: GimbalParams, obs: FloatArray) -> NDArray[np.int64]:
+    """Frames since the track last measured the target, ``(n,)``, from observations or from
+    one gimbal's rows (the env observes them divided by ``reacquire_limit + 1``)."""
+    return np.rint(obs[:, 20 + params.n_channels] * (params.reacquire_limit + 1)).astype(np.int64)
+
+
 def aim_change(obs: FloatArray, level: FloatArray, attitude: FloatArray) -> FloatArray:
     """Body-frame angle change ``(n, 2)`` that points the gimbal at level angles ``level (n, 2)``
     seen from a carrier at ``attitude (n, 3)`` (azimuth wrapped)."""

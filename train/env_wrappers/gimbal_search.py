@@ -29,7 +29,12 @@ from numpy.typing import NDArray
 from stable_baselines3.common.vec_env import VecEnv
 
 from sensorgym.agents.gimbal_search import search_offsets
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
+from sensorgym.agents.gimbal_tracking import (
+    CarrierFeedForward,
+    TruthServo,
+    frames_since_detection,
+    rate_action,
+)
 from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
 from sensorgym.train.wrappers import ObservedActionWrapper, find_wrapper
 
@@ -72,15 +77,9 @@ class SearchOrderAction(ObservedActionWrapper):
         self.current = np.zeros(self.num_envs, dtype=np.int64)
         """Each slot's position of its current hop."""
 
-    def since(self, obs: FloatArray) -> NDArray[np.int64]:
-        """Frames since the last detection ``(n,)``, from the observation (observed divided by
-        ``reacquire_limit + 1``)."""
-        p = self.params
-        return np.rint(obs[:, 20 + p.n_channels] * (p.reacquire_limit + 1)).astype(np.int64)
-
     def searching(self, obs: FloatArray) -> NDArray[np.bool_]:
         """Whether each slot's gate searches ``(n,)``."""
-        return self.since(obs) >= self.params.search_after
+        return frames_since_detection(self.params, obs) >= self.params.search_after
 
     def env_action(self, actions: NDArray[Any], obs: NDArray[Any]) -> NDArray[Any]:
         score = np.asarray(actions, dtype=np.float64).reshape(self.num_envs, -1)
@@ -91,7 +90,9 @@ class SearchOrderAction(ObservedActionWrapper):
         if not np.all(np.isfinite(score)):
             raise ValueError("actions: contain NaN or infinite values")
         view = np.asarray(obs, dtype=np.float64)
-        into = self.since(view) - self.params.search_after  # frames into the search (< 0: none)
+        into = (
+            frames_since_detection(self.params, view) - self.params.search_after
+        )  # frames into the search (< 0: none)
         searching = into >= 0
         hop = np.maximum(into, 0) // self.dwell
         outward = searching & (hop % 2 == 1)  # even hops: back at the prediction
