@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import torch as th
+from paired import paired
 
 from sensorgym.train.env_wrappers.gimbal_search import SearchOrderAction, truth_hop
 from sensorgym.train.evaluation import evaluate, make_sb3_env
@@ -121,11 +122,6 @@ def closed_loop(policy_fn):
     stats = evaluate(policy_fn(env), env, EVAL_EPISODES, EVAL_SEED, tails=())
     env.close()
     return np.asarray(stats.returns)
-
-
-def paired(a, b):
-    d = a - b
-    return {"mean": float(d.mean()), "ci95": float(1.96 * d.std(ddof=1) / np.sqrt(len(d)))}
 
 
 def main():

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 from order_fit import ENV, N_ENVS, SHIPPED, WRAPPERS  # the same env, student and batch
+from paired import paired
 
 from sensorgym.train.env_wrappers.gimbal_search import SearchOrderAction
 from sensorgym.train.evaluation import evaluate, make_sb3_env
@@ -54,8 +55,8 @@ def main():
             out[key] = evaluate(Forgetting(env, k), env, EPISODES, SEED, tails=()).returns
             out[key] = np.asarray(out[key]).tolist()
             env.close()
-        d = np.asarray(out[key]) - base
-        print(f"{key}: {d.mean():+.1f} ± {1.96 * d.std(ddof=1) / np.sqrt(len(d)):.1f}", flush=True)
+        r = paired(out[key], base)
+        print(f"{key}: {r['paired']:+.1f} ± {r['ci95']:.1f}", flush=True)
         out_file.write_text(json.dumps(out) + "\n")
 
 

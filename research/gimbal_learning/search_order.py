@@ -18,30 +18,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from paired import compare
+from search_patterns import HALF_GATE, B, params, play, servo  # one loop, the same batch
 
 from sensorgym.agents.gimbal_search import FeedForwardSearch, search_offsets
-from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
-from sensorgym.envs.gimbal_tracking import simulation as core
-from sensorgym.envs.gimbal_tracking.simulation import GimbalParams
+from sensorgym.agents.gimbal_tracking import TruthServo, rate_action
 
-SEEDS, B, FRAMES = range(20, 24), 64, 500
-params = GimbalParams()
-HALF_GATE = 0.5 * params.gate_pixels * params.pixel_pitch
-servo = CarrierFeedForward(params)
+SEEDS = range(20, 24)
 rule = FeedForwardSearch(params)
-
-
-def play(policy, seed):
-    rng = np.random.default_rng(seed)
-    state = core.reset(params, rng, B)
-    alive, total = np.ones(B, bool), np.zeros(B)
-    policy.reset() if hasattr(policy, "reset") else None
-    for _ in range(FRAMES):
-        action = policy(core.observe(params, state).astype(np.float64), state)
-        state, reward, terminated = core.step(params, state, action[:, None, :], rng)
-        total += np.where(alive, reward, 0.0)
-        alive &= ~terminated
-    return total
 
 
 class Ordered:
@@ -111,11 +95,7 @@ if __name__ == "__main__":
     candidates["oracle order, 4 rings, no centre between"] = Ordered(
         ring, oracle_score(ring), between=False
     )
-    for name, policy in candidates.items():
-        d = np.concatenate([play(policy, seed) for seed in SEEDS]) - base
-        ci = 1.96 * d.std(ddof=1) / np.sqrt(d.size)
-        results[name] = {"paired": d.mean(), "ci95": ci}
-        print(f"{name:34s} paired {d.mean():+7.1f} ± {ci:5.1f}", flush=True)
+    results |= compare(candidates, base, play, SEEDS)
     out = Path(__file__).with_name("search_order.json")
     out.write_text(json.dumps({"seeds": list(SEEDS), "scenarios": B, "results": results}, indent=2))
     print("wrote", out)

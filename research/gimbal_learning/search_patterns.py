@@ -16,6 +16,7 @@ import json
 from pathlib import Path
 
 import numpy as np
+from paired import compare
 
 from sensorgym.agents.gimbal_search import FeedForwardSearch, search_offsets
 from sensorgym.agents.gimbal_tracking import CarrierFeedForward, TruthServo, rate_action
@@ -32,6 +33,8 @@ def play(policy, seed):
     rng = np.random.default_rng(seed)
     state = core.reset(params, rng, B)
     alive, total = np.ones(B, bool), np.zeros(B)
+    if hasattr(policy, "reset"):  # a policy with memory starts each batch afresh
+        policy.reset()
     for _ in range(FRAMES):
         action = policy(core.observe(params, state).astype(np.float64), state)
         state, reward, terminated = core.step(params, state, action[:, None, :], rng)
@@ -71,23 +74,20 @@ def plain(rings):
     return np.concatenate([np.zeros((1, 2)), ring])
 
 
-base = np.concatenate([play(lambda o, s: servo.act(o), seed) for seed in SEEDS])
-results = {"carrier-feedforward": {"mean": base.mean()}}
-candidates = {f"oracle after {k}": oracle(k) for k in (1, 25)}
-for name, pattern in {
-    "one ring": plain(1),
-    "two rings": plain(2),
-    "one ring, centre between": search_offsets(HALF_GATE, 1),
-    "two rings, centre between": search_offsets(HALF_GATE, 2),
-}.items():
-    for dwell in (1, 2, 3):
-        rule = Pattern(pattern, dwell)
-        candidates[f"{name}, dwell {dwell}"] = lambda o, s, rule=rule: rule.act(o)
-for name, policy in candidates.items():
-    d = np.concatenate([play(policy, seed) for seed in SEEDS]) - base
-    ci = 1.96 * d.std(ddof=1) / np.sqrt(d.size)
-    results[name] = {"paired": d.mean(), "ci95": ci}
-    print(f"{name:34s} paired {d.mean():+7.1f} ± {ci:5.1f}", flush=True)
-out = Path(__file__).with_name("search_patterns.json")
-out.write_text(json.dumps({"seeds": list(SEEDS), "scenarios": B, "results": results}, indent=2))
-print("wrote", out)
+if __name__ == "__main__":
+    base = np.concatenate([play(lambda o, s: servo.act(o), seed) for seed in SEEDS])
+    results = {"carrier-feedforward": {"mean": base.mean()}}
+    candidates = {f"oracle after {k}": oracle(k) for k in (1, 25)}
+    for name, pattern in {
+        "one ring": plain(1),
+        "two rings": plain(2),
+        "one ring, centre between": search_offsets(HALF_GATE, 1),
+        "two rings, centre between": search_offsets(HALF_GATE, 2),
+    }.items():
+        for dwell in (1, 2, 3):
+            rule = Pattern(pattern, dwell)
+            candidates[f"{name}, dwell {dwell}"] = lambda o, s, rule=rule: rule.act(o)
+    results |= compare(candidates, base, play, SEEDS)
+    out = Path(__file__).with_name("search_patterns.json")
+    out.write_text(json.dumps({"seeds": list(SEEDS), "scenarios": B, "results": results}, indent=2))
+    print("wrote", out)
